@@ -1,0 +1,65 @@
+"""Errors that s2cl raises on purpose.
+
+Every error a user can cause derives from :class:`S2CLError`; the CLI prints it as one
+line and exits non-zero. Messages name the file, the key and the allowed range.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class S2CLError(Exception):
+    """Base class: an error with a message meant for the user, not a traceback."""
+
+
+class InputError(S2CLError, ValueError):
+    """Bad input: a file, a key or a value outside its allowed range.
+
+    :param message: what is wrong and what is allowed.
+    :param source: file (or object) the value came from, if any.
+    :param key: dotted key or column name inside ``source``, if any.
+    """
+
+    def __init__(self, message: str, *, source: str | Path | None = None, key: str | None = None):
+        self.source = str(source) if source is not None else None
+        self.key = key
+        where = ""
+        if self.source and key:
+            where = f"{self.source}: {key}: "
+        elif self.source:
+            where = f"{self.source}: "
+        elif key:
+            where = f"{key}: "
+        super().__init__(where + message)
+
+
+class DeviceError(S2CLError):
+    """No OpenCL platform, or the requested device does not exist."""
+
+
+class BuildError(S2CLError):
+    """An OpenCL program failed to build.
+
+    Carries what is needed to reproduce it: template, device, options, the build log and
+    the path of the rendered source (so that the log's line numbers make sense).
+    """
+
+    def __init__(self, *, template: str, device: str, options: list[str], log: str, source_path: Path):
+        self.template = template
+        self.device = device
+        self.options = list(options)
+        self.log = log
+        self.source_path = source_path
+        super().__init__(
+            f"OpenCL build of {template} failed on {device} (options: {' '.join(options) or 'none'}); "
+            f"rendered source: {source_path}\n{log}"
+        )
+
+
+class RenderError(S2CLError):
+    """A kernel template failed to render (missing variable, syntax error)."""
+
+
+class DependencyError(S2CLError):
+    """An optional dependency is missing; the message says what to install."""
