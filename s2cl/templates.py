@@ -2,33 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.resources
 from functools import cache
-from pathlib import Path
 from typing import Any
 
 from mako.exceptions import text_error_template
 from mako.lookup import TemplateLookup
 
 from .errors import RenderError
-
-
-@cache
-def kernel_dir() -> Path:
-    """Directory of the OpenCL sources.
-
-    In an installed wheel they sit inside the package (``s2cl/kernels``, found through
-    :mod:`importlib.resources`); in a source checkout or editable install they are the
-    top-level ``kernels/`` next to the package. Never relative to the working directory.
-    """
-    candidates = [
-        Path(str(importlib.resources.files("s2cl") / "kernels")),
-        Path(__file__).resolve().parent.parent / "kernels",
-    ]
-    for path in candidates:
-        if (path / "common").is_dir():
-            return path
-    raise RenderError("s2cl's kernel sources are missing; looked in " + ", ".join(str(p) for p in candidates))
+from .resources import kernel_dir
 
 
 @cache

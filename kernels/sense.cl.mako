@@ -1,0 +1,71 @@
+<%doc>
+sense.cl.mako: the radiometric stage of the sensor, per pixel and band:
+  noise-free band radiance -> (+ Gaussian noise) -> (quantise to DN) -> (calibrate back to radiance)
+
+Template variables
+  args       list of s2cl.kernel_args.Arg (host binds the same list)
+  signature  function rendering args
+  n_bands    number of bands (unrolled)
+  band_ids   global index of each band: its noise is lane (id & 3) of Philox counter group (id >> 2),
+             so a band's noise does not depend on which other bands share the kernel
+  noise, quantise, calibrate   bools: which stages exist. A stage that is off has no code and no
+             arguments in the compiled kernel.
+Defines
+  S2_DOUBLE  float64 build
+Arguments (in order; see s2cl/sense.py)
+  (noise)     noisy       [n_bands x n_pixels] real_t  radiance with noise
+  (quantise)  dn          [n_bands x n_pixels] ushort  digital numbers
+  (quantise)  clipped     [2 x n_bands]        uint    counts below Lmin / above Lmax (atomic adds)
+  (calibrate) calibrated  [n_bands x n_pixels] real_t  radiance from DN
+              radiance    [n_bands x n_pixels] real_t  noise-free band radiance (input)
+  (noise)     noise_a, noise_b [n_bands] real_t   sigma^2 = a + b max(L, 0)  (width scaling applied)
+  (quantise)  lmin, lmax, scale [n_bands] real_t
+  (calibrate) gain        [n_bands] real_t
+  (noise)     seed, frame  uint    noise stream (see common/s2_random.clh)
+              pixel_offset uint    index of this chunk's first pixel (noise keys on the global index)
+  (quantise)  maxdn        uint    2^bits - 1
+              n_pixels     uint
+Units: radiance W m-2 sr-1 um-1 throughout.
+</%doc>
+#include "common/s2_real.clh"
+% if noise:
+#include "common/s2_random.clh"
+% endif
+% if quantise:
+#include "common/s2_quantise.clh"
+% endif
+
+__kernel void sense_bands(
+    ${signature(args)})
+{
+    const uint i = get_global_id(0);
+    if (i >= n_pixels)
+        return;
+% if noise:
+    const uint pixel = pixel_offset + i;
+  % for g in sorted({bid >> 2 for bid in band_ids}):
+    const real4_t z${g} = s2_normal4(seed, S2_TAG_SENSOR_NOISE, pixel, ${g}u, frame, 0u);
+  % endfor
+% endif
+% for k in range(n_bands):
+    {
+        const size_t at = (size_t)${k}u * n_pixels + i;
+        real_t L = radiance[at];
+  % if noise:
+        L += sqrt(noise_a[${k}] + noise_b[${k}] * fmax(L, S2_R(0.0))) * z${band_ids[k] >> 2}.s${band_ids[k] & 3};
+        noisy[at] = L;
+  % endif
+  % if quantise:
+        const uint q = s2_quantise(L, lmin[${k}], scale[${k}], maxdn);
+        dn[at] = (ushort)q;
+        if (!(L >= lmin[${k}]))
+            atomic_inc(&clipped[${k}]);
+        else if (L > lmax[${k}])
+            atomic_inc(&clipped[${n_bands + k}]);
+  % endif
+  % if calibrate:
+        calibrated[at] = s2_calibrate(q, lmin[${k}], gain[${k}]);
+  % endif
+    }
+% endfor
+}

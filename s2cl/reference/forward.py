@@ -1,0 +1,48 @@
+"""float64 numpy oracles of the forward chain: resampling, noise, quantisation, calibration."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sense import Radiometry
+from ..srf import BandWeights
+from .philox import sensor_noise
+
+
+def resample(spectra: np.ndarray, weights: list[BandWeights] | tuple[BandWeights, ...]) -> np.ndarray:
+    """Band values ``(n_bands, n_pixels)``: Σ w·spectrum over each band's support, float64."""
+    s = np.asarray(spectra, dtype=np.float64)
+    return np.stack([s[:, w.start : w.stop] @ w.weights for w in weights])
+
+
+def toa_radiance(rho: np.ndarray, path_radiance: np.ndarray, ground_term: np.ndarray,
+                 spherical_albedo: np.ndarray) -> np.ndarray:
+    """L = Lp + G·ρ / (1 − S·ρ) per wavelength (W m⁻² sr⁻¹ µm⁻¹), float64."""
+    rho = np.asarray(rho, dtype=np.float64)
+    return path_radiance + ground_term * rho / (1.0 - spherical_albedo * rho)
+
+
+def add_noise(radiance: np.ndarray, r: Radiometry, seed: int, pixel_offset: int = 0, frame: int = 0) -> np.ndarray:
+    """Radiance plus σ(L)·z with the kernel's counter-based normals."""
+    L = np.asarray(radiance, dtype=np.float64)
+    z = sensor_noise(seed, np.arange(L.shape[1]) + pixel_offset, r.band_ids, frame)
+    sigma = np.sqrt(r.noise_a[:, None] + r.noise_b[:, None] * np.maximum(L, 0.0))
+    return L + sigma * z
+
+
+def quantise(radiance: np.ndarray, r: Radiometry) -> tuple[np.ndarray, np.ndarray]:
+    """DN (uint16) with ties rounding up, and clipped counts ``(2, n_bands)`` (below Lmin, above Lmax)."""
+    L = np.asarray(radiance, dtype=np.float64)
+    x = (L - r.lmin[:, None]) * r.scale[:, None]
+    f = np.floor(np.where(np.isfinite(x), x, 0.0))
+    q = np.where(x - f >= 0.5, f + 1.0, f)
+    q = np.where(x > 0, q, 0.0)
+    dn = np.clip(q, 0, r.maxdn).astype(np.uint16)
+    low = ~(L >= r.lmin[:, None])
+    high = L > r.lmax[:, None]
+    return dn, np.stack([low.sum(axis=1), high.sum(axis=1)])
+
+
+def calibrate(dn: np.ndarray, r: Radiometry) -> np.ndarray:
+    """Radiance from DN: Lmin + DN · gain."""
+    return r.lmin[:, None] + np.asarray(dn, dtype=np.float64) * r.gain[:, None]

@@ -1,0 +1,306 @@
+"""Scenes: TOML files that say what to simulate and which effects run.
+
+A scene names its surface (a spectral library or an image cube), its sensor, the spectral grid,
+the effects of the chain (each can be switched off, and then costs nothing: it is not in the
+compiled kernel), and where the output goes. ``scenes/default.toml`` documents every key.
+Paths inside a scene are relative to the scene file. Unknown keys, wrong types and values out of
+range are errors that name the file, the key and the allowed range.
+"""
+
+from __future__ import annotations
+
+import difflib
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from .effects import EffectSet
+from .errors import InputError
+from .grid import SpectralGrid
+from .resources import scene_dir
+from .sensor import Sensor
+from .srf import DEFAULT_SUPPORT, load_srf_csv, measured_sentinel2_srf
+
+UINT32_MAX = 2**32 - 1
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SceneMeta(_Section):
+    name: str = Field(min_length=1, description="short name, used for the output folder")
+    description: str = ""
+
+
+class SurfaceSpec(_Section):
+    library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) library file")
+    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr)")
+    variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
+    gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
+    quantity: Literal["reflectance", "radiance"] = Field(
+        "radiance", description="what the spectra hold: TOA radiance (W m-2 sr-1 um-1) or surface reflectance"
+    )
+    copies: int = Field(100, ge=1, le=1_000_000, description="noisy copies of each library spectrum")
+    layout: Literal["rows", "blocks"] = Field("rows", description="image layout of the copies")
+
+
+class SensorSpec(_Section):
+    name: Literal["sentinel2"] | None = Field("sentinel2", description="built-in sensor (Table 1 of the paper)")
+    file: str | None = Field(None, description="sensor table CSV with the columns of the built-in one")
+    bands: list[str] | None = Field(None, min_length=1, description="subset of bands, in order")
+    srf: str = Field("model", description="'model' (paper eq. 1), 'measured-S2A', 'measured-S2B' or 'table:FILE.csv'")
+    support: float = Field(DEFAULT_SUPPORT, gt=0, le=5, description="model SRF support, ± this many FWHM")
+
+
+class GridSpec(_Section):
+    start_nm: float = Field(400.0, ge=200, le=3000)
+    stop_nm: float = Field(2500.0, ge=200, le=3000)
+    step_nm: float = Field(1.0, gt=0, le=50)
+
+
+class EffectsSpec(_Section):
+    atmosphere: bool = False
+    resample: bool = True
+    noise: bool = True
+    seed: int = Field(0, ge=0, le=UINT32_MAX)
+    frame: int = Field(0, ge=0, le=UINT32_MAX)
+    quantise: bool = True
+    bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
+    calibrate: bool = True
+
+
+class SpatialSpec(_Section):
+    psf: Literal["none", "gaussian"] = "none"
+    psf_fwhm: float = Field(1.0, gt=0, le=10, description="Gaussian PSF FWHM in units of the band's GSD")
+
+
+class OutputSpec(_Section):
+    directory: str | None = Field(None, description="output folder (default: s2cl-out/<scene name>)")
+    precision: Literal["float32", "float64"] = "float32"
+
+
+class SceneSpec(_Section):
+    scene: SceneMeta
+    surface: SurfaceSpec
+    sensor: SensorSpec = SensorSpec()
+    grid: GridSpec = GridSpec()
+    effects: EffectsSpec = EffectsSpec()
+    spatial: SpatialSpec = SpatialSpec()
+    output: OutputSpec = OutputSpec()
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated scene, ready to simulate."""
+
+    spec: SceneSpec
+    path: Path | None
+    grid: SpectralGrid
+    sensor: Sensor
+    effects: EffectSet
+    base_dir: Path = field(default_factory=Path.cwd)
+
+    @property
+    def name(self) -> str:
+        return self.spec.scene.name
+
+    @property
+    def source(self) -> str:
+        return str(self.path) if self.path else f"scene {self.name!r}"
+
+    @property
+    def output_dir(self) -> Path:
+        d = self.spec.output.directory
+        return self.resolve(d) if d else Path("s2cl-out") / self.name
+
+    def resolve(self, relative: str) -> Path:
+        """A path from the scene, relative to the scene file's folder."""
+        p = Path(relative).expanduser()
+        return p if p.is_absolute() else self.base_dir / p
+
+    @classmethod
+    def load(cls, scene: str | Path) -> Scene:
+        """Load a scene file, or a built-in scene by name (``default``; see :func:`builtin_scenes`)."""
+        path = find_scene(scene)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except tomllib.TOMLDecodeError as err:
+            raise InputError(f"not valid TOML: {err}", source=path) from err
+        except (OSError, UnicodeDecodeError) as err:
+            raise InputError(f"cannot read scene ({err})", source=path) from err
+        return cls.from_dict(data, path=path)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, path: Path | None = None, base_dir: Path | None = None) -> Scene:
+        """Validate a scene given as a dict (the parsed TOML)."""
+        source = str(path) if path else "scene"
+        try:
+            spec = SceneSpec.model_validate(data)
+        except ValidationError as err:
+            raise _input_error(err, source) from None
+        base = base_dir or (path.parent if path else Path.cwd())
+        grid = _grid(spec.grid, source)
+        sensor = _sensor(spec, base, source)
+        effects = _effects(spec, source)
+        _check_surface(spec, source)
+        if effects.resample:
+            for band in sensor.bands:
+                band.weights(grid, spec.sensor.support, source)
+        return cls(spec=spec, path=path, grid=grid, sensor=sensor, effects=effects, base_dir=base)
+
+
+def builtin_scenes() -> dict[str, Path]:
+    """Built-in scenes by name."""
+    return {p.stem: p for p in sorted(scene_dir().glob("*.toml"))}
+
+
+def find_scene(scene: str | Path) -> Path:
+    """A scene file path, or the built-in scene of that name."""
+    p = Path(scene)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise InputError("scene file not found", source=p)
+        return p
+    builtins = builtin_scenes()
+    if str(scene) in builtins:
+        return builtins[str(scene)]
+    raise InputError(
+        f"no scene file {str(scene)!r} and no built-in scene of that name; built-in: {', '.join(builtins)}"
+    )
+
+
+def _grid(g: GridSpec, source: str) -> SpectralGrid:
+    try:
+        return SpectralGrid(g.start_nm, g.stop_nm, g.step_nm)
+    except InputError as err:
+        raise InputError(str(err), source=source) from None
+
+
+def _sensor(spec: SceneSpec, base: Path, source: str) -> Sensor:
+    s = spec.sensor
+    if s.file:
+        sensor = Sensor.from_csv(_relative(base, s.file))
+    else:
+        sensor = Sensor.sentinel2()
+    if s.bands:
+        unknown = [b for b in s.bands if b.lower() not in {n.lower() for n in sensor.band_names}]
+        if unknown:
+            raise InputError(
+                f"unknown band(s) {', '.join(unknown)}; the sensor has {', '.join(sensor.band_names)}",
+                source=source, key="sensor.bands",
+            )
+        sensor = sensor.select(s.bands)
+    if spec.effects.bits is not None:
+        sensor = sensor.with_bits(spec.effects.bits)
+    return _with_srf(sensor, s.srf, base, source)
+
+
+def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
+    from dataclasses import replace
+
+    if srf == "model":
+        return sensor
+    if srf.startswith("measured-"):
+        platform = srf.split("-", 1)[1]
+        bands = tuple(replace(b, tabulated=measured_sentinel2_srf(platform, b.name)) for b in sensor.bands)
+        return replace(sensor, bands=bands)
+    if srf.startswith("table:"):
+        table = load_srf_csv(str(_relative(base, srf.split(":", 1)[1])))
+        missing = [b.name for b in sensor.bands if b.name not in table]
+        if missing:
+            raise InputError(f"SRF table lacks band(s) {', '.join(missing)}", source=source, key="sensor.srf")
+        return replace(sensor, bands=tuple(replace(b, tabulated=table[b.name]) for b in sensor.bands))
+    raise InputError(
+        f"unknown SRF {srf!r}; allowed: 'model', 'measured-S2A', 'measured-S2B', 'table:FILE.csv'",
+        source=source, key="sensor.srf",
+    )
+
+
+def _effects(spec: SceneSpec, source: str) -> EffectSet:
+    e = spec.effects
+    effects = EffectSet(atmosphere=e.atmosphere, resample=e.resample, noise=e.noise, quantise=e.quantise,
+                        calibrate=e.calibrate)
+    effects.validate(source)
+    if e.atmosphere and spec.surface.quantity != "reflectance":
+        raise InputError("atmosphere = true needs surface.quantity = 'reflectance'", source=source,
+                         key="effects.atmosphere")
+    if not e.atmosphere and spec.surface.quantity == "reflectance":
+        raise InputError(
+            "surface.quantity = 'reflectance' needs effects.atmosphere = true (the sensor sees TOA radiance)",
+            source=source, key="surface.quantity",
+        )
+    return effects
+
+
+def _check_surface(spec: SceneSpec, source: str) -> None:
+    s = spec.surface
+    if (s.library is None) == (s.cube is None):
+        raise InputError("give exactly one of surface.library or surface.cube", source=source, key="surface")
+    if s.cube is not None and s.gsd_m is None:
+        raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
+                         source=source, key="surface.gsd_m")
+
+
+def _relative(base: Path, name: str) -> Path:
+    p = Path(name).expanduser()
+    return p if p.is_absolute() else base / p
+
+
+def _input_error(err: ValidationError, source: str) -> InputError:
+    """The first validation problem as one line: file, dotted key, what is allowed."""
+    e = err.errors()[0]
+    loc = [str(x) for x in e["loc"]]
+    key = ".".join(loc)
+    if e["type"] == "extra_forbidden":
+        allowed = _allowed_keys(loc[:-1])
+        near = difflib.get_close_matches(loc[-1], allowed, n=1)
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        return InputError(f"unknown key{hint} allowed keys here: {', '.join(allowed)}", source=source, key=key)
+    if e["type"] == "missing":
+        return InputError("required key is missing", source=source, key=key)
+    got = e.get("input")
+    return InputError(f"{_allowed_text(e, loc)}, got {got!r}", source=source, key=key)
+
+
+_BOUNDS = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))
+
+
+def _allowed_text(e: dict[str, Any], loc: list[str]) -> str:
+    """'must be >= 1 and <= 16' from the field's declared range (not only the violated side)."""
+    info = _field(loc)
+    declared = []
+    for meta in getattr(info, "metadata", []):
+        for attr, sym in _BOUNDS:
+            if getattr(meta, attr, None) is not None:
+                declared.append(f"{sym} {getattr(meta, attr)}")
+    ctx = e.get("ctx") or {}
+    if declared and any(k in ctx for k, _ in _BOUNDS):
+        return "must be " + " and ".join(declared)
+    if "expected" in ctx:
+        return f"must be one of {ctx['expected']}"
+    return e["msg"].replace("Input should be", "must be")
+
+
+def _field(loc: list[str]) -> Any:
+    """The pydantic FieldInfo at a dotted location, or None."""
+    model: Any = SceneSpec
+    info = None
+    for part in loc:
+        fields = getattr(model, "model_fields", None)
+        if not fields or part not in fields:
+            return None
+        info = fields[part]
+        model = info.annotation
+    return info
+
+
+def _allowed_keys(loc: list[str]) -> list[str]:
+    if not loc:
+        return list(SceneSpec.model_fields)
+    info = _field(loc)
+    fields = getattr(getattr(info, "annotation", None), "model_fields", None)
+    return list(fields) if fields else []

@@ -1,0 +1,209 @@
+"""Simulate a scene: library spectra (× noisy copies) → band radiance → noise → DN → calibrated radiance."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import __version__
+from .effects import EffectSet
+from .errors import InputError
+from .library import SpectralLibrary
+from .resample import AtmosphereArrays, ResamplePlan, Resampler
+from .runtime import Runtime, get_runtime
+from .scene import Scene
+from .sense import Radiometry, SenseResult, Sensing
+from .sensor import Sensor
+from .srf import point_weights
+
+Progress = Callable[[int], None]
+
+
+@dataclass
+class LibrarySimulation:
+    """Result of simulating a spectral library with ``copies`` noisy copies per spectrum.
+
+    Arrays are ``(n_bands, n_spectra)`` for the noise-free band radiance and
+    ``(n_bands, n_spectra, copies)`` for the per-pixel outputs (None when the stage is off).
+    Radiance in W m⁻² sr⁻¹ µm⁻¹.
+    """
+
+    scene: str
+    sensor: Sensor
+    library: SpectralLibrary
+    copies: int
+    effects: EffectSet
+    band_radiance: np.ndarray
+    noisy: np.ndarray | None = None
+    dn: np.ndarray | None = None
+    calibrated: np.ndarray | None = None
+    clipped: np.ndarray | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_pixels(self) -> int:
+        return self.library.size * self.copies
+
+    @property
+    def sensed(self) -> np.ndarray:
+        """The last radiance of the chain: calibrated, else noisy, else noise-free (per pixel)."""
+        for a in (self.calibrated, self.noisy):
+            if a is not None:
+                return a
+        return np.repeat(self.band_radiance[:, :, None], self.copies, axis=2)
+
+    def summary(self) -> list[dict[str, Any]]:
+        """Per band: mean radiance, measured and modelled SNR, clipping, calibration error."""
+        rows = []
+        for k, band in enumerate(self.sensor.bands):
+            L = self.band_radiance[k].astype(np.float64)
+            row: dict[str, Any] = {
+                "band": band.name, "centre_nm": band.centre_nm, "fwhm_nm": band.fwhm_nm,
+                "mean_radiance": float(L.mean()),
+            }
+            if self.noisy is not None and self.copies > 1:
+                std = self.noisy[k].astype(np.float64).std(axis=1, ddof=1)
+                ok = std > 0
+                row["snr_measured_median"] = float(np.median(L[ok] / std[ok])) if ok.any() else float("nan")
+                row["snr_model_median"] = float(np.median(band.noise.snr(L, band.fwhm_nm)))
+            if self.clipped is not None:
+                row["clipped_low_pct"] = 100.0 * float(self.clipped[0, k]) / self.n_pixels
+                row["clipped_high_pct"] = 100.0 * float(self.clipped[1, k]) / self.n_pixels
+            if self.calibrated is not None:
+                err = self.calibrated[k].astype(np.float64) - L[:, None]
+                row["rms_error_vs_noise_free"] = float(np.sqrt(np.mean(err**2)))
+            rows.append(row)
+        return rows
+
+    def to_dataset(self, layout: str = "rows") -> Any:
+        """xarray Dataset: per-band images in the scene's layout plus the spectrum table."""
+        from .dataset import library_dataset
+
+        return library_dataset(self, layout)
+
+
+class Simulator:
+    """Compiled chain for one scene (or sensor + effects), reusable across inputs."""
+
+    def __init__(self, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
+                 precision: str = "float32", runtime: Runtime | None = None,
+                 atmosphere: AtmosphereArrays | None = None):
+        self.rt = runtime or get_runtime()
+        self.sensor, self.effects, self.precision = sensor, effects, precision
+        self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
+        self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere)
+        self.sensing = (
+            Sensing(self.rt, Radiometry.of(sensor.bands, sensor.bits), effects, precision) if effects.senses else None
+        )
+
+    @classmethod
+    def for_scene(cls, scene: Scene, *, runtime: Runtime | None = None,
+                  atmosphere: AtmosphereArrays | None = None) -> Simulator:
+        weights = [
+            b.weights(scene.grid, scene.spec.sensor.support, scene.source)
+            if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
+            for b in scene.sensor.bands
+        ]
+        return cls(scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.spec.output.precision,
+                   runtime=runtime, atmosphere=atmosphere)
+
+    def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
+        """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        return self.resampler(spectra)
+
+    def sense(self, radiance: np.ndarray, *, seed: int, frame: int = 0, pixel_offset: int = 0) -> SenseResult | None:
+        if self.sensing is None:
+            return None
+        return self.sensing(radiance, seed=seed, frame=frame, pixel_offset=pixel_offset)
+
+    def run_library(self, library: SpectralLibrary, *, copies: int, seed: int, frame: int = 0,
+                    scene: str = "", progress: Progress | None = None) -> LibrarySimulation:
+        """Simulate every spectrum ``copies`` times. Spectra are resampled once (copies share the
+        noise-free band radiance); pixel ``s · copies + c`` keys the noise of copy ``c`` of spectrum ``s``."""
+        if copies < 1:
+            raise InputError(f"copies must be >= 1, got {copies}", key="surface.copies")
+        t0 = time.perf_counter()
+        band_radiance = self.band_radiance(library.spectra)
+        seconds = {"resample": time.perf_counter() - t0}
+        result = LibrarySimulation(scene, self.sensor, library, copies, self.effects, band_radiance,
+                                   seconds=seconds)
+        if progress:
+            progress(0)
+        if self.sensing is not None:
+            t1 = time.perf_counter()
+            self._sense_library(result, seed, frame, progress)
+            seconds["sense"] = time.perf_counter() - t1
+        elif progress:
+            progress(result.n_pixels)
+        return result
+
+    def _sense_library(self, result: LibrarySimulation, seed: int, frame: int, progress: Progress | None) -> None:
+        nb, ns, c = self.sensor.size, result.library.size, result.copies
+        e = self.effects
+        dtype = result.band_radiance.dtype
+        result.noisy = np.empty((nb, ns, c), dtype) if e.noise else None
+        result.dn = np.empty((nb, ns, c), np.uint16) if e.quantise else None
+        result.calibrated = np.empty((nb, ns, c), dtype) if e.calibrate else None
+        result.clipped = np.zeros((2, nb), np.int64) if e.quantise else None
+        per_chunk = max(1, (1 << 20) // c)
+        for lo in range(0, ns, per_chunk):
+            hi = min(ns, lo + per_chunk)
+            expanded = np.repeat(result.band_radiance[:, lo:hi], c, axis=1)
+            out = self.sensing(expanded, seed=seed, frame=frame, pixel_offset=lo * c)
+            for name in ("noisy", "dn", "calibrated"):
+                part = getattr(out, name)
+                if part is not None:
+                    getattr(result, name)[:, lo:hi] = part.reshape(nb, hi - lo, c)
+            if out.clipped is not None:
+                result.clipped += out.clipped
+            if progress:
+                progress((hi - lo) * c)
+
+
+def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,
+             library: SpectralLibrary | None = None) -> LibrarySimulation:
+    """Simulate a library scene (see :class:`Scene`); ``library`` overrides the scene's surface."""
+    if not isinstance(scene, Scene):
+        scene = Scene.load(scene)
+    if scene.spec.surface.cube is not None:
+        raise InputError("this scene holds an image cube: use s2cl.cube.simulate_cube", source=scene.source)
+    rt = get_runtime(device)
+    lib = library if library is not None else scene_library(scene)
+    sim = Simulator.for_scene(scene, runtime=rt, atmosphere=scene_atmosphere(scene))
+    s = scene.spec
+    result = sim.run_library(lib, copies=s.surface.copies, seed=s.effects.seed, frame=s.effects.frame,
+                             scene=scene.name, progress=progress)
+    result.attrs.update(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
+                        device=rt.name, precision=s.output.precision, effects=scene.effects.describe(),
+                        seed=s.effects.seed, layout=s.surface.layout)
+    return result
+
+
+def scene_library(scene: Scene) -> SpectralLibrary:
+    """The scene's spectral library on the scene's grid."""
+    from .libraries import load_library
+
+    spec = scene.spec.surface.library
+    assert spec is not None
+    name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
+    lib = load_library(name, scene.grid, source=scene.source)
+    want = scene.spec.surface.quantity
+    if lib.quantity != want:
+        raise InputError(f"library {spec!r} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
+                         source=scene.source, key="surface.quantity")
+    return lib
+
+
+def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
+    """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
+    if not scene.effects.atmosphere:
+        return None
+    from .atmosphere import scene_terms
+
+    return scene_terms(scene)

@@ -1,0 +1,103 @@
+"""Resampling kernel against the float64 oracle, including hard shapes and the atmosphere effect.
+
+Tolerances: float32 sums of up to ~400 products of normalised weights (each < 1) and values
+of order 1–100: the rounding error bound is ~n·eps·max ≈ 400 · 6e-8 ≈ 2.4e-5 relative to the
+largest value; we require 2e-6 relative to each band's value scale (observed ~3e-7), and 1e-12
+for float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from s2cl.grid import DEFAULT_GRID, SpectralGrid
+from s2cl.reference import forward as ref
+from s2cl.resample import Resampler, ResamplePlan
+from s2cl.sensor import Sensor
+from s2cl.srf import band_weights, point_weights
+
+RTOL = {"float32": 2e-6, "float64": 1e-12}
+
+
+def _plan(grid: SpectralGrid = DEFAULT_GRID, bands=None) -> ResamplePlan:
+    s = Sensor.sentinel2()
+    weights = bands or [b.weights(grid) for b in s.bands]
+    names = tuple(f"b{k}" for k in range(len(weights)))
+    return ResamplePlan(names, tuple(weights), grid.size)
+
+
+def _spectra(n: int, grid: SpectralGrid = DEFAULT_GRID, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    smooth = np.cumsum(rng.normal(size=(n, grid.size)), axis=1) * 0.5
+    return 50.0 + smooth + rng.random((n, grid.size)) * 10
+
+
+def _check(out: np.ndarray, expected: np.ndarray, real_t: str) -> None:
+    scale = np.abs(expected).max(axis=1, keepdims=True) + 1e-300
+    err = np.abs(out.astype(np.float64) - expected) / scale
+    assert err.max() <= RTOL[real_t], f"max relative error {err.max():.3g}"
+
+
+@pytest.mark.parametrize("n", [1, 7, 301, 10007])
+def test_resample_matches_oracle(rt, real_t: str, n: int) -> None:
+    plan = _plan()
+    spectra = _spectra(n)
+    out = Resampler(rt, plan, real_t)(spectra)
+    expected = ref.resample(spectra.astype(np.dtype(real_t)), plan.weights)
+    _check(out, expected, real_t)
+
+
+def test_chunks_and_work_groups_give_identical_bits(rt) -> None:
+    plan = _plan()
+    spectra = _spectra(1000, seed=3)
+    r = Resampler(rt, plan)
+    base = r(spectra)
+    for chunk, local in ((37, None), (1000, 1), (256, 64)):
+        assert np.array_equal(r(spectra, chunk_pixels=chunk, local_size=local), base)
+
+
+@pytest.mark.parametrize(("centre", "fwhm"), [(1000.0, 1.0), (1000.0, 0.3), (1450.0, 1000.0), (401.0, 1.0)])
+def test_extreme_band_widths(rt, real_t: str, centre: float, fwhm: float) -> None:
+    w = band_weights(DEFAULT_GRID, name="x", centre_nm=centre, fwhm_nm=fwhm)
+    plan = _plan(bands=[w])
+    spectra = _spectra(50)
+    _check(Resampler(rt, plan, real_t)(spectra), ref.resample(spectra, plan.weights), real_t)
+
+
+def test_flat_spectrum_gives_its_value(rt, real_t: str) -> None:
+    plan = _plan()
+    out = Resampler(rt, plan, real_t)(np.full((5, DEFAULT_GRID.size), 0.3))
+    assert np.allclose(out, 0.3, rtol=RTOL[real_t] * 10, atol=0)
+
+
+def test_point_sampling_when_resampling_is_off(rt) -> None:
+    plan = _plan(bands=[point_weights(DEFAULT_GRID, c) for c in (443.0, 665.5, 2190.0)])
+    spectra = np.tile(DEFAULT_GRID.wavelengths, (4, 1))
+    assert np.allclose(Resampler(rt, plan, "float64")(spectra), [[443.0], [665.5], [2190.0]])
+
+
+def test_coarse_grid(rt) -> None:
+    grid = SpectralGrid(400, 2500, 5)
+    plan = _plan(grid)
+    spectra = _spectra(20, grid)
+    _check(Resampler(rt, plan, "float64")(spectra), ref.resample(spectra, plan.weights), "float64")
+
+
+class _Terms:
+    def __init__(self, n: int, rng: np.random.Generator):
+        self.path_radiance = rng.uniform(1, 60, n)
+        self.ground_term = rng.uniform(10, 150, n)
+        self.spherical_albedo = rng.uniform(0.02, 0.3, n)
+
+
+def test_atmosphere_effect_matches_oracle(rt, real_t: str) -> None:
+    rng = np.random.default_rng(5)
+    terms = _Terms(DEFAULT_GRID.size, rng)
+    plan = _plan()
+    rho = rng.uniform(0.0, 0.9, (300, DEFAULT_GRID.size))
+    out = Resampler(rt, plan, real_t, atmosphere=terms)(rho)
+    cast = np.dtype(real_t).type
+    toa = ref.toa_radiance(rho.astype(cast), terms.path_radiance.astype(cast), terms.ground_term.astype(cast),
+                           terms.spherical_albedo.astype(cast))
+    _check(out, ref.resample(toa, plan.weights), real_t)
