@@ -175,13 +175,24 @@ class Runtime:
         return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
 
     # -- buffers ---------------------------------------------------------------------------
+    @cached_property
+    def host_memory(self) -> bool:
+        """Whether the device works in host memory (CPU devices such as PoCL)."""
+        return "CPU" in self.info.kind
+
     def to_device(self, array: np.ndarray) -> Any:
-        """Copy a host array to a read-only device buffer (C-contiguous)."""
+        """A read-only device buffer holding ``array`` (made C-contiguous).
+
+        On CPU devices the buffer uses the host array in place (``USE_HOST_PTR``; pyopencl keeps
+        the array alive): copying 10⁵ spectra into fresh buffers costs ten times the kernel.
+        Elsewhere the data are copied.
+        """
         cl = _cl()
         host = np.ascontiguousarray(array)
         if host.nbytes == 0:
             host = np.zeros(1, dtype=host.dtype)
-        return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=host)
+        where = cl.mem_flags.USE_HOST_PTR if self.host_memory else cl.mem_flags.COPY_HOST_PTR
+        return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | where, hostbuf=host)
 
     def empty(self, nbytes: int) -> Any:
         """An uninitialised read-write device buffer of ``nbytes``."""

@@ -18,8 +18,8 @@ from s2cl.sensor import Sensor
 from s2cl.simulate import Simulator
 from s2cl.templates import render
 
-NOISE_MARKERS = ("s2_normal4", "philox", "noise_a", "seed")
-QUANTISE_MARKERS = ("s2_quantise", "maxdn", "dn[")
+NOISE_MARKERS = ("s2_normal4", "s2_random.clh", "noise_a", "seed")
+QUANTISE_MARKERS = ("s2_quantise", "s2_quantise.clh", "maxdn", "dn[")
 CALIBRATE_MARKERS = ("s2_calibrate", "gain[")
 
 
