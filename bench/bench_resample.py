@@ -12,13 +12,13 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-
 from common import machine_info, median_time, write_result
 
 
 def copy_bandwidth(rt, nbytes: int, repeat: int) -> float:
     """OpenCL device copy bandwidth (bytes read + written per second) with float8 loads/stores."""
-    src = "__kernel void copy8(__global float8 *o, __global const float8 *i) { size_t g = get_global_id(0); o[g] = i[g]; }"
+    src = ("__kernel void copy8(__global float8 *o, __global const float8 *i)"
+           " { size_t g = get_global_id(0); o[g] = i[g]; }")
     kernel = rt.kernel(rt.build(src, template="bench/copy8"), "copy8")
     n8 = nbytes // 32
     a, b = rt.zeros(n8 * 32), rt.empty(n8 * 32)
@@ -42,7 +42,7 @@ def main() -> None:
 
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference.forward import resample as ref_resample
-    from s2cl.resample import Resampler, ResamplePlan
+    from s2cl.resample import ResamplePlan, Resampler
     from s2cl.runtime import get_runtime
     from s2cl.sensor import Sensor
 

@@ -38,8 +38,15 @@ def progress_bar(total: int, label: str, enabled: bool = True) -> Iterator[Calla
     if not enabled:
         yield lambda n: None
         return
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TaskProgressColumn, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     columns = [TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), MofNCompleteColumn(),
                TextColumn("[cyan]{task.fields[rate]}"),
@@ -81,7 +88,8 @@ def simulate(scene: str, output: Path | None, device: str | None, quiet: bool) -
     """
     from .output import write_json, write_netcdf
     from .scene import Scene
-    from .simulate import scene_library, simulate as run
+    from .simulate import scene_library
+    from .simulate import simulate as run
 
     sc = Scene.load(scene)
     out = output or sc.output_dir

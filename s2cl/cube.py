@@ -108,7 +108,8 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
         return image
     rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
     if rows == 0 or cols == 0:
-        raise InputError(f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
+        raise InputError(
+            f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
     blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
 

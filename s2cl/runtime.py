@@ -162,7 +162,8 @@ class Runtime:
         except cl.Error as err:
             path = save_source(source, template)
             log = str(err)
-            raise BuildError(template=template, device=self.name, options=list(opts), log=log, source_path=path) from err
+            raise BuildError(template=template, device=self.name, options=list(opts), log=log,
+                             source_path=path) from err
         self._programs[key] = program
         return program
 

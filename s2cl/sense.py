@@ -132,7 +132,8 @@ class Sensing:
         if nb != self.radiometry.n_bands:
             raise InputError(f"radiance has {nb} bands, the sensor {self.radiometry.n_bands}")
         if pixel_offset + n > MAX_PIXELS:
-            raise InputError(f"at most {MAX_PIXELS} pixels per frame (noise counters are 32-bit), got {pixel_offset + n}")
+            raise InputError(
+                f"at most {MAX_PIXELS} pixels per frame (noise counters are 32-bit), got {pixel_offset + n}")
         for name, v in (("seed", seed), ("frame", frame)):
             if not 0 <= int(v) <= 2**32 - 1:
                 raise InputError(f"must be in 0–{2**32 - 1}, got {v}", key=f"effects.{name}")

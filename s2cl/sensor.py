@@ -113,7 +113,8 @@ class Sensor:
         if dupes:
             raise InputError(f"duplicate band names: {', '.join(dupes)}", source=self.source or None)
         if not (isinstance(self.bits, int) and 1 <= self.bits <= MAX_BITS):
-            raise InputError(f"bits must be an integer in 1–{MAX_BITS}, got {self.bits!r}", source=self.source or None, key="bits")
+            raise InputError(f"bits must be an integer in 1–{MAX_BITS}, got {self.bits!r}",
+                             source=self.source or None, key="bits")
         for b in self.bands:
             b.validate(self.source or None)
 
@@ -163,7 +164,8 @@ class Sensor:
         header, rows = read_csv_table(path)
         missing = [c for c in SENSOR_COLUMNS if c not in header]
         if missing:
-            raise InputError(f"missing columns: {', '.join(missing)} (expected {', '.join(SENSOR_COLUMNS)})", source=path)
+            raise InputError(f"missing columns: {', '.join(missing)} (expected {', '.join(SENSOR_COLUMNS)})",
+                             source=path)
         col = {c: header.index(c) for c in SENSOR_COLUMNS}
         bands = []
         for row in rows:

@@ -200,4 +200,5 @@ def measured_sentinel2_srf(platform: str, band: str) -> TabulatedResponse:
     wl = 1000.0 * (start_um + 0.0025 * np.arange(values.size))
     if abs(wl[-1] - 1000.0 * stop_um) > 1e-6:
         raise InputError(f"unexpected Py6S table layout for {platform} {band}", key="sensor.srf")
-    return TabulatedResponse(wl, np.clip(values, 0.0, None), origin=f"Py6S {platform}_MSI_{_S2_PY6S[band]} (ESA measured)")
+    origin = f"Py6S {platform}_MSI_{_S2_PY6S[band]} (ESA measured)"
+    return TabulatedResponse(wl, np.clip(values, 0.0, None), origin=origin)

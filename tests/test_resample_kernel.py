@@ -13,7 +13,7 @@ import pytest
 
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 from s2cl.reference import forward as ref
-from s2cl.resample import Resampler, ResamplePlan
+from s2cl.resample import ResamplePlan, Resampler
 from s2cl.sensor import Sensor
 from s2cl.srf import band_weights, point_weights
 

@@ -10,7 +10,7 @@ import pytest
 from s2cl.effects import EffectSet
 from s2cl.errors import InputError, RenderError
 from s2cl.grid import DEFAULT_GRID
-from s2cl.resample import Resampler, ResamplePlan
+from s2cl.resample import ResamplePlan, Resampler
 from s2cl.resources import kernel_dir
 from s2cl.scene import Scene, builtin_scenes
 from s2cl.sense import Radiometry, Sensing
