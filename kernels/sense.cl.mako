@@ -1,6 +1,7 @@
 <%doc>
 sense.cl.mako: the radiometric stage of the sensor, per pixel and band:
   noise-free band radiance -> (+ Gaussian noise) -> (quantise to DN) -> (calibrate back to radiance)
+  -> (atmospheric correction to band reflectance)
 
 Template variables
   args       list of s2cl.kernel_args.Arg (host binds the same list)
@@ -8,8 +9,8 @@ Template variables
   n_bands    number of bands (unrolled)
   band_ids   global index of each band: its noise is lane (id & 3) of Philox counter group (id >> 2),
              so a band's noise does not depend on which other bands share the kernel
-  noise, quantise, calibrate   bools: which stages exist. A stage that is off has no code and no
-             arguments in the compiled kernel.
+  noise, quantise, calibrate, correct   bools: which stages exist. A stage that is off has no code
+             and no arguments in the compiled kernel.
 Defines
   S2_DOUBLE  float64 build
 Arguments (in order; see s2cl/sense.py)
@@ -17,10 +18,13 @@ Arguments (in order; see s2cl/sense.py)
   (quantise)  dn          [n_bands x n_pixels] ushort  digital numbers
   (quantise)  clipped     [2 x n_bands]        uint    counts below Lmin / above Lmax (atomic adds)
   (calibrate) calibrated  [n_bands x n_pixels] real_t  radiance from DN
+  (correct)   reflectance [n_bands x n_pixels] real_t  band reflectance (see s2cl/correction.py)
               radiance    [n_bands x n_pixels] real_t  noise-free band radiance (input)
   (noise)     noise_a, noise_b [n_bands] real_t   sigma^2 = a + b max(L, 0)  (width scaling applied)
   (quantise)  lmin, lmax, scale [n_bands] real_t
   (calibrate) gain        [n_bands] real_t
+  (correct)   band_lp, band_g, band_s [n_bands] real_t  band-effective path radiance, ground term,
+              spherical albedo of the state assumed by the correction
   (noise)     seed, frame  uint    noise stream (see common/s2_random.clh)
               pixel_offset uint    index of this chunk's first pixel (noise keys on the global index)
   (quantise)  maxdn        uint    2^bits - 1
@@ -64,7 +68,15 @@ __kernel void sense_bands(
             atomic_inc(&clipped[${n_bands + k}]);
   % endif
   % if calibrate:
-        calibrated[at] = s2_calibrate(q, lmin[${k}], gain[${k}]);
+        L = s2_calibrate(q, lmin[${k}], gain[${k}]);
+        calibrated[at] = L;
+  % endif
+  % if correct:
+        {   /* y = (L - Lp) / G; rho = y / (1 + S y), denominator clamped to stay finite */
+            const real_t y = (L - band_lp[${k}]) / band_g[${k}];
+            const real_t d = S2_R(1.0) + band_s[${k}] * y;
+            reflectance[at] = y / (d > S2_R(1e-6) ? d : S2_R(1e-6));
+        }
   % endif
     }
 % endfor

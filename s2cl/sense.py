@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .correction import BandAtmosphere
 from .effects import EffectSet, build_options, real_dtype
 from .errors import DeviceError, InputError
 from .kernel_args import Arg, bind, signature
@@ -76,6 +77,7 @@ class SenseResult:
     dn: np.ndarray | None
     calibrated: np.ndarray | None
     clipped: np.ndarray | None
+    reflectance: np.ndarray | None = None
 
 
 def _args(effects: EffectSet) -> list[Arg]:
@@ -86,6 +88,8 @@ def _args(effects: EffectSet) -> list[Arg]:
         args += [Arg("dn", "out", "ushort"), Arg("clipped", "inout", "uint")]
     if effects.calibrate:
         args.append(Arg("calibrated", "out", "real_t"))
+    if effects.correct:
+        args.append(Arg("reflectance", "out", "real_t"))
     args.append(Arg("radiance", "in", "real_t"))
     if effects.noise:
         args += [Arg("noise_a", "in", "real_t"), Arg("noise_b", "in", "real_t")]
@@ -93,6 +97,8 @@ def _args(effects: EffectSet) -> list[Arg]:
         args += [Arg(n, "in", "real_t") for n in ("lmin", "lmax", "scale")]
     if effects.calibrate:
         args.append(Arg("gain", "in", "real_t"))
+    if effects.correct:
+        args += [Arg(n, "in", "real_t") for n in ("band_lp", "band_g", "band_s")]
     if effects.noise:
         args += [Arg("seed", "scalar", "uint"), Arg("frame", "scalar", "uint")]
     args.append(Arg("pixel_offset", "scalar", "uint"))
@@ -102,9 +108,14 @@ def _args(effects: EffectSet) -> list[Arg]:
 
 
 class Sensing:
-    """Compiled radiometric stage for a band count, an effect set and a precision."""
+    """Compiled radiometric stage for a band count, an effect set and a precision.
 
-    def __init__(self, rt: Runtime, radiometry: Radiometry, effects: EffectSet, real_t: str = "float32"):
+    :param correction: band-effective terms of the state assumed by the atmospheric correction
+        (needed when ``effects.correct``).
+    """
+
+    def __init__(self, rt: Runtime, radiometry: Radiometry, effects: EffectSet, real_t: str = "float32",
+                 correction: BandAtmosphere | None = None):
         if real_t == "float64" and not rt.has_fp64:
             raise DeviceError(f"{rt.name} has no float64 support (cl_khr_fp64); use precision = 'float32'")
         if not 1 <= radiometry.bits <= 16:
@@ -112,14 +123,19 @@ class Sensing:
         self.rt, self.radiometry, self.effects, self.real_t = rt, radiometry, effects, real_t
         self.dtype = real_dtype(real_t)
         self.args = _args(effects)
+        if effects.correct and (correction is None or correction.n_bands != radiometry.n_bands):
+            raise InputError("the correct effect needs band-effective atmospheric terms for every band")
         self.source = render(TEMPLATE, args=self.args, signature=signature, n_bands=radiometry.n_bands,
                              band_ids=list(radiometry.band_ids), noise=effects.noise,
-                             quantise=effects.quantise, calibrate=effects.calibrate)
+                             quantise=effects.quantise, calibrate=effects.calibrate, correct=effects.correct)
         program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))
         self.kernel = rt.kernel(program, "sense_bands")
         r = radiometry
         constants = {"noise_a": r.noise_a, "noise_b": r.noise_b, "lmin": r.lmin, "lmax": r.lmax,
                      "scale": r.scale, "gain": r.gain}
+        if effects.correct:
+            constants.update(band_lp=correction.path_radiance, band_g=correction.ground_term,
+                             band_s=correction.spherical_albedo)
         names = {a.name for a in self.args}
         self.constants_dev = {k: rt.to_device(v.astype(self.dtype)) for k, v in constants.items() if k in names}
 
@@ -143,6 +159,7 @@ class Sensing:
             dn=np.empty((nb, n), np.uint16) if e.quantise else None,
             calibrated=np.empty((nb, n), self.dtype) if e.calibrate else None,
             clipped=np.zeros((2, nb), np.int64) if e.quantise else None,
+            reflectance=np.empty((nb, n), self.dtype) if e.correct else None,
         )
         chunk = chunk_pixels or max(1, (64 * 2**20) // (nb * 8))
         for lo in range(0, n, chunk):
@@ -165,6 +182,8 @@ class Sensing:
             values["maxdn"] = self.radiometry.maxdn
         if self.effects.calibrate:
             outs["calibrated"] = rt.empty(nb * m * item)
+        if self.effects.correct:
+            outs["reflectance"] = rt.empty(nb * m * item)
         values.update(outs, pixel_offset=pixel_offset + lo, n_pixels=m)
         global_size = -(-m // (local_size or 1)) * (local_size or 1)
         self.kernel(rt.queue, (global_size,), (local_size,) if local_size else None,
@@ -174,5 +193,6 @@ class Sensing:
         if "dn" in outs:
             result.dn[:, lo:hi] = rt.fetch(outs["dn"], (nb, m), np.uint16)
             result.clipped += rt.fetch(outs["clipped"], (2, nb), np.uint32)
-        if "calibrated" in outs:
-            result.calibrated[:, lo:hi] = rt.fetch(outs["calibrated"], (nb, m), self.dtype)
+        for name in ("calibrated", "reflectance"):
+            if name in outs:
+                getattr(result, name)[:, lo:hi] = rt.fetch(outs[name], (nb, m), self.dtype)

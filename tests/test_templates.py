@@ -34,13 +34,13 @@ def test_kernel_dir_is_independent_of_cwd(tmp_path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert (kernel_dir() / "sense.cl.mako").is_file()
     assert "sense_bands" in render("sense.cl.mako", args=[], signature=lambda a: "", n_bands=1, band_ids=[0],
-                                   noise=False, quantise=False, calibrate=False)
+                                   noise=False, quantise=False, calibrate=False, correct=False)
 
 
 def test_missing_template_variable_is_an_error() -> None:
     with pytest.raises(RenderError) as err:
         render("sense.cl.mako", args=[], signature=lambda a: "", n_bands=1, noise=False, quantise=False,
-               calibrate=False)
+               calibrate=False, correct=False)
     assert "band_ids" in str(err.value)
 
 
