@@ -208,21 +208,29 @@ def _normalise_unit(unit: str | None, *, source: str, key: str) -> str | None:
 def _check_user_spectra(
     w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float
 ) -> None:
-    """Reject non-finite values, reflectance outside a plausible range, and gaps inside the grid."""
-    for i, row in enumerate(spectra):
+    """Reject non-finite values, reflectance outside a plausible range, and gaps inside the grid.
+
+    Only the samples that interpolation onto ``grid`` uses are checked (those inside the grid
+    and the one bracketing sample each side): a deleted value far outside the grid is harmless.
+    """
+    first = max(int(np.searchsorted(w_nm, grid.start_nm, side="right")) - 1, 0)
+    last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
+    used = slice(first, last + 1)
+    lo, hi = REFLECTANCE_RANGE
+    for i, row in enumerate(spectra[:, used]):
+        w = w_nm[used]
         bad = ~np.isfinite(row)
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
             raise InputError(
-                f"holds a non-finite value ({row[j]}) at {w_nm[j]:g} nm; spectra must be finite",
+                f"holds a non-finite value ({row[j]}) at {w[j]:g} nm; spectra must be finite",
                 source=source,
                 key=names[i],
             )
-        lo, hi = REFLECTANCE_RANGE
         if row.min() < lo or row.max() > hi:
             j = int(np.argmax((row < lo) | (row > hi)))
             raise InputError(
-                f"value {row[j]:g} at {w_nm[j]:g} nm is outside the reflectance range {lo:g}–{hi:g}; "
+                f"value {row[j]:g} at {w[j]:g} nm is outside the reflectance range {lo:g}–{hi:g}; "
                 "percent or integer-scaled data must be rescaled to 0–1 first (argument scale=…)",
                 source=source,
                 key=names[i],
@@ -349,22 +357,24 @@ def load_envi_library(
     ``path`` may name the header (``lib.hdr`` or ``lib.sli.hdr``) or the data file
     (``lib.sli``). Wavelength units come from the header's ``wavelength units`` (else
     ``wavelength_unit``, else detected); a ``reflectance scale factor`` is divided out,
-    and bands flagged bad in ``bbl`` are dropped (the gap check then applies).
+    values equal to ``data ignore value`` count as missing (an error where the grid needs
+    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies).
     """
     hdr, data = _envi_paths(Path(path))
     source = str(data)
     try:
         from spectral.io import envi
+        from spectral.utilities.errors import SpyException
     except ImportError as err:  # spectral is a core dependency, but say so clearly
         from .errors import DependencyError
 
         raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
     try:
         lib = envi.open(str(hdr), str(data))
-    except (OSError, ValueError, TypeError, KeyError, IndexError) as err:
+    except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__}: {err})", source=hdr) from err
-    meta = lib.metadata if hasattr(lib, "metadata") else {}
-    if meta.get("file type", "").strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
+    meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+    if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
     centers = lib.bands.centers
     if not centers:
@@ -372,17 +382,34 @@ def load_envi_library(
     unit = meta.get("wavelength units") or wavelength_unit
     w_nm = wavelengths_to_nm(np.asarray(centers, dtype=np.float64), unit, source=str(hdr), key="wavelength")
     spectra = np.asarray(lib.spectra, dtype=np.float64)
-    factor = float(meta.get("reflectance scale factor", 1.0) or 1.0)
+    factor = _header_float(meta, "reflectance scale factor", 1.0, hdr)
     if factor <= 0 or not np.isfinite(factor):
         raise InputError(f"must be > 0, got {factor}", source=hdr, key="reflectance scale factor")
+    if "data ignore value" in meta:
+        ignore = _header_float(meta, "data ignore value", np.nan, hdr)
+        # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
+        spectra = np.where(np.isclose(spectra, ignore, rtol=1e-6, atol=0.0), np.nan, spectra)
     spectra = spectra / factor
     if "bbl" in meta:
-        good = np.asarray([float(b) != 0.0 for b in meta["bbl"]])
+        try:
+            good = np.asarray([float(b) != 0.0 for b in meta["bbl"]])
+        except (TypeError, ValueError) as err:
+            raise InputError("must list numbers (1 good, 0 bad)", source=hdr, key="bbl") from err
         if good.size != w_nm.size:
             raise InputError(f"{good.size} entries for {w_nm.size} bands", source=hdr, key="bbl")
         w_nm, spectra = w_nm[good], spectra[:, good]
     names = [str(n).strip() for n in lib.names]
     return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm)
+
+
+def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
+    value = meta.get(key)
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return default
+    try:
+        return float(value)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"must be a number, got {value!r}", source=hdr, key=key) from err
 
 
 def _envi_paths(path: Path) -> tuple[Path, Path]:

@@ -68,6 +68,29 @@ class ProsailConstants:
     prospect_version: str = "D"
     factor: str = "SDR"
 
+    def validate(self, *, source: str | None = None, key: str = "prosail.constants") -> None:
+        """Raise :class:`InputError` for a value prosail would reject or misread."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("prospect_version", "factor", "typelidf"):
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise InputError(f"must be a finite number, got {value!r}", source=source, key=f"{key}.{f.name}")
+        checks = {
+            "prospect_version": (self.prospect_version in ("D", "5"), "'D' or '5'"),
+            "factor": (self.factor in ("SDR", "BHR", "DHR", "HDR"), "one of SDR, BHR, DHR, HDR"),
+            "typelidf": (self.typelidf in (1, 2), "1 (Verhoef bimodal) or 2 (ellipsoidal)"),
+            "n": (1.0 <= self.n <= 3.5, "in [1, 3.5]"),
+            "sza": (0.0 <= self.sza < 90.0, "in [0, 90) degrees"),
+            "vza": (0.0 <= self.vza < 90.0, "in [0, 90) degrees"),
+        }
+        for name, (ok, allowed) in checks.items():
+            if not ok:
+                raise InputError(f"must be {allowed}, got {getattr(self, name)!r}", source=source, key=f"{key}.{name}")
+        for name in ("car", "cbrown", "cm", "ant", "hspot"):
+            if getattr(self, name) < 0:
+                raise InputError(f"must be >= 0, got {getattr(self, name)}", source=source, key=f"{key}.{name}")
+
 
 # Allowed ranges (inclusive) for the varied parameters: PROSPECT/SAIL validity, not guesses of use.
 RANGES = {"cab": (0.0, 300.0), "lai": (0.0, 15.0), "ewt": (1.0, 2000.0)}
@@ -124,6 +147,7 @@ class VegetationSpec:
             if bad:
                 raise InputError(f"unknown keys {sorted(bad)}; allowed: {sorted(cnames)}", source=source, key=key)
             args["constants"] = ProsailConstants(**data["constants"])
+            args["constants"].validate(source=source, key=f"{key}.constants")
         if "cab" not in args or "lai" not in args:
             raise InputError("needs at least 'cab' and 'lai' value lists", source=source, key=key)
         spec = cls(**args)
@@ -131,7 +155,8 @@ class VegetationSpec:
         return spec
 
     def validate(self, *, source: str | None = None, key: str = "prosail") -> None:
-        """Raise :class:`InputError` for values outside :data:`RANGES` or unknown backgrounds."""
+        """Raise :class:`InputError` for values outside :data:`RANGES`, bad constants or unknown backgrounds."""
+        self.constants.validate(source=source, key=f"{key}.constants")
         for pname, (lo, hi) in RANGES.items():
             vals = np.asarray(getattr(self, pname), dtype=np.float64)
             if vals.size == 0 or not np.all(np.isfinite(vals)) or vals.min() < lo or vals.max() > hi:
