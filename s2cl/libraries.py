@@ -88,6 +88,7 @@ def load_library(
 
 
 def _load_builtin(name: str, grid: SpectralGrid, *, source: str | Path | None, key: str) -> SpectralLibrary:
+    name = name.strip().lower()
     if name.startswith("flat:"):
         try:
             values = [float(v) for v in name[len("flat:") :].split(",") if v.strip()]

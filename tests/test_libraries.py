@@ -26,6 +26,10 @@ def test_every_builtin_is_listed_with_a_description_and_loads():
             assert lib.size == EXPECTED_SIZES[name], name
 
 
+def test_builtin_names_ignore_case():
+    assert load_library("builtin:LIB1", DEFAULT_GRID).size == 120
+
+
 def test_flat_with_values():
     lib = load_library("builtin:flat:0.05, 0.3,0.6", DEFAULT_GRID)
     np.testing.assert_array_equal(lib.params["rho"], [0.05, 0.3, 0.6])
@@ -66,3 +70,5 @@ def test_builtin_respects_grid_limits():
         load_library("builtin:minerals-swir", DEFAULT_GRID)
     lib = load_library("builtin:minerals", SWIR)
     assert lib.spectra.shape == (8, SWIR.size)
+    swir = load_library("builtin:minerals-swir", SWIR)
+    assert swir.size == 24 and sorted(set(swir.groups)) == ["Al-OH", "Mg-OH/C-O"]
