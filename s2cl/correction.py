@@ -58,7 +58,8 @@ class BandAtmosphere:
     def reflectance(self, radiance: np.ndarray) -> np.ndarray:
         """Band reflectance from band radiance ``(n_bands, …)`` (float64 oracle of the kernel)."""
         shape = (-1,) + (1,) * (np.ndim(radiance) - 1)
-        y = (np.asarray(radiance, dtype=np.float64) - self.path_radiance.reshape(shape)) / self.ground_term.reshape(shape)
+        L = np.asarray(radiance, dtype=np.float64)
+        y = (L - self.path_radiance.reshape(shape)) / self.ground_term.reshape(shape)
         return y / np.maximum(1.0 + self.spherical_albedo.reshape(shape) * y, MIN_DENOMINATOR)
 
     def radiance(self, reflectance: np.ndarray) -> np.ndarray:

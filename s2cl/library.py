@@ -57,7 +57,8 @@ class SpectralLibrary:
         for key, values in self.params.items():
             arr = np.asarray(values)
             if arr.shape != (n,):
-                raise InputError(f"parameter has shape {arr.shape}, expected ({n},)", source=self.source or None, key=key)
+                raise InputError(f"parameter has shape {arr.shape}, expected ({n},)", source=self.source or None,
+                                 key=key)
             self.params[key] = arr
         if self.quantity not in QUANTITY_UNITS:
             raise InputError(f"quantity must be one of {sorted(QUANTITY_UNITS)}, got {self.quantity!r}")
@@ -86,7 +87,8 @@ class SpectralLibrary:
         if grid == self.grid:
             return self
         spectra = resample_to_grid(self.grid.wavelengths, self.spectra, grid, source=self.source or None)
-        return SpectralLibrary(grid, spectra, list(self.names), self.quantity, list(self.groups), dict(self.params), self.source)
+        return SpectralLibrary(grid, spectra, list(self.names), self.quantity, list(self.groups), dict(self.params),
+                               self.source)
 
     @staticmethod
     def concat(libraries: list[SpectralLibrary]) -> SpectralLibrary:
@@ -97,7 +99,8 @@ class SpectralLibrary:
                 raise InputError("cannot stack libraries on different grids or of different quantities")
         keys = sorted({k for lib in libraries for k in lib.params})
         params = {
-            k: np.concatenate([np.asarray(lib.params.get(k, np.full(lib.size, np.nan)), dtype=np.float64) for lib in libraries])
+            k: np.concatenate([np.asarray(lib.params.get(k, np.full(lib.size, np.nan)), dtype=np.float64)
+                               for lib in libraries])
             for k in keys
         }
         return SpectralLibrary(

@@ -33,7 +33,7 @@ def _bands():
 
 @pytest.mark.parametrize("rho", [0.1, 0.2])
 def test_flat_targets_round_trip_with_constant_terms(rho: float) -> None:
-    bands, weights = _bands()
+    _, weights = _bands()
     terms = _Terms(DEFAULT_GRID.size, spectral=False)
     toa = toa_radiance(np.full((1, DEFAULT_GRID.size), rho), terms.path_radiance, terms.ground_term,
                        terms.spherical_albedo)
@@ -42,7 +42,7 @@ def test_flat_targets_round_trip_with_constant_terms(rho: float) -> None:
 
 
 def test_band_averaging_residual_is_small_for_smooth_terms() -> None:
-    bands, weights = _bands()
+    _, weights = _bands()
     terms = _Terms(DEFAULT_GRID.size)
     toa = toa_radiance(np.full((1, DEFAULT_GRID.size), 0.2), terms.path_radiance, terms.ground_term,
                        terms.spherical_albedo)
