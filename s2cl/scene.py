@@ -71,6 +71,62 @@ class EffectsSpec(_Section):
     quantise: bool = True
     bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
     calibrate: bool = True
+    correct: bool = False
+
+
+class AtmosphereSpec(_Section):
+    """Atmospheric state (ranges are checked against the LUT's axes when it is read)."""
+
+    profile: Literal["midlatitude_summer", "midlatitude_winter"] = "midlatitude_summer"
+    water_vapour: float = Field(1.5, gt=0, description="water vapour column, g/cm2")
+    aot550: float | None = Field(None, ge=0, description="aerosol optical thickness at 550 nm (or visibility_km)")
+    visibility_km: float | None = Field(None, gt=0, description="horizontal visibility (default 23 km if no aot550)")
+    ozone: float = Field(330.0, gt=0, description="ozone column, DU")
+    solar_zenith: float = Field(40.0, ge=0, lt=90, description="degrees")
+    lut: str | None = Field(None, description="LUT file (default: the one shipped with s2cl)")
+    interpolation: Literal["linear", "nearest"] = "linear"
+
+
+class CorrectionSpec(_Section):
+    """The state the atmospheric correction assumes; keys not given are taken from [atmosphere]."""
+
+    profile: Literal["midlatitude_summer", "midlatitude_winter"] | None = None
+    water_vapour: float | None = Field(None, gt=0)
+    aot550: float | None = Field(None, ge=0)
+    visibility_km: float | None = Field(None, gt=0)
+    ozone: float | None = Field(None, gt=0)
+    solar_zenith: float | None = Field(None, ge=0, lt=90)
+    calibration_gain: float = Field(1.0, gt=0, le=10, description="factor applied to calibrated radiance "
+                                                                  "(1.05: a +5 % calibration error)")
+
+
+class RangeSpec(_Section):
+    """Where a band may move (nm): a window and a width range, or a fixed centre and width."""
+
+    left: float | None = None
+    right: float | None = None
+    min_width: float | None = Field(None, gt=0)
+    max_width: float | None = Field(None, gt=0)
+    centre: float | None = None
+    width: float | None = Field(None, gt=0)
+
+
+class SweepSpec(_Section):
+    bands: list[str] = Field(min_length=1, description="swept bands, in fit order")
+    preset: Literal["none", "table2"] = Field("none", description="take unlisted ranges from the paper's Table 2")
+    step_nm: float = Field(5.0, gt=0, le=100)
+    ranges: dict[str, RangeSpec] = Field(default_factory=dict)
+    chunk: int | None = Field(None, ge=1, le=1_000_000, description="configurations per chunk (default: auto)")
+
+
+class AnalysisSpec(_Section):
+    kind: Literal["igrm", "gvmi", "sam"]
+    parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
+    nir: str | None = Field(None, description="gvmi: the NIR band")
+    swir: str | None = Field(None, description="gvmi: the SWIR band")
+    classes: list[str] | None = Field(None, description="sam: library groups to tell apart (default: all)")
+    angle_threshold_deg: float | None = Field(None, gt=0, le=90, description="sam: larger angles are unclassified")
+    igrm: dict[str, Any] = Field(default_factory=dict, description="IGRM fit settings (see s2cl.igrm)")
 
 
 class SpatialSpec(_Section):
@@ -88,8 +144,12 @@ class SceneSpec(_Section):
     surface: SurfaceSpec
     sensor: SensorSpec = SensorSpec()
     grid: GridSpec = GridSpec()
+    atmosphere: AtmosphereSpec = AtmosphereSpec()
+    correction: CorrectionSpec = CorrectionSpec()
     effects: EffectsSpec = EffectsSpec()
     spatial: SpatialSpec = SpatialSpec()
+    analysis: AnalysisSpec | None = None
+    sweep: SweepSpec | None = None
     output: OutputSpec = OutputSpec()
 
 
@@ -147,6 +207,7 @@ class Scene:
         sensor = _sensor(spec, base, source)
         effects = _effects(spec, source)
         _check_surface(spec, source)
+        _check_atmosphere(spec, source)
         if effects.resample:
             for band in sensor.bands:
                 band.weights(grid, spec.sensor.support, source)
@@ -223,7 +284,7 @@ def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
 def _effects(spec: SceneSpec, source: str) -> EffectSet:
     e = spec.effects
     effects = EffectSet(atmosphere=e.atmosphere, resample=e.resample, noise=e.noise, quantise=e.quantise,
-                        calibrate=e.calibrate)
+                        calibrate=e.calibrate, correct=e.correct)
     effects.validate(source)
     if e.atmosphere and spec.surface.quantity != "reflectance":
         raise InputError("atmosphere = true needs surface.quantity = 'reflectance'", source=source,
@@ -243,6 +304,13 @@ def _check_surface(spec: SceneSpec, source: str) -> None:
     if s.cube is not None and s.gsd_m is None:
         raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
                          source=source, key="surface.gsd_m")
+
+
+def _check_atmosphere(spec: SceneSpec, source: str) -> None:
+    for section in ("atmosphere", "correction"):
+        a = getattr(spec, section)
+        if a.aot550 is not None and a.visibility_km is not None:
+            raise InputError("give aot550 or visibility_km, not both", source=source, key=f"{section}.aot550")
 
 
 def _relative(base: Path, name: str) -> Path:
@@ -290,6 +358,7 @@ def _field(loc: list[str]) -> Any:
     model: Any = SceneSpec
     info = None
     for part in loc:
+        model = _unwrap_optional(model)
         fields = getattr(model, "model_fields", None)
         if not fields or part not in fields:
             return None
@@ -302,5 +371,15 @@ def _allowed_keys(loc: list[str]) -> list[str]:
     if not loc:
         return list(SceneSpec.model_fields)
     info = _field(loc)
-    fields = getattr(getattr(info, "annotation", None), "model_fields", None)
+    fields = getattr(_unwrap_optional(getattr(info, "annotation", None)), "model_fields", None)
     return list(fields) if fields else []
+
+
+def _unwrap_optional(annotation: Any) -> Any:
+    """``X | None`` → ``X`` (for walking nested sections)."""
+    args = getattr(annotation, "__args__", None)
+    if args and type(None) in args:
+        rest = [a for a in args if a is not type(None)]
+        if len(rest) == 1:
+            return rest[0]
+    return annotation
