@@ -1,0 +1,42 @@
+"""Small sweeps for the engine tests (synthetic smooth atmospheric terms; the real ones come from
+the 6S LUT and are tested with the atmosphere)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from s2cl.analysis import AnalysisSettings
+from s2cl.libraries import load_library
+from s2cl.scene import Scene
+from s2cl.sweep import SweepJob
+from s2cl.sweep_tables import build_tables, sweep_space
+
+
+class Terms:
+    def __init__(self, n: int, scale: float = 1.0):
+        x = np.linspace(0, 1, n)
+        self.path_radiance = (40.0 - 35.0 * x) * scale
+        self.ground_term = (120.0 - 100.0 * x) * scale
+        self.spherical_albedo = 0.2 - 0.15 * x
+
+
+def gvmi_scene(copies: int = 20, b11_max_width: float = 150.0) -> Scene:
+    return Scene.from_dict({
+        "scene": {"name": "gvmi-test"},
+        "surface": {"library": "builtin:leaf-water", "quantity": "reflectance", "copies": copies},
+        "effects": {"atmosphere": True, "correct": True, "seed": 4},
+        "sweep": {"bands": ["B8", "B11"], "ranges": {
+            "B8": {"centre": 842, "width": 115},
+            "B11": {"left": 1500, "right": 1750, "min_width": 50, "max_width": b11_max_width}}},
+        "analysis": {"kind": "gvmi", "parameter": "ewt", "nir": "B8", "swir": "B11"},
+    })
+
+
+def gvmi_job(chunk: int = 5, copies: int = 20, backend: str = "numpy", b11_max_width: float = 150.0) -> SweepJob:
+    scene = gvmi_scene(copies, b11_max_width)
+    space = sweep_space(scene)
+    lib = load_library("builtin:leaf-water", scene.grid)
+    terms = Terms(scene.grid.size)
+    tables = build_tables(scene, space, lib, terms, terms, target=lib.params["ewt"])
+    analysis = AnalysisSettings.from_scene(scene, space.bands)
+    return SweepJob(tables, analysis, chunk=chunk, backend=backend, scene_name=scene.name)
