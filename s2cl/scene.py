@@ -101,12 +101,16 @@ class CorrectionSpec(_Section):
 
 
 class RangeSpec(_Section):
-    """Where a band may move (nm): a window and a width range, or a fixed centre and width."""
+    """Where a band may move (nm), one of: a window with a width range (left, right, min_width,
+    max_width: the paper's Table 2); a grid of centres × widths (centres, widths: lists, or
+    [first, last, step] with grid_step); or a fixed band (centre, width)."""
 
     left: float | None = None
     right: float | None = None
     min_width: float | None = Field(None, gt=0)
     max_width: float | None = Field(None, gt=0)
+    centres: list[float] | None = Field(None, min_length=1)
+    widths: list[float] | None = Field(None, min_length=1)
     centre: float | None = None
     width: float | None = Field(None, gt=0)
 

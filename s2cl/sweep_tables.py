@@ -27,7 +27,7 @@ from .reference.philox import sensor_noise
 from .resample import AtmosphereArrays
 from .scene import Scene
 from .sensor import Band
-from .variants import TABLE2, BandRange, SweepSpace
+from .variants import TABLE2, BandGrid, BandRange, SweepSpace
 
 
 def sweep_space(scene: Scene) -> SweepSpace:
@@ -45,16 +45,23 @@ def sweep_space(scene: Scene) -> SweepSpace:
                 continue
             raise InputError(f"no range for band {name}: give [sweep.ranges.{name}] or preset = 'table2'",
                              source=scene.source, key=f"sweep.ranges.{name}")
+        window = [v is not None for v in (r.left, r.right, r.min_width, r.max_width)]
+        if r.centres is not None or r.widths is not None:
+            if r.centres is None or r.widths is None or any(window) or r.centre is not None or r.width is not None:
+                raise InputError("a grid band gives centres and widths only", source=scene.source,
+                                 key=f"sweep.ranges.{name}")
+            ranges.append(BandGrid(band.name, tuple(r.centres), tuple(r.widths)))
+            continue
         if r.centre is not None or r.width is not None:
-            if r.centre is None or r.width is None or any(
-                    v is not None for v in (r.left, r.right, r.min_width, r.max_width)):
+            if r.centre is None or r.width is None or any(window):
                 raise InputError("a fixed band gives centre and width only", source=scene.source,
                                  key=f"sweep.ranges.{name}")
             ranges.append(BandRange.fixed(band.name, r.centre, r.width))
             continue
         missing = [k for k in ("left", "right", "min_width", "max_width") if getattr(r, k) is None]
         if missing:
-            raise InputError(f"missing {', '.join(missing)} (or give centre and width for a fixed band)",
+            raise InputError(f"missing {', '.join(missing)} (or give centres and widths for a grid, or centre and "
+                             "width for a fixed band)",
                              source=scene.source, key=f"sweep.ranges.{name}")
         ranges.append(BandRange(band.name, r.left, r.right, r.min_width, r.max_width, step_nm=spec.step_nm))
     unknown = set(spec.ranges) - set(spec.bands)

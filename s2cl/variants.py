@@ -90,10 +90,41 @@ class BandRange:
 
 
 @dataclass(frozen=True)
+class BandGrid:
+    """A band whose variants are every (centre, width) of two lists (nm), as in the paper's
+    Tables 4–6 (e.g. B4 centres 660–705 × widths 15–50)."""
+
+    band: str
+    centres: tuple[float, ...]
+    widths: tuple[float, ...]
+
+    def validate(self, source: str | None = None) -> None:
+        key = f"sweep.{self.band}"
+        values = self.centres + self.widths
+        if not self.centres or not self.widths:
+            raise InputError("needs at least one centre and one width", source=source, key=key)
+        if not all(math.isfinite(v) for v in values):
+            raise InputError("centres and widths must be finite", source=source, key=key)
+        if min(self.widths) <= 0:
+            raise InputError(f"widths must be > 0 nm, got {min(self.widths)}", source=source, key=key)
+        for name, seq in (("centres", self.centres), ("widths", self.widths)):
+            if len(set(seq)) != len(seq):
+                raise InputError(f"{name} hold duplicates", source=source, key=key)
+
+    @property
+    def is_fixed(self) -> bool:
+        return len(self.centres) == len(self.widths) == 1
+
+    def variants(self) -> np.ndarray:
+        """All (centre, width) pairs, ``(n, 2)``, widths outer, centres inner."""
+        return np.array([(c, w) for w in self.widths for c in self.centres], dtype=np.float64).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
 class SweepSpace:
     """The product of the band ranges: ``size`` configurations of one variant per band."""
 
-    ranges: tuple[BandRange, ...]
+    ranges: tuple[BandRange | BandGrid, ...]
 
     def validate(self, source: str | None = None) -> SweepSpace:
         if not self.ranges:

@@ -58,3 +58,16 @@ def test_bad_ranges(rng: BandRange, message: str) -> None:
 def test_duplicate_band() -> None:
     with pytest.raises(InputError, match="twice"):
         SweepSpace((BandRange("B4", 630, 690, 30, 50), BandRange("B4", 630, 690, 30, 50))).validate()
+
+
+def test_grid_band() -> None:
+    from s2cl.variants import BandGrid
+
+    g = BandGrid("B4", tuple(range(660, 706, 5)), (15, 20, 25, 30, 35, 40, 50))
+    space = SweepSpace((g,)).validate()
+    assert space.size == 70
+    assert space.per_band[0][0].tolist() == [660, 15] and space.per_band[0][-1].tolist() == [705, 50]
+    with pytest.raises(InputError, match="duplicates"):
+        BandGrid("B4", (660, 660), (15,)).validate()
+    with pytest.raises(InputError, match="> 0"):
+        BandGrid("B4", (660,), (0,)).validate()
