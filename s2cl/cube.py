@@ -18,6 +18,7 @@ import xarray as xr
 from scipy.ndimage import gaussian_filter
 
 from . import __version__
+from .correction import BandAtmosphere
 from .dataset import RADIANCE_UNITS, band_attrs
 from .errors import InputError
 from .grid import SpectralGrid, check_wavelengths
@@ -167,7 +168,12 @@ def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], ima
     result = None
     if scene.effects.senses:
         group_bands = [bands[k] for k in ids]
-        sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision)
+        correction = None
+        if sim.correction is not None:
+            c = sim.correction
+            correction = BandAtmosphere(c.path_radiance[ids], c.ground_term[ids], c.spherical_albedo[ids])
+        sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
+                          correction=correction)
         result = sensing(flat, seed=scene.spec.effects.seed, frame=scene.spec.effects.frame)
     for j, k in enumerate(ids):
         attrs = band_attrs(bands[k], scene.sensor.bits)
@@ -176,7 +182,8 @@ def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], ima
                                                              "long_name": "noise-free band radiance"})
         if result is None:
             continue
-        for var, units in (("noisy", RADIANCE_UNITS), ("dn", "1"), ("calibrated", RADIANCE_UNITS)):
+        for var, units in (("noisy", RADIANCE_UNITS), ("dn", "1"), ("calibrated", RADIANCE_UNITS),
+                           ("reflectance", "1")):
             arr = getattr(result, var)
             if arr is not None:
                 ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx), {**attrs, "units": units})

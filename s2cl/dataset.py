@@ -79,7 +79,8 @@ def library_dataset(sim: LibrarySimulation, layout: str = "rows") -> xr.Dataset:
     }
     for name, units, long_name in (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
                                    ("dn", "1", "digital numbers"),
-                                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN")):
+                                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
+                                   ("reflectance", "1", "band surface reflectance after atmospheric correction")):
         arr = getattr(sim, name)
         if arr is None:
             continue

@@ -24,6 +24,7 @@ class InputError(S2CLError, ValueError):
     def __init__(self, message: str, *, source: str | Path | None = None, key: str | None = None):
         self.source = str(source) if source is not None else None
         self.key = key
+        self.detail = message
         where = ""
         if self.source and key:
             where = f"{self.source}: {key}: "
@@ -32,6 +33,12 @@ class InputError(S2CLError, ValueError):
         elif key:
             where = f"{key}: "
         super().__init__(where + message)
+
+
+    def within(self, source: str | Path, section: str) -> InputError:
+        """The same error re-addressed to ``section.key`` of ``source`` (e.g. a scene file)."""
+        key = f"{section}.{self.key}" if self.key else section
+        return InputError(self.detail, source=source, key=key)
 
 
 class DeviceError(S2CLError):

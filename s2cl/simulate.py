@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
+from .correction import BandAtmosphere
 from .effects import EffectSet
 from .errors import InputError
 from .library import SpectralLibrary
@@ -42,6 +43,7 @@ class LibrarySimulation:
     noisy: np.ndarray | None = None
     dn: np.ndarray | None = None
     calibrated: np.ndarray | None = None
+    reflectance: np.ndarray | None = None
     clipped: np.ndarray | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
@@ -93,13 +95,15 @@ class Simulator:
 
     def __init__(self, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
                  precision: str = "float32", runtime: Runtime | None = None,
-                 atmosphere: AtmosphereArrays | None = None):
+                 atmosphere: AtmosphereArrays | None = None, correction: BandAtmosphere | None = None):
         self.rt = runtime or get_runtime()
         self.sensor, self.effects, self.precision = sensor, effects, precision
+        self.correction = correction
         self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
         self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere)
         self.sensing = (
-            Sensing(self.rt, Radiometry.of(sensor.bands, sensor.bits), effects, precision) if effects.senses else None
+            Sensing(self.rt, Radiometry.of(sensor.bands, sensor.bits), effects, precision, correction=correction)
+            if effects.senses else None
         )
 
     @classmethod
@@ -110,8 +114,14 @@ class Simulator:
             if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
             for b in scene.sensor.bands
         ]
+        correction = None
+        if scene.effects.correct:
+            from .scene_atmosphere import correction_terms
+
+            correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
+                scene.spec.correction.calibration_gain)
         return cls(scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.spec.output.precision,
-                   runtime=runtime, atmosphere=atmosphere)
+                   runtime=runtime, atmosphere=atmosphere, correction=correction)
 
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
         """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
@@ -150,13 +160,14 @@ class Simulator:
         result.noisy = np.empty((nb, ns, c), dtype) if e.noise else None
         result.dn = np.empty((nb, ns, c), np.uint16) if e.quantise else None
         result.calibrated = np.empty((nb, ns, c), dtype) if e.calibrate else None
+        result.reflectance = np.empty((nb, ns, c), dtype) if e.correct else None
         result.clipped = np.zeros((2, nb), np.int64) if e.quantise else None
         per_chunk = max(1, (1 << 20) // c)
         for lo in range(0, ns, per_chunk):
             hi = min(ns, lo + per_chunk)
             expanded = np.repeat(result.band_radiance[:, lo:hi], c, axis=1)
             out = self.sensing(expanded, seed=seed, frame=frame, pixel_offset=lo * c)
-            for name in ("noisy", "dn", "calibrated"):
+            for name in ("noisy", "dn", "calibrated", "reflectance"):
                 part = getattr(out, name)
                 if part is not None:
                     getattr(result, name)[:, lo:hi] = part.reshape(nb, hi - lo, c)
@@ -204,6 +215,6 @@ def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
     """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
     if not scene.effects.atmosphere:
         return None
-    from .atmosphere import scene_terms
+    from .scene_atmosphere import scene_terms
 
     return scene_terms(scene)

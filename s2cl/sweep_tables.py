@@ -164,7 +164,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
             sigma.append(np.sqrt(a + b * np.maximum(L, 0.0)))
             weights_all.append(weights)
             surface.append(rho[:, sl] @ weights.weights)
-        corr = BandAtmosphere.of(assumed, weights_all)
+        corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.spec.correction.calibration_gain)
         per_slot["centre"].append(variants[:, 0].copy())
         per_slot["width"].append(variants[:, 1].copy())
         per_slot["radiance"].append(np.array(radiance))

@@ -2,7 +2,8 @@
 "same sweep written as vectorised numpy" baseline of the benchmarks.
 
 Per configuration and pixel: gather noise-free band radiance and σ → add σ·z → quantise (ties
-up) → calibrate → × calibration gain → band-effective correction → the analysis.
+up) → calibrate → band-effective correction (a calibration error is folded into its terms) → the
+analysis.
 """
 
 from __future__ import annotations
@@ -62,7 +63,6 @@ def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.nda
         if t.quantise:
             gain = (t.lmax[k] - t.lmin[k]) / t.maxdn
             L = t.lmin[k] + quantise(L, t.lmin[k], t.lmax[k], t.maxdn) * gain
-        L = L * t.calibration_gain
         y = (L - t.lp[k][v][:, None]) / t.g[k][v][:, None]
         rhos.append(y / np.maximum(1.0 + t.s[k][v][:, None] * y, MIN_DENOMINATOR))
         centres[:, k] = t.centre[k][v]
