@@ -44,7 +44,7 @@ from .errors import InputError
 from .runtime import Runtime, get_runtime
 from .templates import render
 from .vecmath import EXP_DEGREE, exp_template_vars
-from .vectypes import VecTypes
+from .vectypes import VecTypes, pad_pixels
 
 PARAM_NAMES = ("rmax", "rmin", "l0", "s", "lp", "rms")
 
@@ -359,9 +359,7 @@ class IgrmFitter:
     def _fit_chunk(self, refl: np.ndarray, wl: np.ndarray) -> IgrmResult:
         n = refl.shape[1]
         lanes = self.types.lanes
-        pitch = max(-(-n // lanes) * lanes, lanes)
-        host = np.zeros((self.n_bands, pitch), dtype=self.types.dtype)
-        host[:, :n] = refl
+        host, pitch = pad_pixels(refl, lanes, self.types.dtype)
         rt = self.rt
         params_d = rt.empty(6 * pitch * self.types.dtype.itemsize)
         status_d = rt.empty(pitch)

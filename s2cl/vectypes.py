@@ -97,3 +97,16 @@ class VecTypes:
     def convert(self, target_base: str) -> str:
         """Name of the conversion function from ``M`` to ``target_base`` with lanes (``convert_uchar8``)."""
         return f"convert_{self.vec(target_base)}"
+
+
+def pad_pixels(rows: np.ndarray, lanes: int, dtype: np.dtype, fill: float = 0.0) -> tuple[np.ndarray, int]:
+    """``rows`` (n_rows, n_pixels) as a C-contiguous ``dtype`` array whose row length (the pitch)
+    is a multiple of ``lanes`` (at least ``lanes``), padded with ``fill``; no copy when it already is.
+    Returns (array, pitch)."""
+    n = rows.shape[1]
+    pitch = max(-(-n // lanes) * lanes, lanes)
+    if pitch == n and rows.dtype == dtype and rows.flags.c_contiguous:
+        return rows, pitch
+    host = np.full((rows.shape[0], pitch), fill, dtype=dtype)
+    host[:, :n] = rows
+    return host, pitch

@@ -150,7 +150,8 @@ def ldl4_solve(a: list[np.ndarray], b: list[np.ndarray], pivot_rel: float):
         l32 = t32 * i2
         d3 = a33 - l30 * a03 - l31 * t31 - l32 * t32
         i3 = 1.0 / d3
-        ok = (d0 > pivot_rel * a00) & (d0 > 0) & (d1 > pivot_rel * a11) & (d2 > pivot_rel * a22) & (d3 > pivot_rel * a33)
+        ok = ((d0 > pivot_rel * a00) & (d0 > 0) & (d1 > pivot_rel * a11) & (d2 > pivot_rel * a22)
+              & (d3 > pivot_rel * a33))
         z1 = b1 - l10 * b0
         z2 = b2 - l20 * b0 - l21 * z1
         z3 = b3 - l30 * b0 - l31 * z1 - l32 * z2

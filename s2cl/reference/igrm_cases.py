@@ -47,7 +47,7 @@ def box_resample(spectra: np.ndarray, names: tuple[str, ...], start_nm: float = 
     out = []
     for b in names:
         c, w = S2_RED_EDGE[b]
-        lo, hi = int(round(c - w / 2 - start_nm)), int(round(c + w / 2 - start_nm))
+        lo, hi = round(c - w / 2 - start_nm), round(c + w / 2 - start_nm)
         out.append(spectra[:, lo:hi + 1].mean(axis=1))
     return np.array(out)
 
@@ -61,10 +61,10 @@ def prosail_canopies(cab: np.ndarray, lai: np.ndarray) -> np.ndarray:
         raise DependencyError("PROSAIL spectra need the `prosail` package: pip install prosail") from err
     p = PROSAIL_FIXED
     return np.array([
-        prosail.run_prosail(p["n"], float(c), p["car"], p["cbrown"], p["cw"], p["cm"], float(l), p["lidfa"],
+        prosail.run_prosail(p["n"], float(c), p["car"], p["cbrown"], p["cw"], p["cm"], float(leaf_area), p["lidfa"],
                             p["hspot"], p["tts"], p["tto"], p["psi"], prospect_version="D",
                             rsoil=p["rsoil"], psoil=p["psoil"])
-        for c, l in zip(np.atleast_1d(cab), np.atleast_1d(lai), strict=True)
+        for c, leaf_area in zip(np.atleast_1d(cab), np.atleast_1d(lai), strict=True)
     ])
 
 
