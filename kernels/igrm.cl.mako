@@ -1,0 +1,80 @@
+<%doc>
+igrm.cl.mako: one IGRM fit (Segl et al. 2012, eq. 2) per pixel, T.lanes pixels per work-item.
+The fit itself is s2_igrm_fit_igrm from common/igrm_lm.mako (reusable in fused kernels); this
+file only loads, calls and stores.
+
+Template variables
+  T      s2cl.vectypes.VecTypes: precision (float32/float64) and lanes (8 on PoCL CPU, 1 on GPUs)
+  T1     the same precision with one lane (scalar helpers of the grid initial guess)
+  c      s2cl.igrm.KernelConfig: n_bands, bounds, tolerances, loss, initial guess, iteration
+         limit, exp choice ("poly": own polynomial, "builtin": OpenCL exp), normalisation xc/xw
+  exp_coef, exp_consts   s2cl.vecmath.exp_template_vars(...) (used when c.exp == "poly")
+  iter_t "uchar" when c.max_iter <= 255, else "ushort"
+Defines: none (everything scene-fixed is a rendered literal).
+Arguments (outputs first; all arrays structure-of-arrays, pixel index fastest)
+  params      out [6][pitch] real   rmax, rmin, l0 [nm], s [nm], lp [nm], rms residual
+  status      out [pitch] uchar     0 converged, 1 iteration limit, 2 degenerate, 3 invalid input
+  iterations  out [pitch] iter_t    LM trial steps
+  bounds      out [pitch] uchar     active-bound bits (see common/igrm_lm.mako)
+  refl        in  [n_bands][pitch] real  band reflectance
+  wavelength  in  [n_bands] real    band centres, nm (the fit's x values, same for all pixels)
+  pitch       int                   elements per band row; a multiple of T.lanes
+Global size: pitch / T.lanes work-items (the host pads pixels to a multiple of T.lanes).
+</%doc>
+<%namespace name="vm" file="common/vecmath.mako"/>
+<%namespace name="lm" file="common/igrm_lm.mako"/>
+<%def name="ptr(base, plane, const)">\
+% if T.lanes == 1:
+(${base} + ${plane} * pitch)[gid]\
+% else:
+((__global ${"const " if const else ""}${T.V} *)(${base} + ${plane} * pitch))[gid]\
+% endif
+</%def>
+<%def name="store_int(base, ctype, value)">\
+% if T.lanes == 1:
+${base}[gid] = (${ctype})(${value});
+% else:
+((__global ${T.vec(ctype)} *)${base})[gid] = ${T.convert(ctype)}(${value});
+% endif
+</%def>
+% if T.double:
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+% endif
+% if c.exp == "poly":
+${vm.exp_neg(T, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts["ln2_lo"], exp_consts["magic"])}
+  % if c.init == "grid" and T.lanes != 1:
+${vm.exp_neg(T1, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts["ln2_lo"], exp_consts["magic"])}
+  % endif
+% endif
+% if c.loss == "soft_l1":
+${vm.rsqrt(T)}
+% endif
+${vm.ldl4_solve(T, c.pivot_rel)}
+${lm.igrm_fit(T, c, "igrm", T1)}
+
+__kernel void igrm_fit(
+    __global ${T.R} *restrict params,
+    __global uchar *restrict status,
+    __global ${iter_t} *restrict iterations,
+    __global uchar *restrict bounds,
+    __global const ${T.R} *restrict refl,
+    __global const ${T.R} *restrict wavelength,
+    const int pitch)
+{
+    const int gid = get_global_id(0);
+    ${T.R} wl[${c.n_bands}];
+    ${T.V} y[${c.n_bands}];
+% for i in range(c.n_bands):
+    wl[${i}] = wavelength[${i}];
+    y[${i}] = ${ptr("refl", i, True)};
+% endfor
+    ${T.V} out[6];
+    ${T.M} st, it, bd;
+    s2_igrm_fit_igrm(y, wl, out, &st, &it, &bd);
+% for k in range(6):
+    ${ptr("params", k, False)} = out[${k}];
+% endfor
+    ${store_int("status", "uchar", "st")}
+    ${store_int("iterations", iter_t, "it")}
+    ${store_int("bounds", "uchar", "bd")}
+}

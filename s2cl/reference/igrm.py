@@ -1,0 +1,337 @@
+"""Oracles and baselines for the IGRM fit (``s2cl/igrm.py``, ``kernels/common/igrm_lm.mako``).
+
+* :func:`fit_scipy`: the oracle: ``scipy.optimize.least_squares`` (trust-region reflective,
+  analytic Jacobian) per pixel, float64, same bounds, loss and initial guess as the kernel.
+* :func:`fit_numpy_lm`: the same bounded Levenberg-Marquardt as the kernel, vectorised over
+  pixels with numpy (closed-form LDL^T 4x4 solve, finished pixels dropped from the work set):
+  the baseline of ``bench/bench_igrm.py`` and an independent twin of the kernel's logic.
+* :func:`initial_guess`: the kernel's deterministic initial guesses, in numpy.
+
+Parameters are handled as in the kernel: ``p = (rmin, depth = rmax - rmin, L = (l0 - xc)/xw,
+S = s/xw)`` with :func:`s2cl.igrm.kernel_config` giving ``xc``, ``xw`` and the normalised bounds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..igrm import FitStatus, IgrmResult, IgrmSettings, KernelConfig, kernel_config
+
+
+def model(wavelengths_nm: np.ndarray, rmax, rmin, l0, s) -> np.ndarray:
+    """IGRM reflectance (paper eq. 2) at ``wavelengths_nm`` (n_bands,) for parameter arrays
+    of shape (n,): returns (n_bands, n) float64."""
+    w = np.asarray(wavelengths_nm, dtype=np.float64)[:, None]
+    rmax, rmin, l0, s = (np.asarray(v, dtype=np.float64) for v in (rmax, rmin, l0, s))
+    return rmax - (rmax - rmin) * np.exp(-((w - l0) ** 2) / (2.0 * s**2))
+
+
+def _normalise(wavelengths_nm: np.ndarray, c: KernelConfig, dtype) -> np.ndarray:
+    return ((np.asarray(wavelengths_nm, dtype=np.float64) - c.xc) / c.xw).astype(dtype)
+
+
+def _valid(y: np.ndarray, c: KernelConfig) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        return np.all((y <= c.max_abs) & (y >= -c.max_abs), axis=0)
+
+
+def initial_guess(y: np.ndarray, x: np.ndarray, c: KernelConfig) -> tuple[np.ndarray, ...]:
+    """The kernel's initial guess (rmin, depth, L, S) and the data depth, in ``y``'s dtype.
+
+    :param y: (n_bands, n) reflectance, invalid pixels already replaced by 0.
+    :param x: (n_bands,) normalised wavelengths.
+    """
+    if c.init == "grid":
+        return _init_grid(y, x, c)
+    return _init_data(y, x, c)
+
+
+def _init_data(y: np.ndarray, x: np.ndarray, c: KernelConfig):
+    dt = y.dtype.type
+    imin = np.argmin(y, axis=0)
+    ymin = y.min(axis=0)
+    ymax = y.max(axis=0)
+    xmin = x[imin]
+    depth = ymax - ymin
+    yhalf = ymin + depth * dt(0.5)
+    xhalf = np.zeros_like(ymin)
+    found = np.zeros(y.shape[1], dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(1, y.shape[0]):
+            cross = ~found & (xmin <= x[i - 1]) & (y[i - 1] < yhalf) & (y[i] >= yhalf)
+            xi = x[i - 1] + (yhalf - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1])
+            xhalf = np.where(cross, xi, xhalf)
+            found |= cross
+    p2 = np.clip(xmin, dt(c.lo_l), dt(c.hi_l))
+    p3 = np.where(found, (xhalf - p2) * dt(1.0 / np.sqrt(2.0 * np.log(2.0))), dt(c.s_guess))
+    p3 = np.clip(p3, dt(c.lo_s), dt(c.hi_s)).astype(y.dtype)
+    p0 = np.maximum(ymin, dt(c.rmin_lo))
+    return p0, ymax - p0, p2.astype(y.dtype), p3, depth
+
+
+def _init_grid(y: np.ndarray, x: np.ndarray, c: KernelConfig):
+    dt = y.dtype.type
+    nb = y.shape[0]
+    sy = y.sum(axis=0)
+    syy = (y * y).sum(axis=0)
+    depth = y.max(axis=0) - y.min(axis=0)
+    best = np.full(y.shape[1], np.inf, dtype=y.dtype)
+    p0, p1 = sy / dt(nb), np.zeros_like(sy)
+    p2 = np.full_like(sy, dt(c.grid_l[0]))
+    p3 = np.full_like(sy, dt(c.grid_s[0]))
+    for gl in c.grid_l:
+        for gs in c.grid_s:
+            g = np.exp(((x - dt(gl)) * dt(1.0 / gs)) ** 2 * dt(-0.5)).astype(y.dtype)
+            sg, sgg = g.sum(), (g * g).sum()
+            den = sgg - sg * sg / dt(nb)
+            if not den > dt(1e-12 if y.dtype == np.float64 else 1e-6) * sgg:
+                continue
+            sgy = g @ y
+            d = np.maximum((sy * sg / dt(nb) - sgy) / den, dt(0.0))
+            rm = (sy + d * sg) / dt(nb)
+            cost = syy - 2 * rm * sy + 2 * d * sgy + nb * rm * rm - 2 * rm * d * sg + d * d * sgg
+            better = cost < best
+            best = np.where(better, cost, best)
+            p0 = np.where(better, rm, p0)
+            p1 = np.where(better, d, p1)
+            p2 = np.where(better, dt(gl), p2)
+            p3 = np.where(better, dt(gs), p3)
+    p0 = p0 - p1
+    p1 = np.maximum(np.where(p0 < dt(c.rmin_lo), p1 + p0 - dt(c.rmin_lo), p1), dt(0.0))
+    p0 = np.maximum(p0, dt(c.rmin_lo))
+    return p0, p1, p2, p3, depth
+
+
+def _evaluate(y, x, q0, q1, q2, q3, c: KernelConfig):
+    """Cost, RSS, upper triangle of J^T W J (10) and J^T W r (4) at (q0..q3); (nb, m) work."""
+    dt = y.dtype.type
+    inv_s = dt(1.0) / q3
+    t = (x[:, None] - q2) * inv_s
+    g = np.exp(t * t * dt(-0.5))
+    h = dt(1.0) - g
+    r = (q0 + q1) - q1 * g - y
+    w1 = q1 * g * inv_s * t
+    w2 = w1 * t
+    rss = np.einsum("ij,ij->j", r, r)
+    if c.loss == "soft_l1":
+        z = r * r / dt(c.f_scale**2)
+        w = dt(1.0) / np.sqrt(dt(1.0) + z)
+        f = dt(2.0 * c.f_scale**2) * (z / (np.sqrt(dt(1.0) + z) + dt(1.0))).sum(0)
+        a00 = w.sum(0)
+        wh, w1w, w2w = w * h, w * w1, w * w2
+    else:
+        f = rss
+        a00 = np.full_like(q0, dt(y.shape[0]))
+        wh, w1w, w2w = h, w1, w2
+    a = [a00, wh.sum(0), -w1w.sum(0), -w2w.sum(0),
+         np.einsum("ij,ij->j", wh, h), -np.einsum("ij,ij->j", wh, w1), -np.einsum("ij,ij->j", wh, w2),
+         np.einsum("ij,ij->j", w1w, w1), np.einsum("ij,ij->j", w1w, w2), np.einsum("ij,ij->j", w2w, w2)]
+    wr = r if c.loss == "linear" else r * w
+    b = [wr.sum(0), np.einsum("ij,ij->j", h, wr), -np.einsum("ij,ij->j", w1, wr), -np.einsum("ij,ij->j", w2, wr)]
+    return f, rss, a, b
+
+
+def ldl4_solve(a: list[np.ndarray], b: list[np.ndarray], pivot_rel: float):
+    """Batched LDL^T solve of the symmetric 4x4 systems (upper triangle ``a``, 10 arrays) as in
+    ``vecmath.ldl4_solve``: returns (x0..x3, ok)."""
+    a00, a01, a02, a03, a11, a12, a13, a22, a23, a33 = a
+    b0, b1, b2, b3 = b
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d0 = a00
+        i0 = 1.0 / d0
+        l10, l20, l30 = a01 * i0, a02 * i0, a03 * i0
+        d1 = a11 - l10 * a01
+        i1 = 1.0 / d1
+        t21, t31 = a12 - l20 * a01, a13 - l30 * a01
+        l21, l31 = t21 * i1, t31 * i1
+        d2 = a22 - l20 * a02 - l21 * t21
+        i2 = 1.0 / d2
+        t32 = a23 - l30 * a02 - l31 * t21
+        l32 = t32 * i2
+        d3 = a33 - l30 * a03 - l31 * t31 - l32 * t32
+        i3 = 1.0 / d3
+        ok = ((d0 > pivot_rel * a00) & (d0 > 0) & (d1 > pivot_rel * a11) & (d2 > pivot_rel * a22)
+              & (d3 > pivot_rel * a33))
+        z1 = b1 - l10 * b0
+        z2 = b2 - l20 * b0 - l21 * z1
+        z3 = b3 - l30 * b0 - l31 * z1 - l32 * z2
+        x3 = z3 * i3
+        x2 = z2 * i2 - l32 * x3
+        x1 = z1 * i1 - l21 * x2 - l31 * x3
+        x0 = b0 * i0 - l10 * x1 - l20 * x2 - l30 * x3
+    zero = np.zeros_like(b0)
+    return [np.where(ok, v, zero) for v in (x0, x1, x2, x3)], ok
+
+
+def fit_numpy_lm(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *,
+                 dtype=np.float32, chunk: int = 65536) -> IgrmResult:
+    """The kernel's bounded LM in vectorised numpy (``dtype`` arithmetic), ``chunk`` pixels at a time."""
+    settings = settings or IgrmSettings()
+    refl = np.asarray(refl)
+    nb, n = refl.shape
+    c = kernel_config(settings, nb, np.dtype(dtype).name)
+    x = _normalise(wavelengths_nm, c, dtype)
+    parts = [_lm_chunk(np.ascontiguousarray(refl[:, i:i + chunk], dtype=dtype), x, c) for i in range(0, n, chunk)]
+    if not parts:
+        parts = [_lm_chunk(np.zeros((nb, 0), dtype=dtype), x, c)]
+    return IgrmResult(*(np.concatenate([p[k] for p in parts]) for k in range(9)))
+
+
+def _lm_chunk(y: np.ndarray, x: np.ndarray, c: KernelConfig):
+    dt = y.dtype.type
+    n = y.shape[1]
+    valid = _valid(y, c)
+    y = np.where(valid, y, dt(0.0))
+    p0, p1, p2, p3, depth = initial_guess(y, x, c)
+    flat = depth <= dt(c.depth_min)
+    out_p = np.stack([p0, p1, p2, p3]).astype(y.dtype)
+    out_rss = np.zeros(n, dtype=y.dtype)
+    conv = np.zeros(n, dtype=bool)
+    iters = np.zeros(n, dtype=np.int64)
+    f, rss, a, b = _evaluate(y, x, p0, p1, p2, p3, c)
+    out_rss[:] = rss
+    live = np.flatnonzero(valid & ~flat)
+    p = [v[live] for v in (p0, p1, p2, p3)]
+    f, rss = f[live], rss[live]
+    a, b = [v[live] for v in a], [v[live] for v in b]
+    yl = y[:, live]
+    lam = np.full(live.size, dt(c.lam0))
+    lo = [dt(c.rmin_lo), dt(0.0), dt(c.lo_l), dt(c.lo_s)]
+    hi = [None, None, dt(c.hi_l), dt(c.hi_s)]
+    for _ in range(c.max_iter):
+        if live.size == 0:
+            break
+        act = [_active(p[j], b[j], lo[j], hi[j]) for j in range(4)]
+        damp = dt(1.0) + lam
+        dfl = lam * dt(c.diag_eps)
+        m = _reduced_system(a, b, act, damp, dfl, dt)
+        dp, ok = ldl4_solve(m[:10], m[10:], dt(c.pivot_rel))
+        q = [p[j] + dp[j] for j in range(4)]
+        q[0] = np.maximum(q[0], lo[0])
+        q[1] = np.maximum(q[1], dt(0.0))
+        q[2] = np.clip(q[2], lo[2], hi[2])
+        q[3] = np.clip(q[3], lo[3], hi[3])
+        fn, rssn, an, bn = _evaluate(yl, x, *q, c)
+        acc = ok & (fn < f)
+        small = np.ones(live.size, dtype=bool)
+        for j in range(4):
+            small &= np.abs(q[j] - p[j]) <= dt(c.xtol) * (np.abs(p[j]) + dt(0.1))
+        gf = fn * dt(c.gtol**2)
+        nact = [_active(q[j], bn[j], lo[j], hi[j]) for j in range(4)]
+        gsmall = (nact[0] | (bn[0] ** 2 <= gf * an[0])) & (nact[1] | (bn[1] ** 2 <= gf * an[4])) \
+            & (nact[2] | (bn[2] ** 2 <= gf * an[7])) & (nact[3] | (bn[3] ** 2 <= gf * an[9]))
+        fsmall = (f - fn) <= dt(c.ftol) * f
+        stop = (acc & ((fn <= dt(c.f_abs)) | gsmall | (fsmall & small))) | (~acc & ok & small)
+        p = [np.where(acc, q[j], p[j]) for j in range(4)]
+        f, rss = np.where(acc, fn, f), np.where(acc, rssn, rss)
+        a = [np.where(acc, an[k], a[k]) for k in range(10)]
+        b = [np.where(acc, bn[k], b[k]) for k in range(4)]
+        lam = np.maximum(np.where(acc, lam * dt(c.lam_down), lam * dt(c.lam_up)), dt(c.lam_min))
+        stall = lam > dt(c.lam_max)
+        iters[live] += 1
+        done = stop | stall
+        if done.any():
+            idx = live[done]
+            conv[idx] = True
+            for j in range(4):
+                out_p[j, idx] = p[j][done]
+            out_rss[idx] = rss[done]
+            keep = ~done
+            live, yl, lam, f, rss = live[keep], yl[:, keep], lam[keep], f[keep], rss[keep]
+            p = [v[keep] for v in p]
+            a, b = [v[keep] for v in a], [v[keep] for v in b]
+    for j in range(4):
+        out_p[j, live] = p[j]
+    out_rss[live] = rss
+    return _finish(out_p, out_rss, conv, iters, valid, flat, c, y.dtype)
+
+
+def _active(pj, bj, lo, hi):
+    at_lo = (pj <= lo) & (bj > 0)
+    if hi is None:
+        return at_lo
+    return at_lo | ((pj >= hi) & (bj < 0))
+
+
+def _reduced_system(a, b, act, damp, dfl, dt):
+    a00, a01, a02, a03, a11, a12, a13, a22, a23, a33 = a
+    z, one = dt(0.0), dt(1.0)
+    a0, a1, a2, a3 = act
+    return [
+        np.where(a0, one, a00 * damp + dfl), np.where(a0 | a1, z, a01), np.where(a0 | a2, z, a02),
+        np.where(a0 | a3, z, a03),
+        np.where(a1, one, a11 * damp + dfl), np.where(a1 | a2, z, a12), np.where(a1 | a3, z, a13),
+        np.where(a2, one, a22 * damp + dfl), np.where(a2 | a3, z, a23), np.where(a3, one, a33 * damp + dfl),
+        np.where(a0, z, -b[0]), np.where(a1, z, -b[1]), np.where(a2, z, -b[2]), np.where(a3, z, -b[3]),
+    ]
+
+
+def _finish(p, rss, conv, iters, valid, flat, c: KernelConfig, dtype, bound_tol: float = 0.0):
+    dt = np.dtype(dtype).type
+    shallow = p[1] <= dt(c.depth_min)
+    tol = dt(bound_tol)
+    status = np.where(~valid, FitStatus.INVALID_INPUT,
+                      np.where(flat | shallow, FitStatus.DEGENERATE,
+                               np.where(conv, FitStatus.CONVERGED, FitStatus.ITERATION_LIMIT))).astype(np.uint8)
+    bounds = ((p[2] <= dt(c.lo_l) + tol) * 1 | (p[2] >= dt(c.hi_l) - tol) * 2 | (p[3] <= dt(c.lo_s) + tol) * 4
+              | (p[3] >= dt(c.hi_s) - tol) * 8 | (p[1] <= tol) * 16 | (p[0] <= dt(c.rmin_lo) + tol) * 32)
+    bounds = np.where(valid, bounds, 0).astype(np.uint8)
+    l0 = p[2] * dt(c.xw) + dt(c.xc)
+    s = p[3] * dt(c.xw)
+    out = [p[0] + p[1], p[0], l0, s, l0 + s, np.sqrt(rss / dt(c.n_bands))]
+    out = [np.where(valid, v, dt(0.0)).astype(dtype) for v in out]
+    it_dtype = np.uint8 if c.max_iter <= 255 else np.uint16
+    return (*out, status, iters.astype(it_dtype), bounds)
+
+
+# -- scipy oracle ---------------------------------------------------------------------------------
+def fit_scipy(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *,
+              tol: float = 1e-12, max_nfev: int = 2000) -> IgrmResult:
+    """``scipy.optimize.least_squares`` (method ``trf``) per pixel in float64, in physical units
+    (rmin, depth, l0 nm, s nm) with the kernel's bounds, loss and initial guess. Slow on purpose.
+
+    Statuses follow the kernel's rules (invalid input, depth <= depth_min -> DEGENERATE);
+    ``iterations`` holds scipy's number of function evaluations (capped at 255).
+    """
+    from scipy.optimize import least_squares
+
+    settings = settings or IgrmSettings()
+    refl = np.asarray(refl, dtype=np.float64)
+    nb, n = refl.shape
+    c = kernel_config(settings, nb, "float64")
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    x = _normalise(wl, c, np.float64)
+    valid = _valid(refl, c)
+    y = np.where(valid, refl, 0.0)
+    p0, p1, p2, p3, depth = initial_guess(y, x, c)
+    flat = depth <= c.depth_min
+    lo = np.array([settings.rmin_min, 0.0, settings.l0_min_nm, settings.s_min_nm])
+    hi = np.array([np.inf, np.inf, settings.l0_max_nm, settings.s_max_nm])
+    params = np.stack([p0, p1, p2 * c.xw + c.xc, p3 * c.xw])
+    conv = np.zeros(n, dtype=bool)
+    nfev = np.zeros(n, dtype=np.int64)
+    for i in np.flatnonzero(valid & ~flat):
+        yi = y[:, i]
+
+        def fun(p, yi=yi):
+            return p[0] + p[1] * (1.0 - np.exp(-((wl - p[2]) ** 2) / (2 * p[3] ** 2))) - yi
+
+        def jac(p):
+            t = (wl - p[2]) / p[3]
+            g = np.exp(-0.5 * t * t)
+            u = p[1] * g / p[3]
+            return np.stack([np.ones_like(g), 1.0 - g, -u * t, -u * t * t], axis=1)
+
+        start = np.clip(params[:, i], lo, hi)
+        start = np.where(start <= lo, lo + 1e-9 * np.maximum(1.0, np.abs(lo)), start)  # trf needs interior
+        res = least_squares(fun, start, jac=jac, bounds=(lo, hi), method="trf", loss=settings.loss,
+                            f_scale=settings.f_scale, ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev,
+                            x_scale=np.array([0.1, 0.1, c.xw, c.xw]))
+        params[:, i] = res.x
+        conv[i] = res.status > 0
+        nfev[i] = res.nfev
+    p = np.stack([params[0], params[1], (params[2] - c.xc) / c.xw, params[3] / c.xw])
+    rss = ((model(wl, params[0] + params[1], params[0], params[2], params[3]) - y) ** 2).sum(0)
+    # trf keeps iterates strictly inside the box: "on a bound" means within 1e-7 (normalised)
+    out = _finish(p, rss, conv, np.minimum(nfev, 255), valid, flat, c, np.float64, bound_tol=1e-7)
+    return IgrmResult(*out)
