@@ -61,7 +61,7 @@ def main() -> None:
     max_rel = float(np.abs(check - expected).max() / np.abs(expected).max())
     assert max_rel < 2e-6, max_rel
 
-    spectra_dev = rt.to_device(spectra)
+    spectra_dev = rt.to_device(spectra, zero_copy=True)
     out_dev = rt.empty(plan.n_bands * n * 4)
 
     def kernel_only() -> None:

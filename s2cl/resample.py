@@ -108,10 +108,11 @@ class Resampler:
         for lo in range(0, n, chunk):
             hi = min(n, lo + chunk)
             block = np.ascontiguousarray(spectra[lo:hi], dtype=self.dtype)
-            spectra_dev = self.rt.to_device(block)
+            spectra_dev = self.rt.to_device(block, zero_copy=True)  # referenced until the blocking fetch
             out_dev = self.rt.empty(self.plan.n_bands * (hi - lo) * self.dtype().itemsize)
             self.enqueue(out_dev, spectra_dev, hi - lo, local_size)
             out[:, lo:hi] = self.rt.fetch(out_dev, (self.plan.n_bands, hi - lo), self.dtype)
+            del spectra_dev
         return out
 
     def default_chunk(self) -> int:

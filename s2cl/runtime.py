@@ -181,18 +181,20 @@ class Runtime:
         """Whether the device works in host memory (CPU devices such as PoCL)."""
         return "CPU" in self.info.kind
 
-    def to_device(self, array: np.ndarray) -> Any:
+    def to_device(self, array: np.ndarray, *, zero_copy: bool = False) -> Any:
         """A read-only device buffer holding ``array`` (made C-contiguous).
 
-        On CPU devices the buffer uses the host array in place (``USE_HOST_PTR``; pyopencl keeps
-        the array alive): copying 10⁵ spectra into fresh buffers costs ten times the kernel.
-        Elsewhere the data are copied.
+        ``zero_copy=True`` lets a CPU device read the host array in place (``USE_HOST_PTR``):
+        copying 10⁵ spectra into fresh buffers costs ten times the resampling kernel. The caller
+        must then keep the returned buffer referenced until the work that reads it has finished
+        (e.g. until a blocking fetch of its results); pyopencl holds the array as long as the buffer
+        lives. Other devices, and the default, copy.
         """
         cl = _cl()
         host = np.ascontiguousarray(array)
         if host.nbytes == 0:
             host = np.zeros(1, dtype=host.dtype)
-        where = cl.mem_flags.USE_HOST_PTR if self.host_memory else cl.mem_flags.COPY_HOST_PTR
+        where = cl.mem_flags.USE_HOST_PTR if (zero_copy and self.host_memory) else cl.mem_flags.COPY_HOST_PTR
         return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | where, hostbuf=host)
 
     def empty(self, nbytes: int) -> Any:
