@@ -23,53 +23,76 @@ import numpy as np
 from .analysis import DEGENERATE, INVALID, ITERATION_LIMIT
 
 MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
+ROW_BLOCK = 32  # configurations per pass: keeps the float64 temporaries in cache
 
 
 def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray,
                        target: np.ndarray) -> dict[str, np.ndarray]:
     """Metrics per row of ``index`` ``(n_configs, n_pixels)`` against ``target`` ``(n_pixels,)``."""
-    x = np.asarray(index, dtype=np.float64)
+    x = np.asarray(index)
     valid = (status != DEGENERATE) & (status != INVALID) & np.isfinite(x)
-    out = _poly2(x, valid, target)
-    unbounded = _poly2(x, valid & (bounds == 0), target)
-    out["rms_unbounded"] = unbounded["rms"]
+    parts = []
+    for a in range(0, max(x.shape[0], 1), ROW_BLOCK):
+        b = min(a + ROW_BLOCK, x.shape[0])
+        xb, vb = x[a:b].astype(np.float64), valid[a:b]
+        part = _poly2(xb, vb, target)
+        part["rms_unbounded"] = part["rms"].copy()
+        bounded = np.flatnonzero((bounds[a:b] != 0).any(axis=1))
+        if bounded.size:
+            refit = _poly2(xb[bounded], vb[bounded] & (bounds[a:b][bounded] == 0), target, robust=False)
+            part["rms_unbounded"][bounded] = refit["rms"]
+        parts.append(part)
+    out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     out["failed_fraction"] = 1.0 - out["n_valid"] / x.shape[1]
     out["iteration_limit_fraction"] = (status == ITERATION_LIMIT).mean(axis=1)
     out["bound_fraction"] = (bounds != 0).mean(axis=1)
     return out
 
 
-def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray) -> dict[str, np.ndarray]:
-    """Conditioned second-order polynomial regression of ``target`` on the valid ``x`` of each row."""
-    y = np.broadcast_to(np.asarray(target, dtype=np.float64), x.shape)
-    x = np.where(valid, x, 0.0)
-    n = valid.sum(axis=1)
+def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = True) -> dict[str, np.ndarray]:
+    """Conditioned second-order polynomial regression of ``target`` on the valid ``x`` of each row.
+
+    Moments are row reductions and matrix–vector products with the target (no 3-D temporaries):
+    this runs once per sweep chunk over (configurations × pixels) arrays.
+    """
+    y = np.asarray(target, dtype=np.float64)
     w = valid.astype(np.float64)
+    n = valid.sum(axis=1)
     safe_n = np.maximum(n, 1)
-    x0 = (x * w).sum(axis=1) / safe_n
-    xs = np.sqrt((((x - x0[:, None]) * w) ** 2).sum(axis=1) / safe_n)
+    every = bool(valid.all())
+    x0 = (x if every else np.where(valid, x, 0.0)).sum(axis=1) / safe_n
+    u = x - x0[:, None]
+    if not every:
+        u[~valid] = 0.0
+    xs = np.sqrt((u * u).sum(axis=1) / safe_n)
     constant = xs <= 1e-12 * np.maximum(np.abs(x0), 1.0)
-    u = np.where(valid, (x - x0[:, None]) / np.where(constant, 1.0, xs)[:, None], 0.0)
-    basis = np.stack([w, u * w, u * u * w], axis=-1)  # (n_cfg, n_px, 3), zero rows for invalid pixels
-    m = np.einsum("cpi,cpj->cij", basis, basis)
-    b = np.einsum("cpi,cp->ci", basis, y * w)
+    u /= np.where(constant, 1.0, xs)[:, None]
+    u2 = u * u
+    m = np.empty((x.shape[0], 3, 3))
+    m[:, 0, 0] = n
+    m[:, 0, 1] = m[:, 1, 0] = u.sum(axis=1)
+    m[:, 0, 2] = m[:, 2, 0] = m[:, 1, 1] = u2.sum(axis=1)
+    m[:, 1, 2] = m[:, 2, 1] = (u2 * u).sum(axis=1)
+    m[:, 2, 2] = (u2 * u2).sum(axis=1)
+    b = np.stack([w @ y, u @ y, u2 @ y], axis=1)
     m[constant, 1:, :] = 0.0
     m[constant, :, 1:] = 0.0
     m[constant, 1, 1] = m[constant, 2, 2] = 1.0
     b[constant, 1:] = 0.0
     coef = np.linalg.solve(m + np.eye(3) * (n[:, None, None] == 0), b[..., None])[..., 0]
-    fitted = coef[:, :1] + coef[:, 1:2] * u + coef[:, 2:3] * u * u
-    residual = np.where(valid, y - fitted, 0.0)
-    ss_res = (residual**2).sum(axis=1)
-    y_mean = (y * w).sum(axis=1) / safe_n
-    ss_tot = (((y - y_mean[:, None]) * w) ** 2).sum(axis=1)
+    residual = y[None, :] - coef[:, :1] - coef[:, 1:2] * u - coef[:, 2:3] * u2
+    if not every:
+        residual *= w
+    ss_res = np.einsum("ij,ij->i", residual, residual)
+    y_mean = (w @ y) / safe_n
+    ss_tot = w @ (y * y) - n * y_mean**2
     with np.errstate(invalid="ignore", divide="ignore"):
         r2 = np.where(ss_tot > 0, 1.0 - ss_res / ss_tot, 0.0)
     rms = np.sqrt(ss_res / safe_n)
     return {
         "rms": np.where(n > 0, rms, np.nan),
         "r2": np.where(n > 0, r2, np.nan),
-        "robust_rms": _robust(np.abs(residual), valid, n),
+        "robust_rms": _robust(np.abs(residual, out=residual), valid, n) if robust else np.full(n.size, np.nan),
         "n_valid": n.astype(np.int64),
         "constant_index": constant & (n > 0),
     }

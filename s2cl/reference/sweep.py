@@ -83,7 +83,23 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
         cls, _, status = sam_classify(pixels, refs[:, None, :, :], a.angle_threshold_deg)
         index = cls.astype(np.float64)
     else:
-        from .igrm import fit_igrm_numpy
-
-        index, status, bounds = fit_igrm_numpy(np.stack(rhos, axis=0), centres, dict(a.igrm))
+        index, status, bounds = igrm_per_configuration(np.stack(rhos), centres, dict(a.igrm))
     return RawChunk(start, stop, index, status, bounds)
+
+
+def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict,
+                           dtype: type = np.float64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """IGRM fits of ``rhos`` ``(n_slots, n_configs, n_pixels)`` with each configuration's band
+    centres ``(n_configs, n_slots)``: the kernel's LM in vectorised numpy, one configuration at a
+    time. Returns λp (nm), status and bound bits, each ``(n_configs, n_pixels)``."""
+    from ..igrm import IgrmSettings
+    from .igrm import fit_numpy_lm
+
+    s = IgrmSettings.from_mapping(settings)
+    n_cfg, n_px = rhos.shape[1:]
+    index, status, bounds = np.empty((n_cfg, n_px)), np.empty((n_cfg, n_px), np.uint8), np.empty((n_cfg, n_px),
+                                                                                                   np.uint8)
+    for i in range(n_cfg):
+        r = fit_numpy_lm(rhos[:, i, :], centres[i], s, dtype=dtype)
+        index[i], status[i], bounds[i] = r.lp, r.status, r.bounds
+    return index, status, bounds

@@ -1,0 +1,97 @@
+"""The fused sweep kernel against the float64 numpy evaluation of the same configurations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sweep_fixtures import Terms, gvmi_job
+
+from s2cl.analysis import AnalysisSettings
+from s2cl.libraries import load_library
+from s2cl.reference.sweep import evaluate
+from s2cl.scene import Scene
+from s2cl.sweep_kernel import SweepKernel
+from s2cl.sweep_tables import build_tables, sweep_space
+
+
+@pytest.mark.parametrize("lanes", [1, 8])
+def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:
+    job = gvmi_job(copies=7)  # 246 spectra x 7 copies: pixels not a multiple of the lanes
+    ref = evaluate(job.tables, job.analysis, 0, job.n_configs)
+    got = SweepKernel(job.tables, job.analysis, precision=real_t, lanes=lanes)(0, job.n_configs)
+    assert np.array_equal(got.status, ref.status)
+    # float32: a DN may round the other way near .5 (one DN ≈ 0.02 % of B11's range)
+    # (float64: not bit-equal, as OpenCL contracts a*b+c into FMA; numpy does not)
+    tol = 1e-12 if real_t == "float64" else 2e-3
+    assert np.max(np.abs(got.index - ref.index)) < tol
+
+
+def test_chunks_are_independent(rt) -> None:
+    job = gvmi_job(copies=5)
+    k = SweepKernel(job.tables, job.analysis)
+    whole = k(0, job.n_configs)
+    part = k(7, 19)
+    assert np.array_equal(part.index, whole.index[7:19])
+
+
+def _sam_job(threshold: float | None):
+    scene = Scene.from_dict({
+        "scene": {"name": "sam-test"},
+        "grid": {"start_nm": 1500, "stop_nm": 2500},
+        "surface": {"library": "builtin:minerals-swir", "quantity": "reflectance", "copies": 9},
+        "effects": {"atmosphere": True, "correct": True, "seed": 2},
+        "sensor": {"bands": ["B11", "B12"]},
+        "sweep": {"bands": ["B11", "B12"], "ranges": {
+            "B11": {"centre": 1610, "width": 90},
+            "B12": {"centres": [2150, 2190, 2220], "widths": [30, 60, 180]}}},
+        "analysis": {"kind": "sam", **({"angle_threshold_deg": threshold} if threshold else {})},
+    })
+    space = sweep_space(scene)
+    lib = load_library("builtin:minerals-swir", scene.grid)
+    classes = tuple(sorted(set(lib.groups)))
+    terms = Terms(scene.grid.size)
+    target = np.array([classes.index(g) for g in lib.groups], dtype=float)
+    tables = build_tables(scene, space, lib, terms, terms, target=target, class_names=classes)
+    return tables, AnalysisSettings.from_scene(scene, space.bands)
+
+
+@pytest.mark.parametrize("threshold", [None, 3.0])
+def test_sam_sweep_matches_numpy(rt, real_t: str, threshold: float | None) -> None:
+    tables, analysis = _sam_job(threshold)
+    ref = evaluate(tables, analysis, 0, tables.n_configs)
+    got = SweepKernel(tables, analysis, precision=real_t)(0, tables.n_configs)
+    agree = np.mean((got.index == ref.index) & (got.status == ref.status))
+    assert agree > (0.9999 if real_t == "float64" else 0.995)
+    if threshold:
+        assert np.any(ref.status == 2)  # some pixels are unclassified at 3 degrees
+
+
+def _igrm_job(copies: int = 6):
+    scene = Scene.from_dict({
+        "scene": {"name": "igrm-test"},
+        "surface": {"library": "builtin:lib1", "quantity": "reflectance", "copies": copies},
+        "effects": {"atmosphere": True, "correct": True, "seed": 9},
+        "sweep": {"bands": ["B4", "B5", "B6", "B7"], "ranges": {
+            "B4": {"centres": [665, 680], "widths": [30]}, "B5": {"centre": 705, "width": 15},
+            "B6": {"centres": [740], "widths": [15, 30]}, "B7": {"centre": 783, "width": 20}}},
+        "analysis": {"kind": "igrm", "parameter": "cab"},
+    })
+    space = sweep_space(scene)
+    lib = load_library("builtin:lib1", scene.grid)
+    terms = Terms(scene.grid.size)
+    tables = build_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
+    return tables, AnalysisSettings.from_scene(scene, space.bands)
+
+
+def test_igrm_sweep_matches_numpy_lm(rt) -> None:
+    tables, analysis = _igrm_job()
+    ref = evaluate(tables, analysis, 0, tables.n_configs)
+    got = SweepKernel(tables, analysis, precision="float64")(0, tables.n_configs)
+    same = got.status == ref.status
+    assert same.mean() > 0.995
+    ok = same & (ref.status == 0)
+    assert np.percentile(np.abs(got.index - ref.index)[ok], 99) < 1e-6
+    f32 = SweepKernel(tables, analysis, precision="float32")(0, tables.n_configs)
+    ok32 = (f32.status == 0) & (ref.status == 0)
+    assert ok32.mean() > 0.95
+    assert np.median(np.abs(f32.index - ref.index)[ok32]) < 0.01  # nm
