@@ -24,6 +24,7 @@ def cli() -> None:
 
     \b
     Start here:
+      s2cl optimise              sweep the default scene's band designs, rank them, plot
       s2cl simulate              run the built-in default scene, write NetCDF + summary
       s2cl scenes                list built-in scenes
       s2cl sensor                show the sensor table and its noise model
@@ -33,7 +34,8 @@ def cli() -> None:
 
 
 @contextmanager
-def progress_bar(total: int, label: str, enabled: bool = True) -> Iterator[Callable[[int], None]]:
+def progress_bar(total: int, label: str, enabled: bool = True, unit: str = "px",
+                 per_item: int = 0) -> Iterator[Callable[[int], None]]:
     """A rich progress bar with rate and ETA; yields ``advance(n)``."""
     if not enabled:
         yield lambda n: None
@@ -59,7 +61,10 @@ def progress_bar(total: int, label: str, enabled: bool = True) -> Iterator[Calla
             bar.advance(task, n)
             done = bar.tasks[0].completed
             elapsed = max(time.perf_counter() - start, 1e-9)
-            bar.update(task, rate=f"{done / elapsed:,.0f} px/s")
+            rate = f"{done / elapsed:,.0f} {unit}/s"
+            if per_item:
+                rate += f" ({done * per_item / elapsed / 1e6:,.2f} M evaluations/s)"
+            bar.update(task, rate=rate)
 
         yield advance
 
@@ -207,6 +212,160 @@ def srf(band: str, platform: str, plot_path: Path | None) -> None:
 
     path = plot_srf(band, None if platform == "none" else platform, plot_path or Path(f"srf_{band}.png"))
     click.echo(f"wrote {path}")
+
+
+@cli.group()
+def sweep() -> None:
+    """Band-optimisation sweeps: count, run (resumable, local or Dask), report.
+
+    A sweep scene has a [sweep] section (which bands move, and where) and an [analysis]
+    section (igrm, gvmi or sam); see scenes/default.toml. `s2cl optimise` runs and reports in one go.
+    """
+
+
+@sweep.command("count")
+@click.argument("scene", default="default")
+def sweep_count(scene: str) -> None:
+    """Print the variants of each band and the number of configurations of SCENE."""
+    from rich.table import Table
+
+    from .optimise import count_table
+    from .scene import Scene
+    from .sweep_tables import sweep_space
+
+    sc = Scene.load(scene)
+    rows = count_table(sc)
+    table = Table(title=f"{sc.name}: band variants")
+    for title in ("band", "variants", "centres nm", "widths nm"):
+        table.add_column(title, justify="right")
+    for r in rows:
+        table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
+    _console().print(table)
+    click.echo(f"configurations: {sweep_space(sc).size:,}")
+
+
+def _sweep_options(f: Callable) -> Callable:
+    options = [
+        click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+                     help="output folder (default: the scene's output.directory, else s2cl-out/<scene name>)"),
+        click.option("--workers", type=click.IntRange(1, 1024), help="run on a local Dask cluster of N workers"),
+        click.option("--scheduler", help="run on a Dask cluster: scheduler address, e.g. tcp://10.0.0.5:8786"),
+        click.option("--overwrite", is_flag=True, help="replace a different sweep found in the output folder"),
+        click.option("--backend", type=click.Choice(["opencl", "numpy"]), default="opencl", show_default=True,
+                     help="numpy: the float64 reference evaluation (slow)"),
+        click.option("--chunk", type=click.IntRange(1), help="configurations per chunk (default: auto)"),
+        click.option("--device", "-d", help=DEVICE_HELP),
+        click.option("--quiet", "-q", is_flag=True, help="no progress bar"),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
+               backend: str, chunk: int | None, device: str | None, quiet: bool) -> None:
+    from .optimise import plan_sweep, reference_row
+    from .report import heatmap, load, summarise, write_summary
+    from .scene import Scene
+    from .sweep import run_sweep
+
+    if workers and scheduler:
+        raise click.UsageError("give --workers or --scheduler, not both")
+    sc = Scene.load(scene)
+    out = output or sc.output_dir
+    t0 = time.perf_counter()
+    job = plan_sweep(sc, backend=backend, chunk=chunk)
+    click.echo(f"{sc.name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
+               f"({job.tables.n_spectra} spectra × {job.tables.copies} copies), chunks of {job.chunk}")
+    state: dict[str, Any] = {}
+    with progress_bar(job.n_configs, "sweep", not quiet, unit="configs", per_item=job.tables.n_pixels) as advance:
+        def on_start(todo: int, done: int) -> None:
+            state["todo"] = todo
+            if done:
+                click.echo(f"resuming: {done:,} configurations already done, {todo:,} to go")
+                advance(0)
+
+        results = run_sweep(job, out, workers=workers, scheduler=scheduler, overwrite=overwrite, device=device,
+                            progress=advance, on_start=on_start)
+    df, meta = load(results)
+    reference = reference_row(sc, job, device)
+    summary = summarise(df, meta, reference)
+    summary["seconds"] = time.perf_counter() - t0
+    write_summary(out / "summary.json", summary)
+    moving = [b for b in summary["bands"] if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
+    plots = [heatmap(df, b, out / f"heatmap_{b}.png") for b in moving]
+    _print_sweep(summary)
+    click.echo(f"wrote {results}, {out / 'summary.json'}" + "".join(f", {p}" for p in plots))
+
+
+def _print_sweep(summary: dict[str, Any]) -> None:
+    from rich.table import Table
+
+    metric, bands = summary["metric"], summary["bands"]
+    table = Table(title=f"{summary['scene']}: best of {summary['configurations']:,} configurations by {metric}")
+    table.add_column("")
+    for b in bands:
+        table.add_column(f"{b} λ/Δλ", justify="right")
+    for col in (metric, "robust_rms" if metric == "rms" else "overall_accuracy_pct", "failed_fraction"):
+        table.add_column(col, justify="right")
+    if metric == "rms":
+        table.add_column("bound_fraction", justify="right")
+    rows = [("reference", summary["reference"])] if "reference" in summary else []
+    rows += [(f"#{i + 1}", e) for i, e in enumerate(summary["top"][:5])]
+    for label, e in rows:
+        cells = [f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
+        cells += [f"{e[metric]:.3g}", f"{e.get('robust_rms', e.get('overall_accuracy_pct', float('nan'))):.3g}",
+                  f"{e['failed_fraction']:.2%}"]
+        if metric == "rms":
+            cells.append(f"{e['bound_fraction']:.2%}")
+        table.add_row(label, *cells)
+    _console().print(table)
+    if "reference" in summary:
+        click.echo(f"reference = the sensor's own bands; {summary['reference']['configurations_better']:,} "
+                   "configurations do better")
+
+
+@sweep.command("run")
+@click.argument("scene", default="default")
+@_sweep_options
+def sweep_run(**kwargs: Any) -> None:
+    """Run (or resume) the sweep of SCENE; writes results.parquet, summary.json, heatmaps.
+
+    Finished chunks are kept: a sweep stopped at any moment resumes when the same command runs
+    again. On a cluster: start `dask scheduler` and `dask worker ADDRESS` processes (each with
+    s2cl and an OpenCL driver installed), then pass --scheduler ADDRESS.
+    """
+    _run_sweep(**kwargs)
+
+
+@sweep.command("report")
+@click.argument("results", type=click.Path(exists=True, path_type=Path))
+@click.option("--band", help="band of the heatmap (default: every band that moves)")
+def sweep_report(results: Path, band: str | None) -> None:
+    """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
+    from .report import bands_of, heatmap, load, summarise, write_summary
+
+    df, meta = load(results)
+    folder = results if results.is_dir() else results.parent
+    summary = summarise(df, meta)
+    write_summary(folder / "summary.json", summary)
+    for b in [band] if band else bands_of(df):
+        if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1:
+            click.echo(f"wrote {heatmap(df, b, folder / f'heatmap_{b}.png')}")
+    _print_sweep(summary)
+
+
+@cli.command()
+@click.argument("scene", default="default")
+@_sweep_options
+def optimise(**kwargs: Any) -> None:
+    """Find the best band design of SCENE (default: the built-in default scene).
+
+    Runs the scene's sweep (every combination of band variants through the whole sensor chain,
+    resumable), ranks the configurations, compares with the sensor's own bands, and writes
+    results.parquet, summary.json and heatmaps (centre × width, best marked).
+    """
+    _run_sweep(**kwargs)
 
 
 def main(argv: list[str] | None = None) -> None:
