@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bufferpool import BufferPool
 from .errors import InputError
 from .runtime import Runtime, get_runtime
 from .templates import render
@@ -42,6 +43,7 @@ class GvmiKernel:
         self.types = VecTypes(real_t, self.rt.lanes if lanes is None else lanes)
         source = render("gvmi.cl.mako", T=self.types, max_abs=float(max_abs))
         self.kernel = self.rt.kernel(self.rt.build(source, template="gvmi.cl.mako"), "gvmi")
+        self.buffers = BufferPool(self.rt)
 
     def __call__(self, refl: np.ndarray, nir: int, swir: int) -> GvmiResult:
         """GVMI from rows ``nir`` and ``swir`` of ``refl`` (n_bands, n_pixels)."""
@@ -54,9 +56,9 @@ class GvmiKernel:
         n = refl.shape[1]
         rows = refl[[int(nir), int(swir)]]
         host, pitch = pad_pixels(rows, self.types.lanes, self.types.dtype)
-        rt = self.rt
-        out_d, st_d = rt.empty(pitch * self.types.dtype.itemsize), rt.empty(pitch)
-        self.kernel(rt.queue, (pitch // self.types.lanes,), None, out_d, st_d, rt.to_device(host),
+        rt, pool = self.rt, self.buffers
+        out_d, st_d = pool.get("gvmi", pitch * self.types.dtype.itemsize), pool.get("status", pitch)
+        self.kernel(rt.queue, (pitch // self.types.lanes,), None, out_d, st_d, pool.upload("refl", host),
                     np.int32(0), np.int32(1), np.int32(pitch))
         return GvmiResult(rt.fetch(out_d, (pitch,), self.types.dtype)[:n], rt.fetch(st_d, (pitch,), np.uint8)[:n])
 

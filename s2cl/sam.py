@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bufferpool import BufferPool
 from .errors import InputError
 from .runtime import Runtime, get_runtime
 from .templates import render
@@ -86,6 +87,7 @@ class SamClassifier:
         source = render("sam.cl.mako", T=self.types, n_bands=self.n_bands, n_refs=self.n_refs, max_abs=float(max_abs))
         self.kernel = self.rt.kernel(self.rt.build(source, template="sam.cl.mako"), "sam_classify")
         self._refs_d = self.rt.to_device(self.unit_refs.astype(self.types.dtype))
+        self.buffers = BufferPool(self.rt)
 
     def duplicate_references(self, tol_rad: float = 1e-6) -> list[tuple[int, int]]:
         """Pairs (i, j), i < j, of references within ``tol_rad`` of each other (j never wins)."""
@@ -100,9 +102,10 @@ class SamClassifier:
             raise InputError(f"must have shape ({self.n_bands}, n_pixels), got {refl.shape}", key="reflectance")
         n = refl.shape[1]
         host, pitch = pad_pixels(refl, self.types.lanes, self.types.dtype)
-        rt = self.rt
-        best_d, ang_d, st_d = rt.empty(4 * pitch), rt.empty(pitch * self.types.dtype.itemsize), rt.empty(pitch)
-        self.kernel(rt.queue, (pitch // self.types.lanes,), None, best_d, ang_d, st_d, rt.to_device(host),
+        rt, pool = self.rt, self.buffers
+        best_d, ang_d = pool.get("best", 4 * pitch), pool.get("angle", pitch * self.types.dtype.itemsize)
+        st_d = pool.get("status", pitch)
+        self.kernel(rt.queue, (pitch // self.types.lanes,), None, best_d, ang_d, st_d, pool.upload("refl", host),
                     self._refs_d, self.types.dtype.type(self.cos_min), np.int32(pitch))
         best = rt.fetch(best_d, (pitch,), np.int32)[:n]
         label = np.where(best >= 0, self.classes[np.maximum(best, 0)], -1).astype(np.int32)

@@ -102,9 +102,10 @@ def _init_grid(y: np.ndarray, x: np.ndarray, c: KernelConfig):
     return p0, p1, p2, p3, depth
 
 
-def _evaluate(y, x, q0, q1, q2, q3, c: KernelConfig):
-    """Cost, RSS, upper triangle of J^T W J (10) and J^T W r (4) at (q0..q3); (nb, m) work."""
+def _evaluate(y, x, q, c: KernelConfig) -> np.ndarray:
+    """Rows: cost, RSS, upper triangle of J^T W J (10), J^T W r (4) at ``q`` (4, m): (16, m)."""
     dt = y.dtype.type
+    q0, q1, q2, q3 = q
     inv_s = dt(1.0) / q3
     t = (x[:, None] - q2) * inv_s
     g = np.exp(t * t * dt(-0.5))
@@ -112,23 +113,25 @@ def _evaluate(y, x, q0, q1, q2, q3, c: KernelConfig):
     r = (q0 + q1) - q1 * g - y
     w1 = q1 * g * inv_s * t
     w2 = w1 * t
-    rss = np.einsum("ij,ij->j", r, r)
+    e = np.empty((16, y.shape[1]), dtype=y.dtype)
+    np.einsum("ij,ij->j", r, r, out=e[1])
     if c.loss == "soft_l1":
         z = r * r / dt(c.f_scale**2)
         w = dt(1.0) / np.sqrt(dt(1.0) + z)
-        f = dt(2.0 * c.f_scale**2) * (z / (np.sqrt(dt(1.0) + z) + dt(1.0))).sum(0)
-        a00 = w.sum(0)
-        wh, w1w, w2w = w * h, w * w1, w * w2
+        e[0] = dt(2.0 * c.f_scale**2) * (z / (np.sqrt(dt(1.0) + z) + dt(1.0))).sum(0)
+        e[2] = w.sum(0)
+        wh, w1w, w2w, wr = w * h, w * w1, w * w2, w * r
     else:
-        f = rss
-        a00 = np.full_like(q0, dt(y.shape[0]))
-        wh, w1w, w2w = h, w1, w2
-    a = [a00, wh.sum(0), -w1w.sum(0), -w2w.sum(0),
-         np.einsum("ij,ij->j", wh, h), -np.einsum("ij,ij->j", wh, w1), -np.einsum("ij,ij->j", wh, w2),
-         np.einsum("ij,ij->j", w1w, w1), np.einsum("ij,ij->j", w1w, w2), np.einsum("ij,ij->j", w2w, w2)]
-    wr = r if c.loss == "linear" else r * w
-    b = [wr.sum(0), np.einsum("ij,ij->j", h, wr), -np.einsum("ij,ij->j", w1, wr), -np.einsum("ij,ij->j", w2, wr)]
-    return f, rss, a, b
+        e[0] = e[1]
+        e[2] = dt(y.shape[0])
+        wh, w1w, w2w, wr = h, w1, w2, r
+    e[3], e[4], e[5], e[12] = wh.sum(0), w1w.sum(0), w2w.sum(0), wr.sum(0)
+    products = {6: (wh, h), 7: (wh, w1), 8: (wh, w2), 9: (w1w, w1), 10: (w1w, w2), 11: (w2w, w2),
+                13: (h, wr), 14: (w1, wr), 15: (w2, wr)}
+    for row, (u, v) in products.items():
+        np.einsum("ij,ij->j", u, v, out=e[row])
+    e[[4, 5, 7, 8, 14, 15]] *= dt(-1.0)  # Jacobian columns 2 and 3 are -w1, -w2
+    return e
 
 
 def ldl4_solve(a: list[np.ndarray], b: list[np.ndarray], pivot_rel: float):
@@ -178,72 +181,57 @@ def fit_numpy_lm(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSet
 
 
 def _lm_chunk(y: np.ndarray, x: np.ndarray, c: KernelConfig):
+    """The kernel's loop over a chunk. State of the live pixels, one row each: p (4), then the
+    evaluation rows of :func:`_evaluate` (cost, RSS, J^T W J, J^T W r); finished pixels are
+    written out and dropped from the work set."""
     dt = y.dtype.type
     n = y.shape[1]
     valid = _valid(y, c)
     y = np.where(valid, y, dt(0.0))
-    p0, p1, p2, p3, depth = initial_guess(y, x, c)
+    *start, depth = initial_guess(y, x, c)
     flat = depth <= dt(c.depth_min)
-    out_p = np.stack([p0, p1, p2, p3]).astype(y.dtype)
-    out_rss = np.zeros(n, dtype=y.dtype)
+    state = np.vstack([np.stack(start).astype(y.dtype), _evaluate(y, x, start, c)])
+    out = state[[0, 1, 2, 3, 5]].copy()  # p and RSS of every pixel
     conv = np.zeros(n, dtype=bool)
     iters = np.zeros(n, dtype=np.int64)
-    f, rss, a, b = _evaluate(y, x, p0, p1, p2, p3, c)
-    out_rss[:] = rss
     live = np.flatnonzero(valid & ~flat)
-    p = [v[live] for v in (p0, p1, p2, p3)]
-    f, rss = f[live], rss[live]
-    a, b = [v[live] for v in a], [v[live] for v in b]
-    yl = y[:, live]
+    state, yl = state[:, live], y[:, live]
     lam = np.full(live.size, dt(c.lam0))
     lo = [dt(c.rmin_lo), dt(0.0), dt(c.lo_l), dt(c.lo_s)]
     hi = [None, None, dt(c.hi_l), dt(c.hi_s)]
     for _ in range(c.max_iter):
         if live.size == 0:
             break
+        p, f, a, b = state[:4], state[4], state[6:16], state[16:20]
         act = [_active(p[j], b[j], lo[j], hi[j]) for j in range(4)]
-        damp = dt(1.0) + lam
-        dfl = lam * dt(c.diag_eps)
-        m = _reduced_system(a, b, act, damp, dfl, dt)
+        m = _reduced_system(a, b, act, dt(1.0) + lam, lam * dt(c.diag_eps), dt)
         dp, ok = ldl4_solve(m[:10], m[10:], dt(c.pivot_rel))
-        q = [p[j] + dp[j] for j in range(4)]
+        q = np.stack(dp) + p
         q[0] = np.maximum(q[0], lo[0])
         q[1] = np.maximum(q[1], dt(0.0))
         q[2] = np.clip(q[2], lo[2], hi[2])
         q[3] = np.clip(q[3], lo[3], hi[3])
-        fn, rssn, an, bn = _evaluate(yl, x, *q, c)
+        e = _evaluate(yl, x, q, c)
+        fn, an, bn = e[0], e[2:12], e[12:16]
         acc = ok & (fn < f)
-        small = np.ones(live.size, dtype=bool)
-        for j in range(4):
-            small &= np.abs(q[j] - p[j]) <= dt(c.xtol) * (np.abs(p[j]) + dt(0.1))
+        small = np.all(np.abs(q - p) <= dt(c.xtol) * (np.abs(p) + dt(0.1)), axis=0)
         gf = fn * dt(c.gtol**2)
-        nact = [_active(q[j], bn[j], lo[j], hi[j]) for j in range(4)]
-        gsmall = (nact[0] | (bn[0] ** 2 <= gf * an[0])) & (nact[1] | (bn[1] ** 2 <= gf * an[4])) \
-            & (nact[2] | (bn[2] ** 2 <= gf * an[7])) & (nact[3] | (bn[3] ** 2 <= gf * an[9]))
+        gsmall = np.ones(live.size, dtype=bool)
+        for j, diag in enumerate((0, 4, 7, 9)):
+            gsmall &= _active(q[j], bn[j], lo[j], hi[j]) | (bn[j] ** 2 <= gf * an[diag])
         fsmall = (f - fn) <= dt(c.ftol) * f
         stop = (acc & ((fn <= dt(c.f_abs)) | gsmall | (fsmall & small))) | (~acc & ok & small)
-        p = [np.where(acc, q[j], p[j]) for j in range(4)]
-        f, rss = np.where(acc, fn, f), np.where(acc, rssn, rss)
-        a = [np.where(acc, an[k], a[k]) for k in range(10)]
-        b = [np.where(acc, bn[k], b[k]) for k in range(4)]
+        state = np.where(acc, np.vstack([q, e]), state)
         lam = np.maximum(np.where(acc, lam * dt(c.lam_down), lam * dt(c.lam_up)), dt(c.lam_min))
-        stall = lam > dt(c.lam_max)
         iters[live] += 1
-        done = stop | stall
+        done = stop | (lam > dt(c.lam_max))
         if done.any():
-            idx = live[done]
-            conv[idx] = True
-            for j in range(4):
-                out_p[j, idx] = p[j][done]
-            out_rss[idx] = rss[done]
+            conv[live[done]] = True
+            out[:, live[done]] = state[[0, 1, 2, 3, 5]][:, done]
             keep = ~done
-            live, yl, lam, f, rss = live[keep], yl[:, keep], lam[keep], f[keep], rss[keep]
-            p = [v[keep] for v in p]
-            a, b = [v[keep] for v in a], [v[keep] for v in b]
-    for j in range(4):
-        out_p[j, live] = p[j]
-    out_rss[live] = rss
-    return _finish(out_p, out_rss, conv, iters, valid, flat, c, y.dtype)
+            live, yl, lam, state = live[keep], yl[:, keep], lam[keep], state[:, keep]
+    out[:, live] = state[[0, 1, 2, 3, 5]]
+    return _finish(out[:4], out[4], conv, iters, valid, flat, c, y.dtype)
 
 
 def _active(pj, bj, lo, hi):
