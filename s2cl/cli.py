@@ -113,11 +113,19 @@ def simulate(scene: str, output: Path | None, device: str | None, quiet: bool) -
         result = run(sc, device=device, progress=adv, library=library)
     seconds = time.perf_counter() - t0
     rows = result.summary()
+    analysis = None
+    if sc.spec.analysis is not None and result.reflectance is not None:
+        from .simulate_analysis import analyse
+
+        analysis = analyse(sc, result)
     write_netcdf(out / "simulation.nc", result.to_dataset(sc.spec.surface.layout))
     write_json(out / "summary.json", {"scene": sc.name, "attrs": result.attrs, "pixels": total,
-                                      "seconds": seconds, "stage_seconds": result.seconds, "bands": rows})
+                                      "seconds": seconds, "stage_seconds": result.seconds, "bands": rows,
+                                      "analysis": analysis})
     if not quiet:
         _print_summary(rows, result.attrs, total, seconds)
+        if analysis:
+            _print_analysis(analysis)
     click.echo(f"wrote {out / 'simulation.nc'} and {out / 'summary.json'}")
 
 
@@ -136,6 +144,17 @@ def _print_summary(rows: list[dict[str, Any]], attrs: dict[str, Any], pixels: in
         table.add_row(*[fmt.format(r[k]) if k in r else "" for k, _, fmt in present])
     _console().print(table)
     click.echo("radiance in W m-2 sr-1 um-1; effects: " + str(attrs.get("effects")))
+
+
+def _print_analysis(a: dict[str, Any]) -> None:
+    bands = " ".join(a["bands"])
+    if a["kind"] == "sam":
+        click.echo(f"SAM on {bands}: mean omission error {a['omission_error_pct']:.1f} %, overall accuracy "
+                   f"{a['overall_accuracy_pct']:.1f} %, unclassified {a['unclassified_fraction']:.1%}")
+        return
+    click.echo(f"{a['kind'].upper()} on {bands} -> {a['parameter']}: RMS {a['rms']:.3g}, R² {a['r2']:.3f}, "
+               f"robust {a['robust_rms']:.3g}, without fits on a bound {a['rms_unbounded']:.3g}; "
+               f"failed {a['failed_fraction']:.2%}, on a bound {a['bound_fraction']:.2%}")
 
 
 def _runtime(device: str | None) -> Any:

@@ -125,6 +125,8 @@ class SweepSpec(_Section):
 
 class AnalysisSpec(_Section):
     kind: Literal["igrm", "gvmi", "sam"]
+    bands: list[str] | None = Field(None, min_length=2, description="bands analysed by `s2cl simulate` (default: the "
+                                    "swept bands, else B4 B5 B6 B7 for igrm, nir+swir for gvmi, all for sam)")
     parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
     nir: str | None = Field(None, description="gvmi: the NIR band")
     swir: str | None = Field(None, description="gvmi: the SWIR band")
