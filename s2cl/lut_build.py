@@ -46,6 +46,7 @@ from .sixs import (
     SIXS_GRID_START_UM,
     SIXS_GRID_STEP_UM,
     SIXS_VERSION,
+    SixSError,
     SixSInput,
     SixSOutput,
     describe,
@@ -235,9 +236,9 @@ def _scattering_nodes(axes: LUTAxes, outputs: Sequence[SixSOutput]) -> np.ndarra
     for i, out in enumerate(outputs):
         t_gas = out.gas["global"]
         if t_gas < _MIN_SAMPLE_GAS_TRANSMITTANCE:
-            raise InputError(
-                f"6S scattering sample {i} sees gas transmittance {t_gas} < {_MIN_SAMPLE_GAS_TRANSMITTANCE}",
-                key="SCATTERING_SAMPLES_UM",
+            raise SixSError(
+                f"scattering sample at {SCATTERING_SAMPLES_UM[i % len(SCATTERING_SAMPLES_UM)]} um sees gas "
+                f"transmittance {t_gas} < {_MIN_SAMPLE_GAS_TRANSMITTANCE}: choose another sample wavelength"
             )
         samples.reshape(-1, 4)[i] = (out.apparent_reflectance / t_gas, out.t_down, out.t_up, out.spherical_albedo)
     a = _log_interp_matrix(np.asarray(SCATTERING_SAMPLES_UM))
