@@ -99,10 +99,12 @@ def heatmap(df: Any, band: str, path: str | Path, *, metric: str | None = None, 
     if values.size <= 150:
         finite = values[np.isfinite(values)]
         mid = np.median(finite) if finite.size else 0
+        spread = np.ptp(finite) if finite.size else 0.0
+        digits = 1 if spread >= 2 else (2 if spread >= 0.2 else 3)
         for i in range(centres.size):
             for j in range(widths.size):
                 if np.isfinite(values[i, j]):
-                    ax.text(j, i, f"{values[i, j]:.1f}", ha="center", va="center", fontsize=7,
+                    ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=7,
                             color="white" if values[i, j] > mid else "black")
     if np.isfinite(values).any():
         i, j = np.unravel_index(np.nanargmin(values), values.shape)
