@@ -27,6 +27,7 @@ def cli() -> None:
       s2cl optimise              sweep the default scene's band designs, rank them, plot
       s2cl simulate              run the built-in default scene, write NetCDF + summary
       s2cl scenes                list built-in scenes
+      s2cl libraries             list built-in spectral libraries
       s2cl sensor                show the sensor table and its noise model
       s2cl srf B1 --plot srf.png model vs measured SRF of a band (paper Fig. 2)
       s2cl devices               list OpenCL devices
@@ -173,6 +174,16 @@ def scenes() -> None:
     for name, path in builtin_scenes().items():
         meta = tomllib.loads(path.read_text(encoding="utf-8")).get("scene", {})
         click.echo(f"{name:24s} {meta.get('description', '')}")
+
+
+@cli.command()
+def libraries() -> None:
+    """List the built-in spectral libraries (use as surface.library = "builtin:NAME")."""
+    from .libraries import available_libraries
+
+    for name, description in available_libraries().items():
+        click.echo(f"builtin:{name:18s} {description}")
+    click.echo("or a file: .csv (wavelength_nm column + one column per spectrum) or an ENVI .sli/.hdr library")
 
 
 @cli.command()
