@@ -315,23 +315,9 @@ def load_csv_library(
 
 
 def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    import csv
+    from .tables import read_csv_rows
 
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError as err:
-        raise InputError("spectral library file not found", source=path) from err
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"cannot read the file as UTF-8 text ({err})", source=path) from err
-    lines = [
-        (i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if len(lines) < 3:
-        raise InputError("needs a header row and at least 2 wavelength rows", source=path)
-    delimiter = ";" if lines[0][1].count(";") > lines[0][1].count(",") else ","
-    reader = csv.reader([ln for _, ln in lines], delimiter=delimiter)
-    parsed = [(n, row) for (n, _), row in zip(lines, reader, strict=True)]
-    return parsed[0][1], parsed[1:]
+    return read_csv_rows(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
 
 
 def _csv_values(rows: list[tuple[int, list[str]]], header: list[str], *, source: str) -> np.ndarray:

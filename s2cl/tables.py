@@ -1,4 +1,4 @@
-"""Small CSV reader for s2cl's data tables (comment lines start with ``#``)."""
+"""CSV reading for s2cl's tables and user files (comment lines start with ``#``)."""
 
 from __future__ import annotations
 
@@ -8,25 +8,35 @@ from pathlib import Path
 from .errors import InputError
 
 
-def read_csv_table(path: str | Path) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of a CSV file, comments skipped.
+def read_csv_rows(path: str | Path, *, min_rows: int = 1, what: str = "file",
+                  rows_are: str = "data rows") -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header and data rows (with their line numbers) of a CSV file.
 
-    :raises InputError: the file is missing, unreadable, empty, or rows have the wrong length.
+    Comment and blank lines are skipped, a UTF-8 byte-order mark is ignored, and ``;`` is taken as
+    the delimiter when the header holds more of them than commas.
+
+    :raises InputError: the file is missing, unreadable, or has fewer than ``min_rows`` data rows.
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")
     except FileNotFoundError as err:
-        raise InputError("file not found", source=p) from err
+        raise InputError(f"{what} not found", source=p) from err
     except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"cannot read file ({err})", source=p) from err
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise InputError("file holds no table", source=p)
-    reader = list(csv.reader(lines))
-    header = [h.strip() for h in reader[0]]
-    rows = reader[1:]
-    for i, row in enumerate(rows, start=2):
+        raise InputError(f"cannot read the file as UTF-8 text ({err})", source=p) from err
+    lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
+    if len(lines) < 1 + min_rows:
+        raise InputError(f"needs a header row and at least {min_rows} {rows_are}", source=p)
+    delimiter = ";" if lines[0][1].count(";") > lines[0][1].count(",") else ","
+    rows = list(csv.reader([ln for _, ln in lines], delimiter=delimiter))
+    header = [h.strip() for h in rows[0]]
+    return header, [(n, row) for (n, _), row in zip(lines[1:], rows[1:], strict=True)]
+
+
+def read_csv_table(path: str | Path) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of a CSV table whose rows all have the header's length."""
+    header, rows = read_csv_rows(path)
+    for line_no, row in rows:
         if len(row) != len(header):
-            raise InputError(f"data row {i - 1} has {len(row)} fields, the header has {len(header)}", source=p)
-    return header, rows
+            raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=path)
+    return header, [row for _, row in rows]
