@@ -118,3 +118,40 @@ def test_dask_two_workers_equal_single_process(tmp_path) -> None:
     run_sweep(job, tmp_path / "dask", workers=2)
     assert _table(tmp_path / "dask" / RESULTS).equals(_table(single))
     assert (tmp_path / "dask" / RESULTS).read_bytes() == single.read_bytes()
+
+
+def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
+    import shutil as _shutil
+
+    import s2cl.sweep as sweep
+
+    job = gvmi_job()
+    monkeypatch.setattr(sweep, "_available_memory", lambda: 1e5)
+    with pytest.raises(InputError, match=r"GB of memory.*lower sweep.chunk"):
+        run_sweep(job, tmp_path / "a")
+    monkeypatch.setattr(sweep, "_available_memory", lambda: None)
+    usage = _shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(sweep.shutil, "disk_usage", lambda p: usage._replace(free=10))
+    with pytest.raises(InputError, match="MB of disk"):
+        run_sweep(job, tmp_path / "b")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize(
+    ("sweep_section", "message"),
+    [({"bands": ["B4", "B13"], "preset": "table2"}, "no band 'B13'"),
+     ({"bands": ["B11"]}, "no range for band B11"),
+     ({"bands": ["B4"], "ranges": {"B4": {"left": 630, "right": 640, "min_width": 30, "max_width": 50}}},
+      "admits no variant"),
+     ({"bands": ["B4"], "ranges": {"B4": {"left": 630, "min_width": 30}}}, "missing right, max_width"),
+     ({"bands": ["B4"], "ranges": {"B4": {"centre": 665, "width": 30}, "B5": {"centre": 705, "width": 15}}},
+      "not swept")],
+)
+def test_bad_sweep_sections(sweep_section: dict, message: str) -> None:
+    from s2cl.scene import Scene
+    from s2cl.sweep_tables import sweep_space
+
+    scene = Scene.from_dict({"scene": {"name": "t"}, "surface": {"library": "x.csv"}, "sweep": sweep_section})
+    with pytest.raises(InputError, match=message) as err:
+        sweep_space(scene)
+    assert "sweep" in str(err.value)
