@@ -96,3 +96,20 @@ def test_gvmi_and_sam_hard_cases() -> None:
     assert cls.tolist() == [0] and status.tolist() == [OK]
     cls, _, status = sam_classify(np.array([[1.0, 0.0]]), refs[::-1] * np.array([[1.0], [0.0]]), 10.0)
     assert status.tolist() == [DEGENERATE] and cls.tolist() == [2]
+
+
+def test_batched_metrics_agree_with_single_population_fit() -> None:
+    """s2cl.metrics (per configuration, for sweeps) and s2cl.quantify (one population, with
+    coefficients for plots) must give the same regression."""
+    from s2cl.quantify import fit_polynomial
+
+    rng = np.random.default_rng(3)
+    x = rng.uniform(690, 735, (4, 3000))
+    y = 0.05 * (x[0] - 700) ** 2 + 2 * (x[0] - 700) + rng.normal(0, 3, 3000)
+    status = np.zeros_like(x, np.uint8)
+    status[2, ::7] = INVALID
+    m = regression_metrics(x, status, np.zeros_like(status), y)
+    for row in range(4):
+        single = fit_polynomial(x[row], y, mask=status[row] == OK)
+        assert m["rms"][row] == pytest.approx(single.rms, rel=1e-10)
+        assert m["r2"][row] == pytest.approx(single.r2, rel=1e-10)
