@@ -22,6 +22,8 @@ from .simulate import LibrarySimulation, Simulator, simulate
 
 __all__ = [
     "DEFAULT_GRID",
+    "AtmosphereLUT",
+    "AtmosphereState",
     "Band",
     "BuildError",
     "DeviceError",
@@ -35,5 +37,7 @@ __all__ = [
     "SpectralGrid",
     "SpectralLibrary",
     "__version__",
+    "available_libraries",
+    "load_library",
     "simulate",
 ]
