@@ -12,9 +12,11 @@ Python API (mirrors the CLI)::
 
 __version__ = "0.1.0"
 
+from .atmosphere import AtmosphereLUT, AtmosphereState
 from .effects import EffectSet
 from .errors import BuildError, DeviceError, InputError, S2CLError
 from .grid import DEFAULT_GRID, SpectralGrid
+from .libraries import available_libraries, load_library
 from .library import SpectralLibrary
 from .scene import Scene
 from .sensor import Band, Sensor
