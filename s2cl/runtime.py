@@ -79,14 +79,53 @@ def _select(spec: str | None) -> tuple[Any, DeviceInfo]:
         raise DeviceError("no OpenCL platform found: " + INSTALL_HINT)
     listing = "\n  ".join(str(i) for i in infos)
     if spec is None:
-        pocl = [i for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind]
-        chosen = (pocl or infos)[0]
+        chosen = _first_working(infos)
     else:
         chosen = _match(spec, infos)
         if chosen is None:
             raise DeviceError(f"no OpenCL device matches {spec!r}; available:\n  {listing}")
     device = _platforms()[chosen.platform_index].get_devices()[chosen.device_index]
     return device, chosen
+
+
+NEWER_POCL_HINT = (
+    "the PoCL in the pyopencl wheel (LLVM 14) does not know this CPU model (e.g. AMD Zen 5) and cannot "
+    "compile for it; install your distribution's PoCL, which picks its code target from the CPU's features: "
+    "`apt-get install pocl-opencl-icd` (Debian/Ubuntu; `bash tools/setup.sh` does it), then run again"
+)
+
+_PROBE = "__kernel void s2cl_probe(__global float *a) { a[get_global_id(0)] *= 2.0f; }"
+
+
+def _builds(info: DeviceInfo) -> str | None:
+    """None when ``info``'s device compiles a trivial kernel, else the build log."""
+    cl = _cl()
+    device = _platforms()[info.platform_index].get_devices()[info.device_index]
+    try:
+        cl.Program(cl.Context([device]), _PROBE).build()
+    except cl.Error as exc:
+        return str(exc)
+    return None
+
+
+def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
+    """The default device: the first PoCL CPU device that compiles (else any device that does).
+
+    Some machines carry two PoCL platforms (the wheel's and the distribution's); the wheel's cannot
+    compile on CPUs that its LLVM does not know, so each candidate is probed with a trivial build
+    (cached by PoCL after the first time, ~0.05 s).
+    """
+    pocl = [i for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind]
+    logs = []
+    for info in pocl + [i for i in infos if i not in pocl]:
+        log = _builds(info)
+        if log is None:
+            return info
+        errors = [line.strip() for line in log.splitlines() if "error" in line.lower()]
+        logs.append(f"{info}: {errors[0] if errors else log.strip()[:200]}")
+    text = " ".join(logs)
+    hint = NEWER_POCL_HINT if "unknown target CPU" in text else INSTALL_HINT
+    raise DeviceError("no OpenCL device could compile a kernel (" + "; ".join(logs) + "): " + hint)
 
 
 def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
