@@ -74,3 +74,22 @@ def test_program_cache_keys_on_source_and_options(rt: Runtime) -> None:
 )
 def test_lane_quirk(platform: str, kind: str, lanes: int) -> None:
     assert preferred_lanes(platform, kind) == lanes
+
+
+def test_default_device_compiles(rt: Runtime) -> None:
+    """The default device is one that builds kernels (a PoCL that cannot is skipped, see below)."""
+    assert runtime._builds(rt.info) is None
+
+
+def test_default_skips_a_device_that_cannot_compile(monkeypatch) -> None:
+    infos = list_devices()
+    broken = infos[0]
+    real = runtime._builds
+    monkeypatch.setattr(runtime, "_builds", lambda info: "error: unknown target CPU 'generic'"
+                        if info == broken else real(info))
+    if any(real(i) is None for i in infos[1:]):  # another device that really compiles is chosen instead
+        assert runtime._first_working(infos) != broken
+    with pytest.raises(DeviceError) as err:
+        runtime._first_working([broken])
+    assert "unknown target CPU" in str(err.value)
+    assert "pocl-opencl-icd" in str(err.value)
