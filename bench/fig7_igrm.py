@@ -1,10 +1,9 @@
 """Paper Fig. 7 check: chlorophyll a+b against the IGRM inflection point lp, hyperspectral.
 
-Lib1-like canopies from PROSAIL (PROSPECT-D + 4SAIL, Cab 5-100 ug/cm2 step 5, LAI 3 and 4, the
-package's default soil; s2cl.reference.igrm_cases.PROSAIL_FIXED for the other inputs) at 1 nm
-over the red edge, IGRM fitted on every 1-nm band of the window, second-order polynomial of Cab
-on lp. The paper reports R2 = 0.98 and RMS = 3.8 ug/cm2 on its Lib1 (iron-mineral backgrounds);
-the lead's scene-level run with s2cl's Lib1 replaces this stand-in. Writes
+s2cl's Lib1 (``builtin:lib1``: PROSAIL, Cab 5-100 ug/cm2 step 5, LAI 3 and 4, over the three
+measured iron-bearing backgrounds; 120 spectra) at 1 nm over the red edge, IGRM fitted on every
+1-nm band of the window, second-order polynomial of Cab on lp over all spectra. The paper reports
+R2 = 0.98 and RMS = 3.8 ug/cm2 on its Lib1 (goethite/hematite backgrounds). Writes
 bench/results/fig7_igrm.json and bench/results/fig7_igrm.png.
 
     python bench/fig7_igrm.py
@@ -17,17 +16,18 @@ from _common import RESULTS, write_json
 
 from s2cl.igrm import IgrmFitter
 from s2cl.quantify import score_igrm
-from s2cl.reference.igrm_cases import prosail_canopies
+from s2cl.grid import DEFAULT_GRID
+from s2cl.libraries import load_library
 
 WINDOWS_NM = ((650, 800), (670, 780))
 PAPER = {"r2": 0.98, "rms_ug_cm2": 3.8}
 
 
 def main() -> None:
-    cab = np.repeat(np.arange(5.0, 101.0, 5.0), 2)
-    lai = np.tile([3.0, 4.0], 20)
-    spectra = prosail_canopies(cab, lai)
-    out = {"benchmark": "fig7_igrm", "paper": PAPER, "n_spectra": int(cab.size), "windows": []}
+    lib = load_library("builtin:lib1", DEFAULT_GRID)
+    cab, lai, spectra = np.asarray(lib.params["cab"]), np.asarray(lib.params["lai"]), lib.spectra
+    out = {"benchmark": "fig7_igrm", "library": "builtin:lib1", "paper": PAPER, "n_spectra": int(cab.size),
+           "windows": []}
     fits = []
     for lo, hi in WINDOWS_NM:
         wl = np.arange(lo, hi + 1.0)
