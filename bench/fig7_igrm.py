@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 from _common import RESULTS, write_json
 
-from s2cl.igrm import IgrmFitter
-from s2cl.quantify import score_igrm
 from s2cl.grid import DEFAULT_GRID
+from s2cl.igrm import IgrmFitter
 from s2cl.libraries import load_library
+from s2cl.quantify import score_igrm
 
 WINDOWS_NM = ((650, 800), (670, 780))
 PAPER = {"r2": 0.98, "rms_ug_cm2": 3.8}
