@@ -36,7 +36,8 @@ from .common import (
     save,
 )
 
-PAPER_DOMINANT_ABOVE = 0.10   # "if the error in this correlation factor is greater than 10 %, it will be the dominating"
+# "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
+PAPER_DOMINANT_ABOVE = 0.10
 PAPER_CALIBRATION = 0.05      # "radiometric calibration errors (smaller than 5 % for Sentinel-2)"
 STANDARD_BLUE_RED = 0.5       # rho(480 nm) = 0.5 rho(red)
 
@@ -125,11 +126,11 @@ def run(setup: StudySetup) -> StudyResult:
         b1_rms.append(rms)
         rows.append(["B1 as blue band", f"B1 {c:g}/{w:g}", f"{rms:.2f}", f"{bias:+.2f}"])
     eps_arr = np.array(st.factor_errors)
-    above = eps_arr[np.array(curve) > cal_rms]
-    crossover = float(above[above > 0].min()) if np.any(above > 0) else float("nan")
+    above = np.abs(eps_arr[np.array(curve) > cal_rms])
+    crossover = float(above.min()) if above.size else float("nan")
     nominal_b1 = int(np.argmin(np.abs(b1_variants[:, 0] - 443) + np.abs(b1_variants[:, 1] - 20)))
     figures = [
-        KeyFigure("smallest factor error whose AOT RMS exceeds the calibration case", 100 * crossover,
+        KeyFigure("smallest |factor error| whose AOT RMS exceeds the calibration case", 100 * crossover,
                   100 * PAPER_DOMINANT_ABOVE, "%", f"calibration gain {gain:g}; paper: > 10 % dominates"),
         KeyFigure(f"AOT relative RMS with calibration gain {gain:g}", round(cal_rms, 2), None, "%"),
         KeyFigure("B1 variants: spread of AOT relative RMS (max − min)", round(max(b1_rms) - min(b1_rms), 2), None,

@@ -3,7 +3,7 @@
 For each B11 variant of the [sweep] section: the band-effective two-way CH₄ transmittance
 (weighted by SRF × ground term, i.e. by the ground-reflected signal), and the relative reflectance
 error of a correction that ignores methane (terms with CH₄ removed) for flat targets ρ in [study]
-``reflectance``. 6S's methane (1.72 ppmv) is scaled to the paper's 2 ppmv by Beer's law.
+``reflectance``. Methane is 6S's own (a fixed mixing ratio in its code); the paper assumed 2 ppmv.
 """
 
 from __future__ import annotations
@@ -15,8 +15,6 @@ import numpy as np
 from .common import KeyFigure, StudyResult, StudySetup, apply, pyplot, save
 
 PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
-SIXS_CH4_PPMV = 1.72  # 6S's constant mixing ratio (US-62 standard, used with every profile)
-PAPER_CH4_PPMV = 2.0
 BAND = "B11"
 
 
@@ -25,8 +23,7 @@ def run(setup: StudySetup) -> StudyResult:
     space = setup.space()
     variants = space.per_band[space.bands.index(BAND)]
     terms = setup.terms(setup.truth())
-    scale = PAPER_CH4_PPMV / SIXS_CH4_PPMV
-    t_ch4 = terms.t_methane ** scale
+    t_ch4 = terms.t_methane
     wl = setup.scene.grid.wavelengths
     rows, trans, errs = [], [], []
     for c, w in variants:
@@ -36,8 +33,7 @@ def run(setup: StudySetup) -> StudyResult:
         # correction without methane: G and the absorbed part of Lp divided by T_CH4
         e = []
         for rho in st.reflectance:
-            L = terms.path_radiance + terms.ground_term * t_ch4 / terms.t_methane * rho / (
-                1 - terms.spherical_albedo * rho)
+            L = terms.toa_radiance(np.full(wl.size, rho))
             Lb = apply(wt, L)
             lp = apply(wt, terms.path_radiance / terms.t_methane)
             g = apply(wt, terms.ground_term / terms.t_methane)
@@ -53,7 +49,7 @@ def run(setup: StudySetup) -> StudyResult:
     figures = [KeyFigure(f"B11 {variants[nominal, 0]:g}/{variants[nominal, 1]:g} methane absorption",
                          round(float(absorb[nominal]), 3), PAPER_MAX_PCT, "%", "paper: < 0.5 %"),
                KeyFigure("largest over the B11 variants", round(float(absorb.max()), 3), PAPER_MAX_PCT, "%")]
-    data = {"ch4_ppmv": PAPER_CH4_PPMV, "variants": variants.tolist(), "band_transmittance": trans,
+    data = {"variants": variants.tolist(), "band_transmittance": trans,
             "reflectance": list(st.reflectance), "reflectance_error_pct": errs}
     sel = (wl >= 1450) & (wl <= 1800)
 
@@ -66,7 +62,7 @@ def run(setup: StudySetup) -> StudyResult:
             ax.axvspan(c - w / 2, c + w / 2, color="0.85", alpha=0.3)
         ax.set_xlabel("wavelength (nm)")
         ax.set_ylabel("two-way CH₄ absorption (%)")
-        ax.set_title(f"s2cl (6S), CH₄ {PAPER_CH4_PPMV:g} ppmv", fontsize=9)
+        ax.set_title("s2cl (6S's methane)", fontsize=9)
         ax = axes[1]
         x = np.arange(len(variants))
         ax.bar(x, absorb, 0.6, label="s2cl band absorption")
@@ -83,4 +79,4 @@ def run(setup: StudySetup) -> StudyResult:
         columns=["centre nm", "width nm", "T CH4", "absorption %",
                  *(f"err ρ={r:g} %" for r in st.reflectance)],
         rows=rows, key_figures=figures, data=data, plot=plot,
-        notes=[f"6S's CH4 ({SIXS_CH4_PPMV} ppmv) scaled to {PAPER_CH4_PPMV:g} ppmv by Beer's law."])
+        notes=["6S's methane as is (its code fixes the mixing ratio); the paper assumed 2 ppmv (MODTRAN4)."])
