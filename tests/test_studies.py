@@ -135,3 +135,12 @@ def test_ddv_aerosol(results):
     curve = dict(zip(d["factor_errors"], d["rel_rms_pct_vs_factor_error"], strict=True))
     assert curve[0.0] < curve[0.1] < curve[0.2]         # a wrong correlation factor grows the error
     assert d["rel_rms_pct_calibration"] > curve[0.0]    # +5 % calibration adds error
+
+
+def test_quick_may_only_replace_study_keys(lut):
+    from s2cl.errors import InputError
+
+    data = tomllib.loads((scene_dir() / "study-ozone.toml").read_text())
+    data["study"]["quick"] = {"kind": "cirrus"}
+    with pytest.raises(InputError, match=r"study\.quick: quick cannot replace kind"):
+        load_study(Scene.from_dict(data, base_dir=scene_dir()), quick=True, lut=lut)
