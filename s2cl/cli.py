@@ -398,6 +398,15 @@ def optimise(**kwargs: Any) -> None:
     _run_sweep(**kwargs)
 
 
+def _register_study() -> None:
+    from .study_cli import study
+
+    cli.add_command(study)
+
+
+_register_study()
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the CLI, turning s2cl errors into one line and exit code 2."""
     try:

@@ -145,6 +145,21 @@ class OutputSpec(_Section):
     precision: Literal["float32", "float64"] = "float32"
 
 
+class StudySpec(_Section):
+    """An atmospheric-band study (``s2cl study NAME``); the bands it varies are the [sweep] section."""
+
+    kind: Literal["cirrus", "water-vapour", "aerosol", "ozone", "methane"]
+    reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
+    targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
+    spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
+    water_vapour: list[float] = Field(default_factory=list, description="true water-vapour columns, g/cm2")
+    ozone: list[float] = Field(default_factory=list, description="true ozone columns, DU")
+    aot550: list[float] = Field(default_factory=list, description="true AOT550 values")
+    factor_errors: list[float] = Field(default_factory=list, description="relative errors of a correlation factor")
+    pixels: int = Field(100, ge=1, le=100_000, description="noisy pixels per target and state")
+    quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
+
+
 class SceneSpec(_Section):
     scene: SceneMeta
     surface: SurfaceSpec
@@ -156,6 +171,7 @@ class SceneSpec(_Section):
     spatial: SpatialSpec = SpatialSpec()
     analysis: AnalysisSpec | None = None
     sweep: SweepSpec | None = None
+    study: StudySpec | None = None
     output: OutputSpec = OutputSpec()
 
 

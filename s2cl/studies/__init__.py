@@ -1,0 +1,56 @@
+"""The paper's atmospheric-band studies (Segl et al. 2012, Sec. 3): ``s2cl study NAME``.
+
+Each study is a scene ``scenes/study-NAME.toml`` with a [study] section (what varies besides the
+bands) and a [sweep] section (the band variants, :mod:`s2cl.variants`), and a module here with a
+``run(setup) -> StudyResult``. :func:`run_study` loads the scene, runs the study and writes
+``NAME.json`` and ``NAME.png`` atomically.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import InputError
+from ..output import write_json
+from ..scene import Scene
+from . import aerosol, cirrus, methane, ozone, water_vapour
+from .common import StudyResult, StudySetup, load_study
+
+STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
+    "cirrus": cirrus.run,
+    "water-vapour": water_vapour.run,
+    "aerosol": aerosol.run,
+    "ozone": ozone.run,
+    "methane": methane.run,
+}
+
+__all__ = ["STUDIES", "StudyResult", "run_study", "study_scene"]
+
+
+def study_scene(name: str) -> Scene:
+    """The built-in scene ``study-NAME`` (or a scene file with a [study] section)."""
+    if name.endswith(".toml") or Path(name).is_file():
+        return Scene.load(name)
+    if name not in STUDIES:
+        raise InputError(f"unknown study {name!r}; studies: {', '.join(STUDIES)}")
+    return Scene.load(f"study-{name}")
+
+
+def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> tuple[StudyResult, Path, Path]:
+    """Run study ``name`` and write ``DIR/NAME.json`` and ``DIR/NAME.png``.
+
+    :param output: the folder (default: s2cl-out/study-NAME).
+    :returns: the result and the JSON and PNG paths.
+    """
+    scene = study_scene(name)
+    setup = load_study(scene, quick=quick)
+    result = STUDIES[setup.study.kind](setup)
+    out = Path(output) if output else Path("s2cl-out") / scene.name
+    stem = setup.study.kind
+    png = result.plot(out / f"{stem}.png")
+    from .. import __version__
+
+    payload = {**result.to_json(), "scene": scene.source, "quick": quick, "s2cl_version": __version__}
+    js = write_json(out / f"{stem}.json", payload)
+    return result, js, png

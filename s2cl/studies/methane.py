@@ -1,0 +1,82 @@
+"""Methane in B11 (paper Sec. 3.4): how much CH₄ absorption changes the band signal.
+
+For each B11 variant of the [sweep] section: the band-effective two-way CH₄ transmittance
+(weighted by SRF × ground term, i.e. by the ground-reflected signal), and the relative reflectance
+error of a correction that ignores methane (terms with CH₄ removed) for flat targets ρ in [study]
+``reflectance``. Methane is 6S's own (a fixed mixing ratio in its code); the paper assumed 2 ppmv.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .common import KeyFigure, StudyResult, StudySetup, apply, pyplot, save
+
+PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
+BAND = "B11"
+
+
+def run(setup: StudySetup) -> StudyResult:
+    st = setup.study
+    space = setup.space()
+    variants = space.per_band[space.bands.index(BAND)]
+    terms = setup.terms(setup.truth())
+    t_ch4 = terms.t_methane
+    wl = setup.scene.grid.wavelengths
+    rows, trans, errs = [], [], []
+    for c, w in variants:
+        wt = setup.weights(BAND, c, w)
+        signal = apply(wt, terms.ground_term)
+        t_band = float(apply(wt, terms.ground_term * t_ch4) / signal)
+        # correction without methane: G and the absorbed part of Lp divided by T_CH4
+        e = []
+        for rho in st.reflectance:
+            L = terms.toa_radiance(np.full(wl.size, rho))
+            Lb = apply(wt, L)
+            lp = apply(wt, terms.path_radiance / terms.t_methane)
+            g = apply(wt, terms.ground_term / terms.t_methane)
+            s = apply(wt, terms.ground_term * terms.spherical_albedo) / apply(wt, terms.ground_term)
+            y = (Lb - lp) / g
+            e.append(100.0 * (y / (1 + s * y) / rho - 1.0))
+        trans.append(t_band)
+        errs.append(e)
+        rows.append([f"{c:g}", f"{w:g}", f"{t_band:.5f}", f"{100 * (1 - t_band):.3f}",
+                     *(f"{x:+.3f}" for x in e)])
+    absorb = 100 * (1 - np.array(trans))
+    nominal = int(np.argmin(np.abs(variants[:, 0] - 1610) + np.abs(variants[:, 1] - 90)))
+    figures = [KeyFigure(f"B11 {variants[nominal, 0]:g}/{variants[nominal, 1]:g} methane absorption",
+                         round(float(absorb[nominal]), 3), PAPER_MAX_PCT, "%", "paper: < 0.5 %"),
+               KeyFigure("largest over the B11 variants", round(float(absorb.max()), 3), PAPER_MAX_PCT, "%")]
+    data = {"variants": variants.tolist(), "band_transmittance": trans,
+            "reflectance": list(st.reflectance), "reflectance_error_pct": errs}
+    sel = (wl >= 1450) & (wl <= 1800)
+
+    def plot(path: Path) -> Path:
+        plt = pyplot()
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=110)
+        ax = axes[0]
+        ax.plot(wl[sel], 100 * (1 - t_ch4[sel]), "k-", lw=0.8)
+        for c, w in variants:
+            ax.axvspan(c - w / 2, c + w / 2, color="0.85", alpha=0.3)
+        ax.set_xlabel("wavelength (nm)")
+        ax.set_ylabel("two-way CH₄ absorption (%)")
+        ax.set_title("s2cl (6S's methane)", fontsize=9)
+        ax = axes[1]
+        x = np.arange(len(variants))
+        ax.bar(x, absorb, 0.6, label="s2cl band absorption")
+        ax.axhline(PAPER_MAX_PCT, color="tab:red", ls=":", label="paper: < 0.5 %")
+        ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in variants], fontsize=7, rotation=45)
+        ax.set_ylabel("%")
+        ax.set_title("B11 variants vs the paper's bound", fontsize=9)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        return save(fig, path)
+
+    return StudyResult(
+        name="methane", title="Methane in B11: band transmittance and reflectance error if ignored",
+        columns=["centre nm", "width nm", "T CH4", "absorption %",
+                 *(f"err ρ={r:g} %" for r in st.reflectance)],
+        rows=rows, key_figures=figures, data=data, plot=plot,
+        notes=["6S's methane as is (its code fixes the mixing ratio); the paper assumed 2 ppmv (MODTRAN4)."])

@@ -1,0 +1,86 @@
+"""Ozone (paper Sec. 3.4, Fig. 5): relative surface-reflectance error in B1–B5 when scenes with a
+true ozone column of [study] ``ozone`` (DU) are corrected with the [correction] column (330 DU),
+for flat targets ρ in [study] ``reflectance``.
+
+Band radiance = SRF-weighted TOA radiance at the true state; correction with band-effective terms
+of the assumed state (:class:`s2cl.correction.BandAtmosphere`). Error = (ρ_retrieved − ρ)/ρ in %.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, inverse, pyplot, save
+
+PAPER_MAX_B3_PCT = 6.0  # "relative errors of up to about 6 %" in B3 (Fig. 5, MODTRAN4)
+
+
+def run(setup: StudySetup) -> StudyResult:
+    st = setup.study
+    space = setup.space()
+    shapes = space.shapes(0, 1)[0]  # the bands as given (fixed) in [sweep]
+    weights = [setup.weights(b, c, w) for b, (c, w) in zip(space.bands, shapes, strict=True)]
+    assumed = setup.assumed()
+    corr = band_terms([setup.terms(assumed)], weights)
+    t_assumed = setup.terms(assumed)
+    wl = setup.scene.grid.wavelengths
+    err = {}   # (o3, rho) -> per-band %
+    spec_err = {}
+    for o3 in st.ozone:
+        t_true = setup.terms(setup.truth(ozone=o3))
+        for rho in st.reflectance:
+            L = t_true.toa_radiance(np.full(wl.size, rho))
+            Lb = np.array([apply(w, L) for w in weights])
+            rho_b = inverse(corr["lp"][0], corr["g"][0], corr["s"][0], Lb)
+            err[(o3, rho)] = 100.0 * (rho_b / rho - 1.0)
+            spec_err[(o3, rho)] = 100.0 * (t_assumed.surface_reflectance(L) / rho - 1.0)
+    rows = [[f"{o3:g}", f"{rho:g}", *(f"{e:+.2f}" for e in err[(o3, rho)])] for (o3, rho) in err]
+    worst = max(err, key=lambda k: np.abs(err[k]).max())
+    band_of_max = space.bands[int(np.abs(err[worst]).argmax())]
+    figures = [KeyFigure(f"largest |error| (band {band_of_max}, {worst[0]:g} DU, ρ {worst[1]:g})",
+                         round(float(np.abs(err[worst]).max()), 2), PAPER_MAX_B3_PCT, "%",
+                         "paper: B3, 'up to about 6 %'")]
+    for o3 in st.ozone:
+        b3 = space.bands.index("B3") if "B3" in space.bands else None
+        if b3 is not None:
+            figures.append(KeyFigure(f"B3 error, {o3:g} DU true, ρ {min(st.reflectance):g}",
+                                     round(float(err[(o3, min(st.reflectance))][b3]), 2), None, "%"))
+    data = {
+        "assumed_ozone_du": assumed.ozone, "bands": space.bands, "shapes": shapes.tolist(),
+        "band_error_pct": {f"{o3:g}DU rho={rho:g}": v.tolist() for (o3, rho), v in err.items()},
+    }
+    sel = (wl >= 400) & (wl <= 760)
+
+    def plot(path: Path) -> Path:
+        plt = pyplot()
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
+        ax = axes[0]
+        for c, w in shapes:
+            ax.axvspan(c - w / 2, c + w / 2, color="0.9")
+        for (o3, rho), e in spec_err.items():
+            ax.plot(wl[sel], e[sel], color="k" if rho == min(st.reflectance) else "0.6", lw=0.9,
+                    ls="-" if o3 < assumed.ozone else "--", label=f"{o3:g} DU, ρ={rho:g}")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel("wavelength (nm)")
+        ax.set_ylabel("relative reflectance error (%)")
+        ax.set_title(f"s2cl (6S), 1 nm, corrected with {assumed.ozone:g} DU (shaded: B1–B5)", fontsize=9)
+        ax.legend(fontsize=7)
+        ax = axes[1]
+        x = np.arange(len(space.bands))
+        for i, ((o3, rho), e) in enumerate(err.items()):
+            ax.bar(x + (i - len(err) / 2 + 0.5) * 0.18, e, 0.18, label=f"{o3:g} DU, ρ={rho:g}")
+        ax.axhline(PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1, label="paper: ±6 % (B3)")
+        ax.axhline(-PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1)
+        ax.set_xticks(x, space.bands)
+        ax.set_ylabel("band reflectance error (%)")
+        ax.set_title("band errors, s2cl vs the paper's figure", fontsize=9)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        return save(fig, path)
+
+    return StudyResult(
+        name="ozone", title=f"Ozone: relative reflectance error (%), corrected with {assumed.ozone:g} DU",
+        columns=["true O3 DU", "ρ", *space.bands], rows=rows, key_figures=figures, data=data, plot=plot,
+        notes=["6S ozone: Chappuis band, Beer's law in the LUT; the paper used MODTRAN4."])

@@ -1,0 +1,146 @@
+"""The paper's atmospheric-band studies (`s2cl study NAME`): physics that can fail, on --quick settings."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from s2cl.atmosphere import AtmosphereLUT
+from s2cl.cli import cli, main
+from s2cl.resources import scene_dir
+from s2cl.scene import Scene
+from s2cl.studies import STUDIES, water_vapour
+from s2cl.studies.common import crossing, load_study
+
+
+@pytest.fixture(scope="module")
+def lut() -> AtmosphereLUT:
+    return AtmosphereLUT.load()
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory) -> dict[str, dict]:
+    """Every study once, --quick, through the CLI; name -> its JSON."""
+    out = tmp_path_factory.mktemp("studies")
+    runner = CliRunner()
+    data = {}
+    for name in STUDIES:
+        res = runner.invoke(cli, ["study", name, "--quick", "-o", str(out / name)])
+        assert res.exit_code == 0, res.output
+        assert "s2cl vs Segl et al. 2012" in res.output
+        stem = out / name / name
+        assert stem.with_suffix(".png").stat().st_size > 1000
+        data[name] = json.loads(stem.with_suffix(".json").read_text())
+        assert data[name]["quick"] is True
+    return data
+
+
+def test_unknown_study_is_one_line_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["study", "nope"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "unknown study 'nope'" in err and all(n in err for n in STUDIES)
+
+
+def test_study_scenes_validate():
+    for name in STUDIES:
+        scene = Scene.load(f"study-{name}")
+        assert scene.spec.study is not None and scene.spec.study.kind == name
+
+
+def test_cirrus_radiance_falls_with_water_vapour(results):
+    d = results["cirrus"]["data"]
+    wl = np.array(d["wavelength_nm"])
+    spectra = {float(k): np.array(v) for k, v in d["toa_radiance_1nm"].items()}
+    bands = {float(k): np.array(v) for k, v in d["band_radiance"].items()}
+    i = int(np.argmin(np.abs(wl - 1375)))
+    assert spectra[1.0][i] < 0.5 * spectra[0.4][i]
+    assert np.all(bands[1.0] < bands[0.4])              # every centre and width
+    # 1375/30 band radiance near the 6S figures in the notes (1.48 / 0.43 W m-2 sr-1 um-1)
+    assert d["band_1375_30"]["0.4"] == pytest.approx(1.48, rel=0.1)
+    assert d["band_1375_30"]["1.0"] == pytest.approx(0.43, rel=0.1)
+    # the darkest 30 nm band sits inside the 1.38 um absorption, far below the 1340 nm shoulder
+    variants = np.array(d["variants"])
+    w30 = variants[:, 1] == 30
+    darkest = variants[w30][np.argmin(bands[1.0][w30]), 0]
+    assert 1355 <= darkest <= 1400
+    assert bands[1.0][w30].min() < 0.05 * spectra[1.0][np.argmin(np.abs(wl - 1340))]
+
+
+def test_ozone_error_sign_flips_and_b3_largest(results):
+    errs = results["ozone"]["data"]["band_error_pct"]
+    bands = results["ozone"]["data"]["bands"]
+    for rho in ("0.05", "0.15"):
+        low, high = np.array(errs[f"250DU rho={rho}"]), np.array(errs[f"410DU rho={rho}"])
+        assert np.all(low > 0) and np.all(high < 0)     # too little ozone assumed -> too bright, and back
+        assert bands[int(np.argmax(np.abs(low)))] == "B3"
+        assert bands[int(np.argmax(np.abs(high)))] == "B3"
+    # darker targets suffer more (path radiance share)
+    assert errs["250DU rho=0.05"][bands.index("B3")] > errs["250DU rho=0.15"][bands.index("B3")]
+    assert 2.0 < errs["250DU rho=0.05"][bands.index("B3")] < 8.0
+
+
+def test_methane_in_b11_below_one_percent(results):
+    d = results["methane"]["data"]
+    variants = np.array(d["variants"])
+    t = np.array(d["band_transmittance"])
+    nominal = t[(variants[:, 0] == 1610) & (variants[:, 1] == 90)][0]
+    assert 0.99 < nominal < 1.0
+
+
+def test_crossing_is_linear_between_nodes():
+    x = np.array([0.0, 1.0, 2.0, 3.0])
+    f = np.array([[3.0, 1.0, -1.0, -3.0], [1.0, 2.0, 3.0, 4.0]])
+    np.testing.assert_allclose(crossing(x, f), [1.5, 0.0])
+
+
+def _noise_free(name: str, lut: AtmosphereLUT, **study_changes) -> Scene:
+    data = tomllib.loads((scene_dir() / f"study-{name}.toml").read_text())
+    data["effects"]["noise"] = False
+    data["study"].update(study_changes)
+    return Scene.from_dict(data, base_dir=scene_dir())
+
+
+def test_apda_noise_free_recovers_water_vapour(lut):
+    scene = _noise_free("water-vapour", lut, targets={"flat": "builtin:flat:0.1,0.3"},
+                        water_vapour=[0.5, 1.0, 2.5], pixels=1)
+    setup = load_study(scene, lut=lut)
+    variants = {"B9": np.array([[945.0, 20.0], [920.0, 20.0]]), "B8a": np.array([[865.0, 20.0]])}
+    truth = water_vapour._Truth(setup, water_vapour.SUMMER, variants, setup.targets())
+    axis = water_vapour.wv_axis(setup)
+    terms = water_vapour._lut_terms(setup, water_vapour.SUMMER, axis, variants)
+    for i9 in range(2):
+        wv = water_vapour.retrieve(truth.radiance["B9"][i9], truth.radiance["B8a"][0], terms["B9"][i9],
+                                   terms["B8a"][0], axis)
+        np.testing.assert_allclose(wv[..., 0], np.broadcast_to(truth.truth, wv.shape[:2]), rtol=0.01)
+
+
+def test_apda_with_noise_and_profile_mismatch(results):
+    d = results["water-vapour"]["data"]
+    flat = np.array(d["rel_rms_pct"]["flat"])
+    assert np.all(flat > 0) and np.median(flat) < 15    # sensor noise only: a few per cent
+    w = d["winter"]
+    assert w["summer_lut"]["vegetation"] != w["winter_lut"]["vegetation"]
+
+
+def test_ddv_aerosol(results):
+    d = results["aerosol"]["data"]
+    assert d["rel_rms_pct_no_noise"] < 0.5              # exact factors, no noise: AOT recovered
+    curve = dict(zip(d["factor_errors"], d["rel_rms_pct_vs_factor_error"], strict=True))
+    assert curve[0.0] < curve[0.1] < curve[0.2]         # a wrong correlation factor grows the error
+    assert d["rel_rms_pct_calibration"] > curve[0.0]    # +5 % calibration adds error
+
+
+def test_quick_may_only_replace_study_keys(lut):
+    from s2cl.errors import InputError
+
+    data = tomllib.loads((scene_dir() / "study-ozone.toml").read_text())
+    data["study"]["quick"] = {"kind": "cirrus"}
+    with pytest.raises(InputError, match=r"study\.quick: quick cannot replace kind"):
+        load_study(Scene.from_dict(data, base_dir=scene_dir()), quick=True, lut=lut)
