@@ -19,6 +19,9 @@ reflectances (noise, quantisation, calibration, correction as in the sweep):
   rmin and rmax linear for each s);
 - ``l0-rmin-from-B4``: l0 = B4 centre and rmin = B4's reflectance, rmax and s fitted.
 
+``noise-x3`` and ``noise-x10`` multiply every band's noise σ (the reach of another noise model).
+Tables 5 and 6 run with noise off, and Table 6 with the 8 full-range minerals and an AOT error.
+
 Writes bench/results/paper_sensitivity.json and docs/paper/table4_sensitivity.png.
 
     PYTHONPATH=. python bench/paper_sensitivity.py
@@ -30,6 +33,7 @@ import copy
 import sys
 import time
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +65,18 @@ SCENE_VARIANTS: dict[str, dict[str, Any]] = {
     "lib2": {"surface": {"library": "builtin:lib2"}},
 }
 FIT_VARIANTS = ("l0-at-B4", "l0-rmin-from-B4")
+NOISE_SCALES = (3.0, 10.0)  # the sensor noise σ of every band multiplied (a different noise model's reach)
+#: SWIR tables: (scene, moving band, metric) and one-key changes
+SWIR = {"table5-b11": ("B11", "rms"), "table6-b12": ("B12", "omission_error_pct")}
+SWIR_VARIANTS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "no-noise": {"effects": {"noise": False}},
+}
+SAM_VARIANTS: dict[str, dict[str, Any]] = {
+    # only the 8 minerals measured over all of 400-2500 nm (3 Al-OH, 5 Mg-OH/C-O) instead of 24
+    "minerals-8": {"surface": {"library": "builtin:minerals"}},
+    "aot-error": {"correction": {"visibility_km": 15.0}},
+}
 COLUMNS = ("rms", "robust_rms", "rms_unbounded", "bound_fraction", "failed_fraction", "iteration_limit_fraction")
 
 
@@ -71,8 +87,8 @@ def _merge(base: dict[str, Any], change: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def scene_variant(change: dict[str, Any]) -> Scene:
-    path = find_scene(SCENE)
+def scene_variant(change: dict[str, Any], scene: str = SCENE) -> Scene:
+    path = find_scene(scene)
     data = _merge(tomllib.loads(path.read_text(encoding="utf-8")), change)
     return Scene.from_dict(data, path=path)
 
@@ -182,6 +198,18 @@ def main() -> None:
         out["variants"][name] = entry
         print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
               f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
+    for k in NOISE_SCALES:
+        t0 = time.perf_counter()
+        tables = replace(job.tables, sigma=tuple(sig * k for sig in job.tables.sigma))
+        rows = evaluate_chunk(replace(job, tables=tables), 0, job.n_configs)
+        name = f"noise-x{k:g}"
+        entry = {"change": {"sigma_scale": k}, **summarise(rows), "seconds": time.perf_counter() - t0}
+        for col in COLUMNS:
+            centres, widths, entry[col] = grid(rows, col)
+        entry["centres_nm"], entry["widths_nm"] = centres, widths
+        out["variants"][name] = entry
+        print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
+              f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
     # per-background RMS of the shipped fit at B4 665/30 (ESA) and 680/30 (paper's optimum)
     from s2cl.sweep import evaluator
 
@@ -192,8 +220,36 @@ def main() -> None:
     out["per_background_default"] = {
         f"{centre:g}/30": {g: float(v[(c == centre) & (w == 30)][0]) for g, v in per_bg.items()}
         for centre in (660.0, 665.0, 680.0)}
+    out["swir"] = swir()
     write_json(ROOT / "bench" / "results" / "paper_sensitivity.json", out)
     plot(out, ROOT / "docs" / "paper" / "table4_sensitivity.png")
+
+
+def swir() -> dict[str, Any]:
+    """Tables 5 and 6 under one-key changes: the best cell, its value, and the value at the paper's best."""
+    import pandas as pd
+
+    from s2cl.report import centre_width_grid
+
+    out: dict[str, Any] = {}
+    for scene_name, (band, metric) in SWIR.items():
+        variants = dict(SWIR_VARIANTS, **(SAM_VARIANTS if metric == "omission_error_pct" else {}))
+        for name, change in variants.items():
+            job = plan_sweep(scene_variant(change, scene_name))
+            df = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs))
+            centres, widths, values = centre_width_grid(df, band, metric)
+            i, j = np.unravel_index(np.nanargmin(values), values.shape)
+            paper_best = (2190.0, 50.0) if band == "B12" else (1600.0, 100.0)
+            pi, pj = int(np.flatnonzero(centres == paper_best[0])[0]), int(np.flatnonzero(widths == paper_best[1])[0])
+            entry = {"change": change, "metric": metric, "best": [float(centres[i]), float(widths[j])],
+                     "best_value": float(values[i, j]), "at_paper_best": float(values[pi, pj]),
+                     "range": [float(np.nanmin(values)), float(np.nanmax(values))],
+                     "centres_nm": centres.tolist(), "widths_nm": widths.tolist(),
+                     "values": np.round(values, 3).tolist()}
+            out[f"{scene_name}/{name}"] = entry
+            print(f"{scene_name}/{name}: best {entry['best']} {entry['best_value']:.2f}, at paper best "
+                  f"{entry['at_paper_best']:.2f}, range {entry['range'][0]:.1f}-{entry['range'][1]:.1f}", flush=True)
+    return out
 
 
 def plot(out: dict[str, Any], path: Path) -> None:
