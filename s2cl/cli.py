@@ -451,7 +451,9 @@ def optimise(**kwargs: Any) -> None:
 
     Runs the scene's sweep (every combination of band variants through the whole sensor chain,
     resumable), ranks the configurations, compares with the sensor's own bands, and writes
-    results.parquet, summary.json and heatmaps (centre × width, best marked).
+    results.parquet, summary.json and heatmaps (centre × width, best marked). The paper's scenes
+    (table3-*, table4-b4, table5-b11, table6-b12) also print Segl et al. (2012)'s values beside
+    s2cl's and write heatmap_<band>_vs_paper.png (docs/paper.md).
     """
     _run_sweep(**kwargs)
 
