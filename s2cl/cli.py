@@ -321,11 +321,66 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     reference = reference_row(sc, job, device)
     summary = summarise(df, meta, reference)
     summary["seconds"] = time.perf_counter() - t0
+    plots = _paper(df, summary, out)
     write_summary(out / "summary.json", summary)
     moving = [b for b in summary["bands"] if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
-    plots = [heatmap(df, b, out / f"heatmap_{b}.png") for b in moving]
+    plots = [heatmap(df, b, out / f"heatmap_{b}.png") for b in moving] + plots
     _print_sweep(summary)
+    _print_paper(summary)
     click.echo(f"wrote {results}, {out / 'summary.json'}" + "".join(f", {p}" for p in plots))
+
+
+def _paper(df: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
+    """Add the paper's values (scenes of Segl et al. 2012, Tables 3-6) to ``summary``; plot grids beside them."""
+    from .report import heatmap_vs_paper, paper_comparison
+
+    comparison = paper_comparison(df, summary)
+    if comparison is None:
+        return []
+    summary["paper"] = comparison
+    if "band" in comparison:
+        return [heatmap_vs_paper(comparison, folder / f"heatmap_{comparison['band']}_vs_paper.png")]
+    return []
+
+
+def _print_paper(summary: dict[str, Any]) -> None:
+    """The paper-style table: s2cl beside Segl et al. (2012)."""
+    from rich.table import Table
+
+    p = summary.get("paper")
+    if p is None:
+        return
+    if p["table"] == "table3":
+        bands = summary["bands"]
+        table = Table(title=f"Table 3 ({p['library']}, {' '.join(bands)}): s2cl beside Segl et al. 2012")
+        for title in ("", "RMS ESA", "RMS best", *(f"{b} λ/Δλ" for b in bands)):
+            table.add_column(title, justify="right")
+        for label, e in (("paper", p["paper"]), ("s2cl", p["s2cl"])):
+            esa = "–" if e["rms_esa"] is None else f"{e['rms_esa']:.1f}"
+            table.add_row(label, esa, f"{e['rms_best']:.1f}",
+                          *(f"{e['best'][b][0]:g}/{e['best'][b][1]:g}" for b in bands))
+        _console().print(table)
+        if "paper_best_in_s2cl" in p:
+            q = p["paper_best_in_s2cl"]
+            click.echo(f"the paper's best bands in s2cl: rms {q[summary['metric']]:.2f}, rank {q['rank']:,} of "
+                       f"{summary['configurations']:,}")
+        return
+    band, unit = p["band"], p["unit"]
+    table = Table(title=f"Table {p['table'][5:]} ({band}, {p['metric']} {unit}): s2cl (paper)")
+    table.add_column(f"{band} centre ↓ FWHM →", justify="right")
+    for w in p["widths_nm"]:
+        table.add_column(f"{w:g}", justify="right")
+    for c, ours, theirs in zip(p["centres_nm"], p["s2cl"], p["paper"], strict=True):
+        cells = ("–" if o is None else f"{o:.1f} ({t:.1f})" for o, t in zip(ours, theirs, strict=True))
+        table.add_row(f"{c:g}", *cells)
+    _console().print(table)
+    pb, sb = p["paper_best"], p.get("s2cl_best")
+    line = f"paper best {pb['bands'][0]:g}/{pb['bands'][1]:g} ({pb['value']:.1f})"
+    if sb:
+        line += f"; s2cl best {sb['bands'][0]:g}/{sb['bands'][1]:g} ({sb['value']:.2f})"
+    if p.get("rank_correlation") is not None:
+        line += f"; rank correlation of the {p['cells']} cells {p['rank_correlation']:.2f}"
+    click.echo(line)
 
 
 def _print_sweep(summary: dict[str, Any]) -> None:
@@ -378,11 +433,14 @@ def sweep_report(results: Path, band: str | None) -> None:
     df, meta = load(results)
     folder = results if results.is_dir() else results.parent
     summary = summarise(df, meta)
+    for p in _paper(df, summary, folder):
+        click.echo(f"wrote {p}")
     write_summary(folder / "summary.json", summary)
     for b in [band] if band else bands_of(df):
         if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1:
             click.echo(f"wrote {heatmap(df, b, folder / f'heatmap_{b}.png')}")
     _print_sweep(summary)
+    _print_paper(summary)
 
 
 @cli.command()
@@ -393,7 +451,9 @@ def optimise(**kwargs: Any) -> None:
 
     Runs the scene's sweep (every combination of band variants through the whole sensor chain,
     resumable), ranks the configurations, compares with the sensor's own bands, and writes
-    results.parquet, summary.json and heatmaps (centre × width, best marked).
+    results.parquet, summary.json and heatmaps (centre × width, best marked). The paper's scenes
+    (table3-*, table4-b4, table5-b11, table6-b12) also print Segl et al. (2012)'s values beside
+    s2cl's and write heatmap_<band>_vs_paper.png (docs/paper.md).
     """
     _run_sweep(**kwargs)
 

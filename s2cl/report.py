@@ -124,3 +124,144 @@ def write_summary(path: str | Path, summary: dict[str, Any]) -> Path:
 
 def read_summary(path: str | Path) -> dict[str, Any]:
     return json.loads(Path(path).read_text())
+
+
+# -- the paper's values beside s2cl's (Segl et al. 2012, Tables 3-6) -------------------------------
+
+PAPER_FILE = "segl2012_results.json"
+#: scene name → (paper table, key); the built-in scenes are named after the tables they reproduce
+_TABLE3 = {f"table3-{lib}-b{bands}": (lib.capitalize(), bands) for lib in ("lib1", "lib2")
+           for bands in ("4567", "4568", "4568a")}
+_GRIDS = {"table4-b4": ("table4", "B4", "rms"), "table5-b11": ("table5", "B11", "rms"),
+          "table6-b12": ("table6", "B12", "omission_error")}
+
+
+def paper_results() -> dict[str, Any]:
+    """The paper's printed results (s2cl/data/segl2012_results.json)."""
+    import importlib.resources
+
+    return json.loads((importlib.resources.files("s2cl") / "data" / PAPER_FILE).read_text(encoding="utf-8"))
+
+
+def _band_key(bands: list[str]) -> str:
+    return "".join(b[1:] for b in bands)
+
+
+def paper_comparison(df: Any, summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The paper's values for this sweep beside s2cl's, or None when the scene is not one of the
+    paper's (matched by the built-in scene names ``table3-lib{1,2}-b*``, ``table4-b4``,
+    ``table5-b11``, ``table6-b12`` and the swept bands)."""
+    name, bands = summary.get("scene", ""), summary["bands"]
+    paper = paper_results()
+    if name in _TABLE3:
+        lib, key = _TABLE3[name]
+        if _band_key(bands) != key:
+            return None
+        row = next(r for r in paper["table3"] if r["library"] == lib and _band_key(r["bands"]) == key)
+        return _table3(df, summary, row)
+    if name in _GRIDS:
+        table, band, paper_metric = _GRIDS[name]
+        if band not in bands:
+            return None
+        return _grid_table(df, summary, table, band, paper[table], paper_metric)
+    return None
+
+
+def _match(df: Any, bands: list[str], shape: list[list[float]], tol_nm: float = 0.5) -> Any:
+    """Rows of ``df`` whose bands equal ``shape`` (the paper prints 832 for 832.5: tolerance 0.5 nm)."""
+    mask = np.ones(len(df), bool)
+    for b, (c, w) in zip(bands, shape, strict=True):
+        mask &= (np.abs(df[f"{b}_centre_nm"].to_numpy() - c) <= tol_nm) & (df[f"{b}_width_nm"].to_numpy() == w)
+    return df[mask]
+
+
+def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, Any]:
+    bands, metric = summary["bands"], summary["metric"]
+    out: dict[str, Any] = {
+        "table": "table3", "library": row["library"], "configurations_paper": row["configurations"],
+        "paper": {"rms_esa": row["rms_esa"], "rms_best": row["rms_best"],
+                  "best": dict(zip(bands, row["best"], strict=True))},
+        "s2cl": {"rms_esa": summary.get("reference", {}).get(metric), "rms_best": summary["best"][metric],
+                 "best": summary["best"]["bands"]},
+    }
+    hit = _match(df, bands, row["best"])
+    if len(hit):
+        r = hit.iloc[0]
+        rank = int(np.sum(df[metric].to_numpy() < r[metric])) + 1
+        out["paper_best_in_s2cl"] = {k: _plain(r[k]) for k in (metric, "robust_rms", "bound_fraction",
+                                                              "failed_fraction") if k in r.index}
+        out["paper_best_in_s2cl"]["rank"] = rank
+    return out
+
+
+def _rank(a: np.ndarray) -> np.ndarray:
+    r = np.empty(a.size)
+    r[np.argsort(a, kind="stable")] = np.arange(a.size)
+    return r
+
+
+def _grid_table(df: Any, summary: dict[str, Any], table: str, band: str, paper: dict[str, Any],
+                paper_metric: str) -> dict[str, Any]:
+    metric = summary["metric"]
+    centres, widths, values = centre_width_grid(df, band, metric)
+    pc, pw = np.asarray(paper["centres"], float), np.asarray(paper["widths"], float)
+    pv = np.asarray(paper[paper_metric], float)
+    ours = np.full(pv.shape, np.nan)
+    for i, c in enumerate(pc):
+        for j, w in enumerate(pw):
+            ci, wj = np.flatnonzero(centres == c), np.flatnonzero(widths == w)
+            if ci.size and wj.size:
+                ours[i, j] = values[ci[0], wj[0]]
+    pi, pj = np.unravel_index(np.argmin(pv), pv.shape)
+    out: dict[str, Any] = {
+        "table": table, "band": band, "metric": metric, "unit": paper.get("unit", ""),
+        "centres_nm": pc.tolist(), "widths_nm": pw.tolist(),
+        "paper": pv.tolist(), "s2cl": [[None if not np.isfinite(v) else float(v) for v in r] for r in ours],
+        "paper_best": {"bands": [float(pc[pi]), float(pw[pj])], "value": float(pv[pi, pj]),
+                       "s2cl_value": None if not np.isfinite(ours[pi, pj]) else float(ours[pi, pj])},
+    }
+    both = np.isfinite(ours)
+    if both.any():
+        si, sj = np.unravel_index(np.nanargmin(ours), ours.shape)
+        out["s2cl_best"] = {"bands": [float(pc[si]), float(pw[sj])], "value": float(ours[si, sj]),
+                            "paper_value": float(pv[si, sj])}
+        out["cells"] = int(both.sum())
+        if both.sum() >= 3:  # Spearman rank correlation of the cells both have: do the surfaces agree in shape?
+            a, b = _rank(ours[both]), _rank(pv[both])
+            out["rank_correlation"] = float(np.corrcoef(a, b)[0, 1]) if np.ptp(a) and np.ptp(b) else None
+    return out
+
+
+def heatmap_vs_paper(comparison: dict[str, Any], path: str | Path) -> Path:
+    """s2cl's centre × width table beside the paper's (same colour scale each, best marked)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pc, pw = comparison["centres_nm"], comparison["widths_nm"]
+    grids = {"s2cl": np.array(comparison["s2cl"], dtype=float), "Segl et al. 2012": np.array(comparison["paper"])}
+    fig, axes = plt.subplots(1, 2, figsize=(2.0 + 1.1 * len(pw), 1.4 + 0.38 * len(pc)), dpi=110)
+    for ax, (label, v) in zip(axes, grids.items(), strict=True):
+        im = ax.imshow(v, origin="lower", aspect="auto", cmap="viridis_r")
+        ax.set_xticks(range(len(pw)), [f"{w:g}" for w in pw], fontsize=7)
+        ax.set_yticks(range(len(pc)), [f"{c:g}" for c in pc], fontsize=7)
+        ax.set_xlabel(f"{comparison['band']} FWHM (nm)", fontsize=8)
+        ax.set_ylabel(f"{comparison['band']} centre (nm)", fontsize=8)
+        finite = v[np.isfinite(v)]
+        mid = np.median(finite) if finite.size else 0.0
+        for i in range(len(pc)):
+            for j in range(len(pw)):
+                if np.isfinite(v[i, j]):
+                    ax.text(j, i, f"{v[i, j]:.1f}", ha="center", va="center", fontsize=6,
+                            color="white" if v[i, j] > mid else "black")
+        if finite.size:
+            i, j = np.unravel_index(np.nanargmin(v), v.shape)
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
+        fig.colorbar(im, ax=ax, fraction=0.05)
+        ax.set_title(f"{label}: {comparison['metric']} {comparison['unit']}".strip(), fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return Path(path)

@@ -82,6 +82,19 @@ def test_sweep_count_run_report_and_refuse_mixing(tmp_path) -> None:
     assert report.returncode == 0 and "best of 6" in report.stdout
 
 
+def test_paper_scene_prints_the_papers_values(tmp_path) -> None:
+    scene = _small_sweep(tmp_path)
+    text = scene.read_text().replace('name = "small"', 'name = "table4-b4"')
+    text = text.replace("centres = [665, 675, 685], widths = [20, 30]", "centres = [665, 680], widths = [30]")
+    scene.write_text(text.replace("B5 = { centre = 705, width = 15 }", "B5 = { centre = 710, width = 20 }"))
+    out = run("optimise", str(scene), "-q", "-o", "out", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "Table 4 (B4" in out.stdout and "(19.9)" in out.stdout and "paper best 680/30 (4.7)" in out.stdout
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["paper"]["table"] == "table4" and summary["paper"]["cells"] == 2
+    assert (tmp_path / "out" / "heatmap_B4_vs_paper.png").stat().st_size > 1000
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [(["simulate", "no-such-scene"], "no scene file"),

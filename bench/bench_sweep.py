@@ -1,0 +1,256 @@
+"""Sweep throughput: configuration-pixel evaluations per second (noise → quantise → calibrate →
+correct → IGRM fit, and the per-configuration metrics) of the fused OpenCL kernel against the same
+sweep written as vectorised float64 numpy (s2cl.reference.sweep, ``backend="numpy"``), in the same
+process on the same tables; Dask local workers 1 vs 2 on a smaller sweep; the whole of Table 3 end
+to end with peak memory.
+
+The numpy evaluator is validated against the kernel on a slice of configurations first, then timed
+on a sample of configurations and extrapolated to the whole sweep. Timings are medians; the machine
+may be shared (see ``machine`` and ``load_average`` in the output). Nothing here asserts a timing.
+
+    PYTHONPATH=. python bench/bench_sweep.py                         # kernel vs numpy, Dask scaling
+    PYTHONPATH=. python bench/bench_sweep.py --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
+    PYTHONPATH=. python bench/bench_sweep.py --table3-run            # + run Table 3 now (minutes)
+
+``--table3-from DIR`` reads ``DIR/<scene>.time`` (GNU time -v output of
+``s2cl optimise <scene> -o DIR/<scene>``); ``--table3-run`` runs the six sweeps itself in
+subprocesses (fresh output folders) and measures wall time and peak resident memory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from common import machine_info, median_time
+
+from s2cl.metrics import regression_metrics
+from s2cl.optimise import plan_sweep
+from s2cl.output import write_json
+from s2cl.reference.sweep import evaluate
+from s2cl.scene import Scene
+from s2cl.sweep import SweepJob, evaluate_chunk, run_sweep
+from s2cl.sweep_kernel import SweepKernel
+
+ROOT = Path(__file__).resolve().parent.parent
+OUTPUT = ROOT / "bench" / "results" / "sweep.json"
+MAIN_SCENE = "table3-lib1-b4567"  # 43,056 configurations × 12,000 pixels
+DASK_SCENE = "table3-lib1-b4568"  # 3,312 configurations
+TABLE3 = tuple(f"table3-{lib}-b{bands}" for lib in ("lib1", "lib2") for bands in ("4567", "4568", "4568a"))
+VALIDATE_CONFIGS = 6
+NUMPY_SAMPLE = 24
+KERNEL_BLOCK = 666
+
+
+def spread(n_configs: int, k: int) -> list[int]:
+    """``k`` configuration numbers spread over the sweep (the ends included)."""
+    return sorted({int(x) for x in np.rint(np.linspace(0, n_configs - 1, k))})
+
+
+def validate(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
+    """The numpy evaluator against the kernel on a few configurations: statuses, λp, metrics."""
+    t, a = job.tables, job.analysis
+    same, dlp, drms = [], [], []
+    for c in spread(t.n_configs, VALIDATE_CONFIGS):
+        ref = evaluate(t, a, c, c + 1)
+        got = kernel(c, c + 1)
+        s = got.status == ref.status
+        same.append(s.mean())
+        ok = s & (ref.status == 0)
+        dlp.append(np.abs(got.index - ref.index)[ok])
+        m_ref = regression_metrics(ref.index, ref.status, ref.bounds, t.target)["rms"][0]
+        m_got = regression_metrics(got.index, got.status, got.bounds, t.target)["rms"][0]
+        drms.append(abs(m_got - m_ref) / m_ref)
+    d = np.concatenate(dlp)
+    out = {"configurations": spread(t.n_configs, VALIDATE_CONFIGS), "same_status_fraction": float(np.mean(same)),
+           "lp_abs_diff_nm": {"p50": float(np.median(d)), "p99": float(np.percentile(d, 99)), "max": float(d.max())},
+           "rms_rel_diff_max": float(max(drms)),
+           "what": "float32 kernel against the float64 numpy evaluator, same noise draws"}
+    if out["same_status_fraction"] < 0.99 or out["rms_rel_diff_max"] > 0.01:
+        raise SystemExit(f"validation failed: {out}")
+    return out
+
+
+def time_kernel(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
+    t = job.tables
+    lo = t.n_configs // 3
+    hi = min(lo + KERNEL_BLOCK, t.n_configs)
+    evals = (hi - lo) * t.n_pixels
+    raw = kernel(lo, hi)  # warm
+    t_kernel, times = median_time(lambda: kernel(lo, hi), repeat=5, warmup=0)
+    t_metrics, _ = median_time(lambda: regression_metrics(raw.index, raw.status, raw.bounds, t.target),
+                               repeat=3, warmup=0)
+    t_rows, _ = median_time(lambda: evaluate_chunk(job, lo, hi), repeat=3, warmup=1)
+    return {"configurations": hi - lo, "evaluations": evals,
+            "kernel_s": t_kernel, "kernel_s_min": min(times), "kernel_evaluations_per_s": evals / t_kernel,
+            "metrics_s": t_metrics, "evaluate_chunk_s": t_rows,
+            "with_metrics_evaluations_per_s": evals / (t_kernel + t_metrics),
+            "precision": job.precision, "lanes": kernel.T.lanes, "device": kernel.rt.name}
+
+
+def time_numpy(job: SweepJob) -> dict[str, Any]:
+    t, a = job.tables, job.analysis
+    sample = spread(t.n_configs, NUMPY_SAMPLE + 2)[1:-1]
+    def one_pass() -> None:
+        for c in sample:
+            evaluate(t, a, c, c + 1)
+
+    raw_s, times = median_time(one_pass, repeat=3, warmup=0)
+    evals = len(sample) * t.n_pixels
+    return {"sample_configurations": sample, "evaluations": evals,
+            "evaluate_s": raw_s, "evaluate_s_min": min(times), "evaluations_per_s": evals / raw_s,
+            "extrapolated_whole_sweep_evaluate_s": raw_s / len(sample) * t.n_configs,
+            "what": "float64, one configuration at a time (the kernel's LM vectorised over pixels)"}
+
+
+def time_dask(scene: str) -> dict[str, Any]:
+    """In-process against local Dask clusters of 1 and 2 workers. Each cluster runs the sweep twice:
+    cold (workers build their OpenCL context and kernel) and warm (the same workers again)."""
+    from dask.distributed import LocalCluster
+
+    job = plan_sweep(Scene.load(scene))
+    out: dict[str, Any] = {"scene": scene, "configurations": job.n_configs, "pixels": job.tables.n_pixels,
+                           "chunk": job.chunk, "chunks": len(job.chunks())}
+    with tempfile.TemporaryDirectory() as tmp:
+        evaluate_chunk(job, 0, 1)  # this process's kernel built once, as the workers' warm runs
+        t0 = time.perf_counter()
+        run_sweep(job, Path(tmp) / "in_process")
+        out["in_process_s"] = time.perf_counter() - t0
+        one_thread = {"POCL_MAX_PTHREAD_COUNT": "1", "POCL_CPU_MAX_CU_NUM": "1"}
+        for label, workers, env in (("workers_1", 1, {}), ("workers_2", 2, {}),
+                                    ("workers_1_one_pocl_thread", 1, one_thread),
+                                    ("workers_2_one_pocl_thread", 2, one_thread)):
+            saved = {k: os.environ.get(k) for k in env}
+            os.environ.update(env)  # inherited by the worker processes
+            try:
+                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+                    for run in ("cold", "warm"):
+                        t0 = time.perf_counter()
+                        run_sweep(job, Path(tmp) / f"{label}_{run}", scheduler=cluster.scheduler_address)
+                        out[f"dask_{label}_{run}_s"] = time.perf_counter() - t0
+            finally:
+                for k, v in saved.items():
+                    if v is None:
+                        os.environ.pop(k, None)
+                    else:
+                        os.environ[k] = v
+    out["speedup_2_vs_1_warm"] = out["dask_workers_1_warm_s"] / out["dask_workers_2_warm_s"]
+    out["speedup_2_vs_1_warm_one_pocl_thread"] = (out["dask_workers_1_one_pocl_thread_warm_s"]
+                                                  / out["dask_workers_2_one_pocl_thread_warm_s"])
+    out["note"] = ("each worker is a process with its own OpenCL context; PoCL already spreads one process over "
+                   "every core, so on a 2-core machine two workers share the same cores (the last case limits "
+                   "each worker's PoCL to one thread)")
+    return out
+
+
+def parse_gnu_time(text: str) -> dict[str, float]:
+    wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", text)
+    rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
+    cpu = re.search(r"Percent of CPU this job got: (\d+)%", text)
+    if not (wall and rss):
+        raise SystemExit("not GNU time -v output")
+    seconds = 0.0
+    for part in wall.group(1).split(":"):
+        seconds = seconds * 60 + float(part)
+    return {"wall_s": seconds, "peak_rss_mb": int(rss.group(1)) / 1024, "cpu_percent": float(cpu.group(1)) if cpu
+            else float("nan")}
+
+
+def table3_from(folder: Path) -> dict[str, Any]:
+    runs = {}
+    for scene in TABLE3:
+        path = folder / f"{scene}.time"
+        if not path.is_file():
+            raise SystemExit(f"{path} missing: run `/usr/bin/time -v -o {path} s2cl optimise {scene} -o ...` first")
+        runs[scene] = parse_gnu_time(path.read_text())
+    return _table3_summary(runs, f"measured by /usr/bin/time -v around `s2cl optimise SCENE` ({folder})")
+
+
+def table3_run() -> dict[str, Any]:
+    runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene in TABLE3:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "s2cl", "optimise", scene, "-q", "-o", str(Path(tmp) / scene)],
+                           check=True, capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+            # ru_maxrss of children is the largest child so far: exact for the first, an upper bound later
+            runs[scene] = {"wall_s": wall, "peak_rss_mb": after.ru_maxrss / 1024, "cpu_percent": 100 * cpu / wall}
+    return _table3_summary(runs, "run by this script (s2cl optimise in subprocesses)")
+
+
+def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, Any]:
+    configs = {s: plan_config_count(s) for s in runs}
+    return {"how": how, "runs": {s: {**r, "configurations": configs[s]} for s, r in runs.items()},
+            "configurations": sum(configs.values()), "wall_s": sum(r["wall_s"] for r in runs.values()),
+            "peak_rss_mb": max(r["peak_rss_mb"] for r in runs.values()), "target_s": 600}
+
+
+def plan_config_count(scene: str) -> int:
+    from s2cl.sweep_tables import sweep_space
+
+    return int(sweep_space(Scene.load(scene)).size)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--table3-from", type=Path, help="folder with <scene>.time files (GNU time -v)")
+    ap.add_argument("--table3-run", action="store_true", help="run the six Table 3 sweeps now")
+    ap.add_argument("--skip-dask", action="store_true")
+    args = ap.parse_args()
+
+    job = plan_sweep(Scene.load(MAIN_SCENE))
+    kernel = SweepKernel(job.tables, job.analysis, precision=job.precision)
+    result: dict[str, Any] = {"benchmark": "sweep", "machine": machine_info(kernel.rt),
+                              "load_average_start": os.getloadavg(), "scene": MAIN_SCENE,
+                              "configurations": job.n_configs, "pixels": job.tables.n_pixels,
+                              "evaluation": "noise + quantise + calibrate + correct + IGRM fit (+ metrics)"}
+    result["validation"] = validate(job, kernel)
+    print("validated:", result["validation"], flush=True)
+    result["opencl"] = time_kernel(job, kernel)
+    print("opencl:", result["opencl"], flush=True)
+    result["numpy"] = time_numpy(job)
+    print("numpy:", result["numpy"], flush=True)
+    result["ratio_kernel"] = result["opencl"]["kernel_evaluations_per_s"] / result["numpy"]["evaluations_per_s"]
+    # the metrics are the same numpy code on both paths (per chunk of configurations)
+    o, n = result["opencl"], result["numpy"]
+    metrics_per_config = o["metrics_s"] / o["configurations"]
+    numpy_sweep_s = n["extrapolated_whole_sweep_evaluate_s"] + metrics_per_config * job.n_configs
+    opencl_sweep_s = (o["kernel_s"] + o["metrics_s"]) / o["configurations"] * job.n_configs
+    result["whole_sweep_extrapolated"] = {"numpy_s": numpy_sweep_s, "opencl_s": opencl_sweep_s,
+                                          "ratio": numpy_sweep_s / opencl_sweep_s,
+                                          "metrics_s_per_configuration": metrics_per_config}
+    if not args.skip_dask:
+        result["dask"] = time_dask(DASK_SCENE)
+        print("dask:", result["dask"], flush=True)
+    if args.table3_from:
+        result["table3"] = table3_from(args.table3_from)
+    elif args.table3_run:
+        result["table3"] = table3_run()
+    if "table3" in result:
+        result["table3"]["note"] = ("the 2-core machine was shared with two other developers' jobs while this "
+                                    "ran: wall times are upper bounds of a quiet machine's")
+        print("table3:", {k: v for k, v in result["table3"].items() if k != "runs"}, flush=True)
+    result["load_average_end"] = os.getloadavg()
+    write_json(OUTPUT, result)
+    print("wrote", OUTPUT)
+
+
+if __name__ == "__main__":
+    main()
