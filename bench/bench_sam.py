@@ -5,7 +5,7 @@ Data: references = random positive spectra (seeded); pixels = brightness x refer
 noise (sigma 0.01), float32, structure-of-arrays for s2cl and (rows, cols, bands) for SPy (its
 layout; the transposition is not timed). Writes bench/results/sam.json.
 
-    python bench/bench_sam.py [--n 1000000]
+    python -m bench.bench_sam [--n 1000000]
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from _common import machine, median_time, write_json
 
+from bench.common import machine_info, median_time, write_json
 from s2cl.reference import sam as ref
 from s2cl.sam import SamClassifier
 
@@ -84,8 +84,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=1_000_000, help="pixels (a multiple of 1000)")
     args = ap.parse_args()
     cases = [run(args.n, nb, nr) for nb, nr in CASES]
-    print("wrote", write_json("sam.json", {"benchmark": "sam", "machine": machine(SamClassifier(np.ones((1, 2))).rt),
-                                           "cases": cases}))
+    rt = SamClassifier(np.ones((1, 2))).rt
+    print("wrote", write_json("sam.json", {"benchmark": "sam", "machine": machine_info(rt), "cases": cases}))
 
 
 if __name__ == "__main__":

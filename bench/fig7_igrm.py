@@ -7,14 +7,14 @@ on lp. The paper reports R2 = 0.98 and RMS = 3.8 ug/cm2 on its Lib1 (iron-minera
 the lead's scene-level run with s2cl's Lib1 replaces this stand-in. Writes
 bench/results/fig7_igrm.json and bench/results/fig7_igrm.png.
 
-    python bench/fig7_igrm.py
+    python -m bench.fig7_igrm
 """
 
 from __future__ import annotations
 
 import numpy as np
-from _common import RESULTS, write_json
 
+from bench.common import RESULTS, save_figure, write_json
 from s2cl.igrm import IgrmFitter
 from s2cl.quantify import score_igrm
 from s2cl.reference.igrm_cases import prosail_canopies
@@ -44,9 +44,6 @@ def main() -> None:
 
 
 def _plot(fits, cab: np.ndarray, lai: np.ndarray) -> None:
-    import os
-    import tempfile
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -64,10 +61,7 @@ def _plot(fits, cab: np.ndarray, lai: np.ndarray) -> None:
     ax.set_title(f"IGRM {lo}-{hi} nm: R2 {score.r2:.3f}, RMS {score.rms:.2f} (paper 0.98, 3.8)", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, suffix=".png")
-    os.close(fd)
-    fig.savefig(tmp)
-    os.replace(tmp, RESULTS / "fig7_igrm.png")
+    save_figure(fig, RESULTS / "fig7_igrm.png", dpi=120)
     print("wrote", RESULTS / "fig7_igrm.png")
 
 
