@@ -63,7 +63,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--list", action="store_true", help="list the parts and exit")
     parser.add_argument("--out", type=Path, default=RESULTS, help="results folder (default bench/results)")
     parser.add_argument("--no-docs", action="store_true", help="do not regenerate docs/bench.md and docs/bench/")
+    parser.add_argument("--report", type=Path, metavar="RESULT.json",
+                        help="only rewrite the Markdown, plots (and docs) from an earlier run's JSON")
     args = parser.parse_args(argv)
+    if args.report:
+        import json
+
+        from bench.report import write_reports
+
+        results = json.loads(args.report.read_text(encoding="utf-8"))
+        for p in write_reports(results, args.report.parent, args.report.stem,
+                               docs=not (args.no_docs or results.get("parts") != list(registry()))):
+            print(f"[bench] wrote {p}")
+        return 0
 
     names = registry()
     if args.list:
