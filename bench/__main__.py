@@ -1,8 +1,9 @@
 """Run s2cl's benchmark suite on this machine.
 
-    python -m bench                    # full suite (under an hour on 2 cores), regenerates docs/bench.md
-    python -m bench --quick            # reduced sizes (under 5 minutes on 2 cores), also regenerates the docs
+    python -m bench                    # full suite (minutes; under an hour on 2 cores), regenerates docs/bench.md
+    python -m bench --quick            # reduced sizes (under 5 minutes on 2 cores); docs only with --docs
     python -m bench --only lm,grid     # some parts only (see --list); leaves the docs alone
+    python -m bench --report bench/results/RESULT.json   # re-render Markdown/plots (and docs) from a JSON
     python -m bench --list
 
 Writes ``bench/results/<machine>-<date>[-quick].json`` and ``.md`` with PNG plots beside them
@@ -62,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="parts or groups (knobs, scaling, baselines) to run; see --list")
     parser.add_argument("--list", action="store_true", help="list the parts and exit")
     parser.add_argument("--out", type=Path, default=RESULTS, help="results folder (default bench/results)")
-    parser.add_argument("--no-docs", action="store_true", help="do not regenerate docs/bench.md and docs/bench/")
+    parser.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
+                        help="regenerate docs/bench.md and docs/bench/*.png (default: for a full, complete run)")
     parser.add_argument("--report", type=Path, metavar="RESULT.json",
                         help="only rewrite the Markdown, plots (and docs) from an earlier run's JSON")
     args = parser.parse_args(argv)
@@ -73,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
 
         results = json.loads(args.report.read_text(encoding="utf-8"))
         for p in write_reports(results, args.report.parent, args.report.stem,
-                               docs=not (args.no_docs or results.get("parts") != list(registry()))):
+                               docs=bool(args.docs) if args.docs is not None
+                               else results.get("parts") == list(registry()) and not results.get("quick")):
             print(f"[bench] wrote {p}")
         return 0
 
@@ -111,7 +114,10 @@ def main(argv: list[str] | None = None) -> int:
         results["seconds"][name] = time.perf_counter() - t0
         print(f"[bench] {name}: {results['seconds'][name]:.1f} s", flush=True)
     results["seconds_total"] = time.perf_counter() - t_start
-    results["validation"] = ctx.cache.get("validation", {})
+    results["validation"] = {f"chain: {k}": v for k, v in ctx.cache.get("validation", {}).items()}
+    for group in GROUPS:
+        for key, part in results[group].items():
+            results["validation"].update({f"{key}: {k}": v for k, v in part.items() if k.startswith("validation")})
 
     from bench.report import write_reports
 
@@ -119,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.only:
         stem += "-" + "-".join(parts)[:60]
     written = [write_json(args.out / f"{stem}.json", results)]
-    written += write_reports(results, args.out, stem, docs=not (args.no_docs or args.only))
+    docs = args.docs if args.docs is not None else not (args.quick or args.only)
+    written += write_reports(results, args.out, stem, docs=docs)
     for p in written:
         print(f"[bench] wrote {p}")
     print(f"[bench] total {results['seconds_total']:.0f} s")

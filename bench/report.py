@@ -260,10 +260,12 @@ def baselines_md(baselines: dict[str, dict[str, Any]]) -> str:
         if "error" in b:
             parts.append(f"**{b.get('name', '?')}**: failed: {b['error']}")
             continue
-        rows = [[r["method"] + (" *(baseline)*" if r["baseline"] else ""), r["per_s"], r["ratio_s2cl_over_this"],
-                 r.get("frac_at_float64_optimum")] for r in b["rows"]]
-        parts.append(f"**{b['title']}** ({_fmt(b['n'])} items, medians)\n\n"
-                     + _table(["method", b["unit"], "s2cl ÷ this", "fits at float64 optimum"], rows))
+        acc = any("frac_at_float64_optimum" in r for r in b["rows"])
+        rows = [[r["method"] + (" *(baseline)*" if r["baseline"] else ""), r["per_s"], r["ratio_s2cl_over_this"]]
+                + ([r.get("frac_at_float64_optimum")] if acc else []) + ([r["note"]] if r.get("note") else [""])
+                for r in b["rows"]]
+        head = ["method", b["unit"], "s2cl ÷ this"] + (["fits at float64 optimum"] if acc else []) + ["note"]
+        parts.append(f"**{b['title']}** ({_fmt(b['n'])} items, medians)\n\n" + _table(head, rows))
     return "\n\n".join(parts)
 
 
@@ -348,9 +350,12 @@ def markdown(results: dict[str, Any], pareto: str | None, scaling_png: str | Non
            "Nothing here asserts a timing; every benchmark first validates a slice against the float64 reference "
            "and stops if it disagrees."]
     if docs:
-        out.append("Regenerate with `python -m bench` (full, under an hour on 2 cores) or `python -m bench --quick` "
-                   "(under 5 minutes); `--only NAME` runs one part (`python -m bench --list`). Results: "
-                   "`bench/results/<machine>-<date>[-quick].{json,md}` and the plots beside them.")
+        out.append("Regenerate with `python -m bench` (the full suite: a few minutes here, under an hour on 2 cores; "
+                   "it rewrites this page and `docs/bench/*.png`) or `python -m bench --quick` (under 5 minutes; "
+                   "add `--docs` to rewrite this page with its numbers); `--only NAME` runs one part (`python -m "
+                   "bench --list`). Every run writes `bench/results/<machine>-<date>[-quick].{json,md}` and its "
+                   "plots; `--report RESULT.json` re-renders them. Generated file: edit `bench/report.py`, not "
+                   "this page.")
     if knobs:
         out.append("## What accuracy costs\n\nEach knob is moved alone from the default scene (Lib1 slice of "
                    f"{results['context']['spectra']} PROSAIL canopies × {results['context']['copies']} noisy copies "

@@ -49,7 +49,7 @@ def forward_vs_pixels(ctx: Context) -> dict[str, Any]:
     lib = scene_library(scene)
     sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
     block_n = 100_000 if not ctx.quick else 50_000
-    sizes = [1_000, 10_000, 100_000] if ctx.quick else [1_000, 10_000, 100_000, 1_000_000]
+    sizes = [1_000, 10_000, 100_000, 1_000_000]
     block = np.ascontiguousarray(np.resize(lib.spectra, (min(block_n, max(sizes)), lib.spectra.shape[1])),
                                  dtype=np.float32)
     from s2cl.reference.forward import resample, toa_radiance
