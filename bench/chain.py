@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.common import check, median_time
+from bench.common import check, interleaved_medians
 from s2cl import Scene, Simulator, SpectralLibrary
 from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.quantify import RetrievalScore, score_igrm
@@ -83,9 +83,10 @@ class ChainRun:
     sigma: np.ndarray  # (4, n_spectra) noise std (NER) at that radiance
     fit: IgrmResult
     score: RetrievalScore
-    seconds: float  # median wall time of the timed workload (time_pixels through the chain + fit)
     setup_seconds: float  # scene, library, atmosphere, kernels (cached builds)
     pixels: int  # timed pixels
+    timer: Callable[[], None] | None = None  # one timed workload; dropped (with its arrays) once timed
+    seconds: float = float("nan")  # median wall time of the workload (time_pixels through the chain + fit)
 
     def summary(self) -> dict[str, Any]:
         return {"seconds": self.seconds, "pixels_per_s": self.pixels / self.seconds,
@@ -99,11 +100,12 @@ def noise_sigma(scene: Scene, radiance: np.ndarray) -> np.ndarray:
 
 def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None, *,
               fit: IgrmSettings | None = None, fit_real: str = "float32", copies: int | None = None,
-              seed: int = 1, library: SpectralLibrary | None = None, repeat: int | None = None,
-              divisor: np.ndarray | None = None) -> ChainRun:
+              seed: int = 1, library: SpectralLibrary | None = None, divisor: np.ndarray | None = None,
+              timed: bool = True) -> ChainRun:
     """Simulate the Lib1 slice with ``copies`` noisy copies under the default scene with
-    ``overrides``, fit IGRM on B4 B5 B6 B8 and score chlorophyll (the accuracy). The time is the
-    median of ``ctx.time_pixels`` pixels (blocks of ``ctx.block`` distinct spectra, the slice tiled
+    ``overrides``, fit IGRM on B4 B5 B6 B8 and score chlorophyll (the accuracy). The run is not yet
+    timed: :func:`time_runs` times the runs of a family together. The time is the median of
+    ``ctx.time_pixels`` pixels (blocks of ``ctx.block`` distinct spectra, the slice tiled
     as pixels of an image: every pixel resampled) through the same compiled chain and fit.
 
     ``divisor`` (per band): the scene has no atmosphere and the library holds TOA radiance;
@@ -141,25 +143,30 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
             assert out is not None
             fitter.fit(reflectance(out), centres)
 
-    seconds = median_time(image, repeat or ctx.repeat, warmup=1)
+    if timed:
+        image()  # warm-up: first-enqueue compilation, buffer pools
     radiance = res.band_radiance.astype(np.float64)
     target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
-    return ChainRun(label, radiance, noise_sigma(scene, radiance), r, score_igrm(r, target), seconds, setup, n)
+    return ChainRun(label, radiance, noise_sigma(scene, radiance), r, score_igrm(r, target), setup, n,
+                    image if timed else None)
+
+
+def time_runs(ctx: Context, *runs: ChainRun) -> None:
+    """Time the runs of one family in interleaved rounds (drift hits all alike); frees their inputs."""
+    todo = [r for r in runs if r.timer is not None]
+    for r, sec in zip(todo, interleaved_medians([r.timer for r in todo], ctx.repeat), strict=True):  # type: ignore[misc]
+        r.seconds, r.timer = sec, None
 
 
 def reference_run(ctx: Context) -> ChainRun:
-    """The all-accurate chain (cached), validated against the float64 numpy oracles first."""
-    if "reference" not in ctx.cache:
-        ctx.cache["reference"] = run_chain(ctx, "reference", REFERENCE_OVERRIDES, fit=REFERENCE_FIT,
-                                           fit_real=REFERENCE_FIT_REAL)
-    return ctx.cache["reference"]
+    """The all-accurate chain (validated against the float64 numpy oracles first); a fresh run per
+    family, so that it is timed beside the family's settings."""
+    return run_chain(ctx, "reference", REFERENCE_OVERRIDES, fit=REFERENCE_FIT, fit_real=REFERENCE_FIT_REAL)
 
 
-def default_run(ctx: Context) -> ChainRun:
-    """The default scene's settings (float32, 1 nm, support 1 FWHM, default fit), cached."""
-    if "default" not in ctx.cache:
-        ctx.cache["default"] = run_chain(ctx, "default")
-    return ctx.cache["default"]
+def default_run(ctx: Context, timed: bool = True) -> ChainRun:
+    """The default scene's settings (float32, 1 nm, support 1 FWHM, default fit), a fresh run."""
+    return run_chain(ctx, "default", timed=timed)
 
 
 def validated(ctx: Context) -> None:
@@ -218,10 +225,6 @@ def knob_row(setting: str, run: ChainRun, ref: ChainRun, *, default: bool = Fals
     return {"setting": setting, "default": default, **run.summary(), "speedup": ref.seconds / run.seconds,
             **compare(run, ref), **(extra or {})}
 
-
-def timed(fn: Callable[[], Any], ctx: Context) -> float:
-    fn()
-    return median_time(fn, ctx.repeat)
 
 
 def slice_reflectance(ctx: Context, copies: int | None = None, seed: int = 1) -> tuple[np.ndarray, np.ndarray,

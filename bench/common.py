@@ -49,6 +49,22 @@ def median_time(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> floa
     return statistics.median(time_repeats(fn, repeat, warmup))
 
 
+def interleaved_medians(fns: list[Callable[[], Any]], repeat: int = 3, warmup: int = 0) -> list[float]:
+    """Median wall time of each of ``fns``, timed in interleaved rounds (a, b, c, a, b, c, ...) so
+    that drift in the machine's load (other users) hits every setting alike; after ``warmup``
+    untimed rounds."""
+    for _ in range(warmup):
+        for fn in fns:
+            fn()
+    times: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeat):
+        for k, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in times]
+
+
 def cpu_model() -> str:
     try:
         m = re.search(r"model name\s*:\s*(.+)", Path("/proc/cpuinfo").read_text())

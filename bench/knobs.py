@@ -8,6 +8,7 @@ a row holds ``setting``, ``default`` (the shipped setting), ``seconds`` (median)
 
 from __future__ import annotations
 
+import math
 import statistics
 import tempfile
 import time
@@ -20,7 +21,6 @@ from bench.chain import (
     BANDS,
     REFERENCE_FIT,
     REFERENCE_FIT_REAL,
-    REFERENCE_OVERRIDES,
     ChainRun,
     Context,
     compare,
@@ -30,9 +30,10 @@ from bench.chain import (
     reference_run,
     run_chain,
     slice_reflectance,
+    time_runs,
     validated,
 )
-from bench.common import check, median_time
+from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
 from s2cl.igrm import IgrmFitter, IgrmSettings, kernel_config
 from s2cl.quantify import score_igrm, score_retrieval
@@ -49,8 +50,7 @@ def _family(name: str, title: str, reference: str, rows: list[dict[str, Any]], p
             "error_label": primary[1], "rows": rows, **extra}
 
 
-def _with_reference(ctx: Context, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    ref = reference_run(ctx)
+def _with_reference(ref: ChainRun, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [knob_row("reference (float64, 1 nm, ±3 FWHM, converged)", ref, ref, extra={"reference": True}), *rows]
 
 
@@ -59,11 +59,11 @@ def _with_reference(ctx: Context, rows: list[dict[str, Any]]) -> list[dict[str, 
 def knob_grid(ctx: Context) -> Family:
     """Spectral grid step: library, atmosphere and SRFs on a 1, 2, 5 or 10 nm grid."""
     ref = reference_run(ctx)
-    rows = []
-    for step in (1, 2, 5, 10):
-        run = default_run(ctx) if step == 1 else run_chain(ctx, f"{step} nm", {"grid.step_nm": float(step)})
-        rows.append(knob_row(f"{step} nm", run, ref, default=step == 1))
-    return _family("grid", "Spectral grid step", "all-accurate chain", _with_reference(ctx, rows), RADIANCE_ERROR)
+    runs = {step: default_run(ctx) if step == 1 else run_chain(ctx, f"{step} nm", {"grid.step_nm": float(step)})
+            for step in (1, 2, 5, 10)}
+    time_runs(ctx, ref, *runs.values())
+    rows = [knob_row(f"{step} nm", run, ref, default=step == 1) for step, run in runs.items()]
+    return _family("grid", "Spectral grid step", "all-accurate chain", _with_reference(ref, rows), RADIANCE_ERROR)
 
 
 def knob_precision(ctx: Context) -> Family:
@@ -72,6 +72,7 @@ def knob_precision(ctx: Context) -> Family:
     f32 = default_run(ctx)
     f64_32 = run_chain(ctx, "f64/f32", {"output.precision": "float64"})
     f64 = run_chain(ctx, "f64/f64", {"output.precision": "float64"}, fit_real="float64")
+    time_runs(ctx, ref, f32, f64_32, f64)
     rows = []
     for label, run, default in (("float32 kernels + float32 fit", f32, True),
                                 ("float64 kernels + float32 fit", f64_32, False),
@@ -81,7 +82,7 @@ def knob_precision(ctx: Context) -> Family:
                              extra={"precision_radiance_rel_max": same["err_radiance_rel_max"],
                                     "precision_radiance_ner_max": same["err_radiance_ner_max"],
                                     "precision_lp_rms_nm": same["err_lp_rms_nm"]}))
-    return _family("precision", "float32 vs float64", "all-accurate chain", _with_reference(ctx, rows),
+    return _family("precision", "float32 vs float64", "all-accurate chain", _with_reference(ref, rows),
                    ("err_lp_rms_nm", "RMS lp error vs reference [nm]"),
                    note="precision_* columns in the JSON: the same settings in float64 as the reference, i.e. what "
                         "the precision alone changes")
@@ -90,18 +91,21 @@ def knob_precision(ctx: Context) -> Family:
 def knob_srf(ctx: Context) -> Family:
     """SRF support cut-off (± 1, 1.5, 2 FWHM of the eq. 1 model) and the measured S2A responses."""
     ref = reference_run(ctx)
-    rows = []
+    runs: list[tuple[str, ChainRun, dict[str, Any]]] = []
     for support in (1.0, 1.5, 2.0):
         run = default_run(ctx) if support == 1.0 else run_chain(ctx, f"±{support:g}", {"sensor.support": support})
-        rows.append(knob_row(f"model SRF ±{support:g} FWHM", run, ref, default=support == 1.0))
+        runs.append((f"model SRF ±{support:g} FWHM", run, {"default": support == 1.0}))
+    skipped = []
     try:
         run = run_chain(ctx, "measured", {"sensor.srf": "measured-S2A"})
-        rows.append(knob_row("measured S2A SRF (Py6S; a different sensor model, not a cut)", run, ref,
-                             extra={"model_change": True}))
+        runs.append(("measured S2A SRF (Py6S; a different sensor model, not a cut)", run,
+                     {"extra": {"model_change": True}}))
     except Exception as err:  # Py6S missing: the row says so instead of failing the suite
-        rows.append({"setting": f"measured S2A SRF: unavailable ({type(err).__name__}: {err})", "skipped": True})
+        skipped.append({"setting": f"measured S2A SRF: unavailable ({type(err).__name__}: {err})", "skipped": True})
+    time_runs(ctx, ref, *(r for _, r, _ in runs))
+    rows = [knob_row(label, run, ref, **kw) for label, run, kw in runs] + skipped
     return _family("srf", "SRF support and model vs measured SRF", "all-accurate chain",
-                   _with_reference(ctx, rows), RADIANCE_ERROR)
+                   _with_reference(ref, rows), RADIANCE_ERROR)
 
 
 def _fit_rows(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -120,18 +124,19 @@ def knob_lm(ctx: Context) -> Family:
     ref = ref_fit.fit(refl.astype(np.float64), centres)
     ref_score = score_igrm(ref, target)
     check(ref.fitted().mean() > 0.99, "reference fits fail on the slice")
-    t_ref = median_time(lambda: ref_fit.fit(population.astype(np.float64), centres), ctx.repeat, warmup=1)
+    population64 = population.astype(np.float64)
 
     def row(setting: str, lp: np.ndarray, fitted: np.ndarray, rms: float, seconds: float, **extra: Any
             ) -> dict[str, Any]:
         both = fitted & ref.fitted()
         d = lp[both].astype(np.float64) - ref.lp[both]
-        return {"setting": setting, "seconds": seconds, "pixels_per_s": population.shape[1] / seconds,
-                "speedup": t_ref / seconds, "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))),
+        return {"setting": setting, "seconds": seconds,
+                "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))),
                 "frac_at_optimum": float(np.mean(np.abs(d) <= 0.05) * both.mean()), "rms_cab": rms,
                 "err_rms_cab": abs(rms - ref_score.rms), "default": False, **extra}
 
-    rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, t_ref,
+    timers: list[Any] = [lambda: ref_fit.fit(population64, centres)]
+    rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, math.nan,
                 reference=True)]
     # the closed-form (data) initial guess alone, in float32 numpy: what zero iterations give
     c = kernel_config(IgrmSettings(), len(BANDS), "float32")
@@ -144,20 +149,24 @@ def knob_lm(ctx: Context) -> Family:
     lp0 = guess(refl)
     fitted0 = np.ones(lp0.shape, bool)
     rms0 = score_retrieval(lp0.astype(np.float64), target).rms
-    rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0,
-                    median_time(lambda: guess(population), ctx.repeat, warmup=1)))
+    rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0, math.nan))
+    timers.append(lambda: guess(population))
     settings = [(f"max_iter {m}", IgrmSettings(max_iter=m)) for m in (1, 2, 3, 5, 10, 20, 50, 255)]
     settings += [(f"tol {t:g}", IgrmSettings(tol=t)) for t in (1e-2, 1e-3, 1e-4, 1e-7)]
     settings += [("grid initial guess (6×6)", IgrmSettings(init="grid"))]
     for label, st in settings:
         fitter = IgrmFitter(len(BANDS), st)
         r = fitter.fit(refl, centres)
-        seconds = median_time(lambda f=fitter: f.fit(population, centres), ctx.repeat, warmup=1)
+        timers.append(lambda f=fitter: f.fit(population, centres))
         default = st == IgrmSettings()
         rows.append(row(label + (" (default: tol 1e-5)" if default else ""), r.lp, r.fitted(),
-                        score_igrm(r, target).rms, seconds, mean_iterations=float(r.iterations.mean()),
+                        score_igrm(r, target).rms, math.nan, mean_iterations=float(r.iterations.mean()),
                         frac_iteration_limit=float(np.mean(r.status == 1))))
         rows[-1]["default"] = default
+    for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
+        r["seconds"], r["pixels_per_s"] = sec, population.shape[1] / sec
+    for r in rows:
+        r["speedup"] = rows[0]["seconds"] / r["seconds"]
     return _family("lm", "IGRM fit: iterations, tolerance, initial guess (float32 kernel)",
                    "float64 fit, tol 1e-10, 255 iterations, same input", rows,
                    ("err_lp_rms_nm", "RMS lp error vs converged fit [nm]"),
@@ -219,7 +228,8 @@ def knob_lut(ctx: Context) -> Family:
     exact_terms = lut.terms(state, scene.grid, "linear")
     exact = radiance(exact_terms)
     sigma = noise_sigma(scene, exact)
-    base = default_run(ctx)
+    base = default_run(ctx, timed=False)  # only its accuracy is used here
+    timers: list[Any] = []
     variants: list[tuple[str, tuple[str, ...]]] = [("every node", ()), ("every other AOT node", ("aot550",)),
                                                    ("every other SZA node", ("solar_zenith",)),
                                                    ("every other H2O node", ("water_vapour",)),
@@ -235,17 +245,19 @@ def knob_lut(ctx: Context) -> Family:
             thin = AtmosphereLUT.load(path)
             for method in ("linear", "nearest"):
                 terms = thin.terms(state, scene.grid, method)
-                seconds = median_time(lambda t=thin, m=method: t.terms(state, scene.grid, m), ctx.repeat, warmup=1)
+                timers.append(lambda t=thin, m=method: t.terms(state, scene.grid, m))
                 err = np.abs(radiance(terms) - exact)
-                run = run_chain(ctx, label, {"atmosphere.lut": str(path), "atmosphere.interpolation": method})
+                run = run_chain(ctx, label, {"atmosphere.lut": str(path), "atmosphere.interpolation": method},
+                                timed=False)
                 d = run.fit.lp.astype(np.float64) - base.fit.lp
                 rows.append({"setting": f"{label}, {method}", "default": not axes and method == "linear",
-                             "seconds": seconds,
                              "nodes": int(np.prod([arrays[k].size for k in nodes])),
                              "err_radiance_rel_max": float(np.max(err / exact)),
                              "err_radiance_ner_max": float(np.max(err / sigma)),
                              "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))), "rms_cab": run.score.rms,
                              "err_rms_cab": abs(run.score.rms - base.score.rms)})
+        for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
+            r["seconds"] = sec
     t_ref = rows[0]["seconds"]  # every node, linear: the shipped setting and, on nodes, exact
     for r in rows:
         r["speedup"] = t_ref / r["seconds"]
@@ -296,10 +308,11 @@ def knob_copies(ctx: Context) -> Family:
 def knob_bits(ctx: Context) -> Family:
     """Quantisation bits, against the same noisy chain without quantisation."""
     ref = run_chain(ctx, "float", {"effects.quantise": False, "effects.calibrate": False})
+    runs = {bits: default_run(ctx) if bits == 12 else run_chain(ctx, f"{bits}", {"effects.bits": bits})
+            for bits in (8, 10, 12, 14, 16)}
+    time_runs(ctx, ref, *runs.values())
     rows = [knob_row("no quantisation (reference)", ref, ref, extra={"reference": True})]
-    for bits in (8, 10, 12, 14, 16):
-        run = default_run(ctx) if bits == 12 else run_chain(ctx, f"{bits}", {"effects.bits": bits})
-        rows.append(knob_row(f"{bits} bits", run, ref, default=bits == 12))
+    rows += [knob_row(f"{bits} bits", run, ref, default=bits == 12) for bits, run in runs.items()]
     return _family("bits", "Quantisation bits", "noisy chain without quantisation", rows,
                    ("err_lp_rms_nm", "RMS lp change vs unquantised [nm]"))
 
@@ -319,18 +332,11 @@ def knob_atmosphere(ctx: Context) -> Family:
                         for w in (b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands)])
     off = run_chain(ctx, "off", {"effects.atmosphere": False, "effects.correct": False,
                                  "surface.quantity": "radiance"}, library=radiance_lib, divisor=divisor)
+    time_runs(ctx, on, off)
     rows = [knob_row("atmosphere on (6S LUT + correction)", on, on, default=True, extra={"reference": True}),
             knob_row("atmosphere off (exo-atmospheric sun, no correction)", off, on)]
     return _family("atmosphere", "Atmosphere effect on/off", "atmosphere on", rows,
                    ("err_rms_cab", "Cab RMS change (abs) [ug/cm2]"))
-
-
-def reference_family(ctx: Context) -> Family:
-    ref = reference_run(ctx)
-    return _family("reference", "Reference chain", "float64 numpy oracles",
-                   [knob_row("reference", ref, ref, extra={"reference": True})],
-                   ("err_radiance_rel_max", "max relative error"), validation=ctx.cache.get("validation", {}),
-                   overrides=REFERENCE_OVERRIDES)
 
 
 KNOBS = {
@@ -344,6 +350,3 @@ KNOBS = {
     "atmosphere": knob_atmosphere,
 }
 
-
-def chain_runs(ctx: Context) -> dict[str, ChainRun]:
-    return {k: v for k, v in ctx.cache.items() if isinstance(v, ChainRun)}
