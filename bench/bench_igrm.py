@@ -63,7 +63,7 @@ def kernel_only_rate(fitter: IgrmFitter, y: np.ndarray, wl: np.ndarray) -> float
     bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
             rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
 
-    def launch():
+    def launch() -> None:
         fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
         rt.finish()
 

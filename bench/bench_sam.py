@@ -21,7 +21,7 @@ from s2cl.sam import SamClassifier
 CASES = ((2, 20), (6, 20), (13, 20))  # (bands, references): B11+B12 as in the paper, red edge, full MSI
 
 
-def scene(n: int, n_bands: int, n_refs: int, seed: int = 0):
+def scene(n: int, n_bands: int, n_refs: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     refs = rng.uniform(0.05, 0.6, (n_refs, n_bands))
     truth = rng.integers(0, n_refs, n)
@@ -29,7 +29,7 @@ def scene(n: int, n_bands: int, n_refs: int, seed: int = 0):
     return refs, truth, np.ascontiguousarray(pix)  # structure of arrays: bands x pixels, pixels contiguous
 
 
-def numpy_sam(pix: np.ndarray, unit_refs: np.ndarray):
+def numpy_sam(pix: np.ndarray, unit_refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     dots = unit_refs.astype(np.float32) @ pix
     best = np.argmax(dots, axis=0)
     norm = np.sqrt(np.einsum("ij,ij->j", pix, pix))
@@ -49,7 +49,7 @@ def run(n: int, n_bands: int, n_refs: int) -> dict:
     assert agree > 0.999 and max_dangle < 1e-3, (agree, max_dangle)
     cube = np.ascontiguousarray(pix.T).reshape(1000, n // 1000, n_bands)
 
-    def spy():
+    def spy() -> tuple[np.ndarray, np.ndarray]:
         a = spectral.spectral_angles(cube, refs.astype(np.float32))
         return np.argmin(a, axis=2), np.min(a, axis=2)
 
@@ -60,7 +60,7 @@ def run(n: int, n_bands: int, n_refs: int) -> dict:
     rt, T = sam.rt, sam.types
     bufs = [rt.empty(4 * n), rt.empty(n * 4), rt.empty(n), rt.to_device(pix), sam._refs_d]
 
-    def launch():
+    def launch() -> None:
         sam.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.float32(sam.cos_min), np.int32(n))
         rt.finish()
 

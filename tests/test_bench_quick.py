@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -20,7 +21,7 @@ pytestmark = pytest.mark.bench
 
 
 @pytest.fixture
-def bench_main():
+def bench_main() -> Iterator[Callable[[list[str]], int]]:
     if not (ROOT / "bench" / "__main__.py").is_file():
         pytest.skip("bench/ is not in this checkout (installed package only)")
     sys.path.insert(0, str(ROOT))
@@ -32,7 +33,7 @@ def bench_main():
         sys.path.remove(str(ROOT))
 
 
-def test_quick_atmosphere_knob_end_to_end(bench_main, tmp_path: Path) -> None:
+def test_quick_atmosphere_knob_end_to_end(bench_main: Callable[[list[str]], int], tmp_path: Path) -> None:
     assert bench_main(["--quick", "--only", "atmosphere", "--out", str(tmp_path), "--no-docs"]) == 0
     (result,) = tmp_path.glob("*-quick-atmosphere.json")
     data = json.loads(result.read_text())
@@ -49,6 +50,6 @@ def test_quick_atmosphere_knob_end_to_end(bench_main, tmp_path: Path) -> None:
     assert result.with_name(result.stem + "-pareto.png").stat().st_size > 1000
 
 
-def test_only_rejects_unknown_part(bench_main) -> None:
+def test_only_rejects_unknown_part(bench_main: Callable[[list[str]], int]) -> None:
     with pytest.raises(SystemExit, match="unknown part"):
         bench_main(["--only", "no-such-knob"])
