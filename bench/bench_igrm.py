@@ -15,8 +15,8 @@ scipy.optimize.least_squares per pixel (timed on a sample, extrapolated). A fit 
 optimum" when its status class matches and l0, s, lp agree within 0.05 nm and rmax, rmin within
 5e-4 reflectance. Writes bench/results/igrm.json.
 
-    python bench/bench_igrm.py            # 10^6 pixels (a few minutes on 2 cores)
-    python bench/bench_igrm.py --n 100000 # quicker
+    python -m bench.bench_igrm            # 10^6 pixels (a few minutes on 2 cores)
+    python -m bench.bench_igrm --n 100000 # quicker
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ import argparse
 import time
 
 import numpy as np
-from _common import machine, median_time, write_json
 
+from bench.common import machine_info, median_time, write_json
 from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, prosail_population, synthetic
@@ -63,7 +63,7 @@ def kernel_only_rate(fitter: IgrmFitter, y: np.ndarray, wl: np.ndarray) -> float
     bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
             rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
 
-    def launch():
+    def launch() -> None:
         fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
         rt.finish()
 
@@ -138,7 +138,7 @@ def main() -> None:
     ap.add_argument("--populations", nargs="+", default=["prosail", "synthetic"], choices=["prosail", "synthetic"])
     args = ap.parse_args()
     fast = IgrmFitter(4)
-    result = {"benchmark": "igrm", "machine": machine(fast.rt), "settings": IgrmSettings().__dict__,
+    result = {"benchmark": "igrm", "machine": machine_info(fast.rt), "settings": IgrmSettings().__dict__,
               "accuracy_tolerance": {"nm": TOL_NM, "reflectance": TOL_RHO},
               "igrm_lanes_float32": fast.types.lanes, "cases": []}
     for population in args.populations:

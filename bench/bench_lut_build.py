@@ -10,7 +10,7 @@ Measured in one process on the same machine:
    axes (with ozone as a 5-node axis, 250-410 DU by 40 DU, which the separable LUT covers by
    Beer's law).
 
-Writes ``bench/results/lut_build.json``. Usage: ``python bench/bench_lut_build.py [-j 2] [--sample 24]``.
+Writes ``bench/results/lut_build.json``. Usage: ``python -m bench.bench_lut_build [-j 2] [--sample 24]``.
 """
 
 from __future__ import annotations

@@ -4,15 +4,17 @@
 Also measures the OpenCL copy bandwidth in the same run and the bound it implies: reading each
 spectrum once (2101 × 4 B) at that bandwidth. Writes JSON to bench/results/.
 
-    python bench/bench_resample.py [--pixels 100000] [--repeat 5]
+    python -m bench.bench_resample [--pixels 100000] [--repeat 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 
 import numpy as np
-from common import machine_info, median_time, write_result
+
+from bench.common import machine_info, median_time, time_repeats, write_result
 
 
 def copy_bandwidth(rt, nbytes: int, repeat: int) -> float:
@@ -27,7 +29,7 @@ def copy_bandwidth(rt, nbytes: int, repeat: int) -> float:
         kernel(rt.queue, (n8,), None, b, a)
         rt.finish()
 
-    t, _ = median_time(run, repeat)
+    t = median_time(run, repeat, warmup=1)
     return 2 * n8 * 32 / t
 
 
@@ -68,11 +70,12 @@ def main() -> None:
         resampler.enqueue(out_dev, spectra_dev, n)
         rt.finish()
 
-    t_kernel, times_kernel = median_time(kernel_only, args.repeat)
-    t_host, _ = median_time(lambda: resampler(spectra), args.repeat)
+    times_kernel = time_repeats(kernel_only, args.repeat, warmup=1)
+    t_kernel = statistics.median(times_kernel)
+    t_host = median_time(lambda: resampler(spectra), args.repeat, warmup=1)
 
     dense = plan.dense().astype(np.float32)
-    t_numpy, _ = median_time(lambda: spectra @ dense.T, args.repeat)
+    t_numpy = median_time(lambda: spectra @ dense.T, args.repeat, warmup=1)
 
     spy = BandResampler(DEFAULT_GRID.wavelengths, [b.centre_nm for b in sensor.bands], None,
                         [b.fwhm_nm for b in sensor.bands])
@@ -82,7 +85,7 @@ def main() -> None:
         for row in sample:
             spy(row)
 
-    t_spy_sample, _ = median_time(spy_loop, max(1, args.repeat // 2))
+    t_spy_sample = median_time(spy_loop, max(1, args.repeat // 2), warmup=1)
     t_spy = t_spy_sample * n / sample.shape[0]
 
     bw = copy_bandwidth(rt, spectra.nbytes, args.repeat)

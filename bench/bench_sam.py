@@ -5,7 +5,7 @@ Data: references = random positive spectra (seeded); pixels = brightness x refer
 noise (sigma 0.01), float32, structure-of-arrays for s2cl and (rows, cols, bands) for SPy (its
 layout; the transposition is not timed). Writes bench/results/sam.json.
 
-    python bench/bench_sam.py [--n 1000000]
+    python -m bench.bench_sam [--n 1000000]
 """
 
 from __future__ import annotations
@@ -13,15 +13,15 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from _common import machine, median_time, write_json
 
+from bench.common import machine_info, median_time, write_json
 from s2cl.reference import sam as ref
 from s2cl.sam import SamClassifier
 
 CASES = ((2, 20), (6, 20), (13, 20))  # (bands, references): B11+B12 as in the paper, red edge, full MSI
 
 
-def scene(n: int, n_bands: int, n_refs: int, seed: int = 0):
+def scene(n: int, n_bands: int, n_refs: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     refs = rng.uniform(0.05, 0.6, (n_refs, n_bands))
     truth = rng.integers(0, n_refs, n)
@@ -29,7 +29,7 @@ def scene(n: int, n_bands: int, n_refs: int, seed: int = 0):
     return refs, truth, np.ascontiguousarray(pix)  # structure of arrays: bands x pixels, pixels contiguous
 
 
-def numpy_sam(pix: np.ndarray, unit_refs: np.ndarray):
+def numpy_sam(pix: np.ndarray, unit_refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     dots = unit_refs.astype(np.float32) @ pix
     best = np.argmax(dots, axis=0)
     norm = np.sqrt(np.einsum("ij,ij->j", pix, pix))
@@ -49,7 +49,7 @@ def run(n: int, n_bands: int, n_refs: int) -> dict:
     assert agree > 0.999 and max_dangle < 1e-3, (agree, max_dangle)
     cube = np.ascontiguousarray(pix.T).reshape(1000, n // 1000, n_bands)
 
-    def spy():
+    def spy() -> tuple[np.ndarray, np.ndarray]:
         a = spectral.spectral_angles(cube, refs.astype(np.float32))
         return np.argmin(a, axis=2), np.min(a, axis=2)
 
@@ -60,7 +60,7 @@ def run(n: int, n_bands: int, n_refs: int) -> dict:
     rt, T = sam.rt, sam.types
     bufs = [rt.empty(4 * n), rt.empty(n * 4), rt.empty(n), rt.to_device(pix), sam._refs_d]
 
-    def launch():
+    def launch() -> None:
         sam.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.float32(sam.cos_min), np.int32(n))
         rt.finish()
 
@@ -84,8 +84,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=1_000_000, help="pixels (a multiple of 1000)")
     args = ap.parse_args()
     cases = [run(args.n, nb, nr) for nb, nr in CASES]
-    print("wrote", write_json("sam.json", {"benchmark": "sam", "machine": machine(SamClassifier(np.ones((1, 2))).rt),
-                                           "cases": cases}))
+    rt = SamClassifier(np.ones((1, 2))).rt
+    print("wrote", write_json("sam.json", {"benchmark": "sam", "machine": machine_info(rt), "cases": cases}))
 
 
 if __name__ == "__main__":

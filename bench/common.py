@@ -1,7 +1,8 @@
-"""Shared helpers for the benchmarks: timing (medians of repeats), machine description, JSON output.
+"""Shared helpers of the benchmarks: timing (medians of repeats), machine description, atomic output.
 
 Benchmarks never assert timings; they validate a small slice against the float64 reference
-before timing anything, and report ratios against the baseline run in the same process.
+before timing anything (raising :class:`BenchValidationError` when it is wrong), and report
+ratios against the reference setting or the baseline run in the same process.
 """
 
 from __future__ import annotations
@@ -18,10 +19,21 @@ from pathlib import Path
 from typing import Any
 
 RESULTS = Path(__file__).resolve().parent / "results"
+ROOT = Path(__file__).resolve().parent.parent
 
 
-def median_time(fn: Callable[[], Any], repeat: int = 5, warmup: int = 1) -> tuple[float, list[float]]:
-    """Median wall time of ``fn()`` over ``repeat`` runs after ``warmup`` runs (seconds)."""
+class BenchValidationError(AssertionError):
+    """A benchmark's result disagrees with its float64 reference: nothing is timed."""
+
+
+def check(ok: bool, what: str) -> None:
+    """Fail loudly (not with ``assert``, which ``python -O`` drops) when a validation fails."""
+    if not ok:
+        raise BenchValidationError(what)
+
+
+def time_repeats(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> list[float]:
+    """Wall times of ``repeat`` calls of ``fn`` after ``warmup`` untimed calls (seconds)."""
     for _ in range(warmup):
         fn()
     times = []
@@ -29,13 +41,33 @@ def median_time(fn: Callable[[], Any], repeat: int = 5, warmup: int = 1) -> tupl
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
-    return statistics.median(times), times
+    return times
+
+
+def median_time(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> float:
+    """Median wall time of ``repeat`` calls of ``fn`` (seconds); the machine is shared, so medians."""
+    return statistics.median(time_repeats(fn, repeat, warmup))
+
+
+def interleaved_medians(fns: list[Callable[[], Any]], repeat: int = 3, warmup: int = 0) -> list[float]:
+    """Median wall time of each of ``fns``, timed in interleaved rounds (a, b, c, a, b, c, ...) so
+    that drift in the machine's load (other users) hits every setting alike; after ``warmup``
+    untimed rounds."""
+    for _ in range(warmup):
+        for fn in fns:
+            fn()
+    times: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeat):
+        for k, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in times]
 
 
 def cpu_model() -> str:
     try:
-        text = Path("/proc/cpuinfo").read_text()
-        m = re.search(r"model name\s*:\s*(.+)", text)
+        m = re.search(r"model name\s*:\s*(.+)", Path("/proc/cpuinfo").read_text())
         if m:
             return m.group(1).strip()
     except OSError:
@@ -43,8 +75,15 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def machine_name() -> str:
+    """A short label for result files: CPU model words and core count (``amd-epyc-9r14-2c``)."""
+    words = re.sub(r"\(R\)|\(TM\)|CPU|Processor|\d+-Core|@.*", "", cpu_model())
+    label = "-".join(w for w in re.split(r"[^A-Za-z0-9]+", words) if w)[:40] or platform.machine()
+    return f"{label}-{os.cpu_count()}c".lower()
+
+
 def machine_info(rt: Any | None = None) -> dict[str, Any]:
-    """What ran the benchmark: CPU, cores, OpenCL device, library versions."""
+    """What the numbers were measured on: CPU, cores, OpenCL device and lanes, library versions."""
     import numpy as np
 
     info: dict[str, Any] = {
@@ -52,6 +91,7 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
         "cpu": cpu_model(),
         "cores": os.cpu_count(),
         "python": sys.version.split()[0],
+        "platform": platform.platform(),
         "numpy": np.__version__,
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
     }
@@ -62,21 +102,33 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
     except ImportError:
         pass
     if rt is not None:
-        info["device"] = rt.name
+        info["opencl_device"] = rt.name
+        info["lanes"] = rt.lanes
     return info
 
 
-def machine_name() -> str:
-    """A short label for result files: cpu model words and core count."""
-    words = re.sub(r"\(R\)|\(TM\)|CPU|Processor|@.*", "", cpu_model())
-    label = "-".join(w for w in re.split(r"[^A-Za-z0-9]+", words) if w)[:40] or platform.machine()
-    return f"{label}-{os.cpu_count()}c".lower()
+def write_json(name: str | Path, data: dict[str, Any]) -> Path:
+    """Write JSON atomically: ``name`` relative to ``bench/results/`` or a path."""
+    from s2cl.output import write_json as _write
+
+    path = Path(name)
+    return _write(path if path.is_absolute() or path.parent != Path() else RESULTS / path, data)
 
 
 def write_result(name: str, data: dict[str, Any]) -> Path:
     """Write ``bench/results/<name>-<machine>-<date>.json`` atomically; return the path."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from s2cl.output import write_json
-
     date = _dt.date.today().isoformat()
     return write_json(RESULTS / f"{name}-{machine_name()}-{date}.json", data)
+
+
+def write_text(path: Path, text: str) -> Path:
+    from s2cl.output import write_text as _write
+
+    return _write(path, text)
+
+
+def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
+    """Save a matplotlib figure atomically (temporary file in the same folder + rename)."""
+    from s2cl.output import write_atomic
+
+    return write_atomic(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))

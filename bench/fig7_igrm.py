@@ -6,14 +6,14 @@ measured iron-bearing backgrounds; 120 spectra) at 1 nm over the red edge, IGRM 
 R2 = 0.98 and RMS = 3.8 ug/cm2 on its Lib1 (goethite/hematite backgrounds). Writes
 bench/results/fig7_igrm.json and bench/results/fig7_igrm.png.
 
-    python bench/fig7_igrm.py
+    python -m bench.fig7_igrm
 """
 
 from __future__ import annotations
 
 import numpy as np
-from _common import RESULTS, write_json
 
+from bench.common import RESULTS, save_figure, write_json
 from s2cl.grid import DEFAULT_GRID
 from s2cl.igrm import IgrmFitter
 from s2cl.libraries import load_library
@@ -39,32 +39,11 @@ def main() -> None:
                                "median_abs_error": score.median_abs_error, "lp_range_nm": [float(r.lp.min()),
                                float(r.lp.max())], "status_counts": r.counts()})
         print(f"{lo}-{hi} nm ({wl.size} bands): {score.summary('ug/cm2')}  [paper: R2 0.98, RMS 3.8]")
-    out["s2cl_lib1"] = lib1_windows()
     write_json("fig7_igrm.json", out)
     _plot(fits, cab, lai)
 
 
-def lib1_windows() -> list[dict]:
-    """The same fit on s2cl's shipped Lib1 (120 spectra: the three iron-bearing backgrounds), noise-free."""
-    from s2cl.grid import DEFAULT_GRID
-    from s2cl.libraries import load_library
-
-    lib = load_library("builtin:lib1", DEFAULT_GRID)
-    cab = np.asarray(lib.params["cab"], dtype=np.float64)
-    rows = []
-    for lo, hi in WINDOWS_NM:
-        wl = np.arange(lo, hi + 1.0)
-        y = lib.spectra[:, int(lo - DEFAULT_GRID.start_nm):int(hi - DEFAULT_GRID.start_nm) + 1].T
-        score = score_igrm(IgrmFitter(len(wl), real_t="float64").fit(y, wl), cab)
-        rows.append({"window_nm": [lo, hi], "n_spectra": int(cab.size), "r2": score.r2, "rms_ug_cm2": score.rms})
-        print(f"s2cl Lib1 {lo}-{hi} nm: {score.summary('ug/cm2')}")
-    return rows
-
-
 def _plot(fits, cab: np.ndarray, lai: np.ndarray) -> None:
-    import os
-    import tempfile
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -82,10 +61,7 @@ def _plot(fits, cab: np.ndarray, lai: np.ndarray) -> None:
     ax.set_title(f"IGRM {lo}-{hi} nm: R2 {score.r2:.3f}, RMS {score.rms:.2f} (paper 0.98, 3.8)", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, suffix=".png")
-    os.close(fd)
-    fig.savefig(tmp)
-    os.replace(tmp, RESULTS / "fig7_igrm.png")
+    save_figure(fig, RESULTS / "fig7_igrm.png", dpi=120)
     print("wrote", RESULTS / "fig7_igrm.png")
 
 

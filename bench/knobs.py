@@ -1,0 +1,352 @@
+"""What accuracy costs in time: one knob at a time from the default scene, each row timed and
+scored against a reference (see bench/chain.py for the chain and the all-accurate reference).
+
+Every family returns ``{"name", "title", "reference", "primary_error", "error_label", "rows"}``;
+a row holds ``setting``, ``default`` (the shipped setting), ``seconds`` (median), ``speedup``
+(reference seconds / seconds) and the errors against the family's reference.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.chain import (
+    BANDS,
+    REFERENCE_FIT,
+    REFERENCE_FIT_REAL,
+    ChainRun,
+    Context,
+    compare,
+    default_run,
+    knob_row,
+    noise_sigma,
+    reference_run,
+    run_chain,
+    slice_reflectance,
+    time_runs,
+    validated,
+)
+from bench.common import check, interleaved_medians
+from s2cl import SpectralLibrary
+from s2cl.igrm import IgrmFitter, IgrmSettings, kernel_config
+from s2cl.quantify import score_igrm, score_retrieval
+from s2cl.scene_atmosphere import scene_lut, true_state
+from s2cl.simulate import scene_atmosphere, scene_library
+
+Family = dict[str, Any]
+RADIANCE_ERROR = ("err_radiance_ner_max", "max band-radiance error / NER")
+
+
+def _family(name: str, title: str, reference: str, rows: list[dict[str, Any]], primary: tuple[str, str],
+            **extra: Any) -> Family:
+    return {"name": name, "title": title, "reference": reference, "primary_error": primary[0],
+            "error_label": primary[1], "rows": rows, **extra}
+
+
+def _with_reference(ref: ChainRun, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [knob_row("reference (float64, 1 nm, ±3 FWHM, converged)", ref, ref, extra={"reference": True}), *rows]
+
+
+# -- computational knobs: the same physics, computed more or less exactly ------------------------
+
+def knob_grid(ctx: Context) -> Family:
+    """Spectral grid step: library, atmosphere and SRFs on a 1, 2, 5 or 10 nm grid."""
+    ref = reference_run(ctx)
+    runs = {step: default_run(ctx) if step == 1 else run_chain(ctx, f"{step} nm", {"grid.step_nm": float(step)})
+            for step in (1, 2, 5, 10)}
+    time_runs(ctx, ref, *runs.values())
+    rows = [knob_row(f"{step} nm", run, ref, default=step == 1) for step, run in runs.items()]
+    return _family("grid", "Spectral grid step", "all-accurate chain", _with_reference(ref, rows), RADIANCE_ERROR)
+
+
+def knob_precision(ctx: Context) -> Family:
+    """float32 vs float64 in the kernels (forward chain and IGRM fit), default fit settings."""
+    ref = reference_run(ctx)
+    f32 = default_run(ctx)
+    f64_32 = run_chain(ctx, "f64/f32", {"output.precision": "float64"})
+    f64 = run_chain(ctx, "f64/f64", {"output.precision": "float64"}, fit_real="float64")
+    time_runs(ctx, ref, f32, f64_32, f64)
+    rows = []
+    for label, run, default in (("float32 kernels + float32 fit", f32, True),
+                                ("float64 kernels + float32 fit", f64_32, False),
+                                ("float64 kernels + float64 fit", f64, False)):
+        same = compare(run, f64)  # the precision alone: against float64 at the same settings
+        rows.append(knob_row(label, run, ref, default=default,
+                             extra={"precision_radiance_rel_max": same["err_radiance_rel_max"],
+                                    "precision_radiance_ner_max": same["err_radiance_ner_max"],
+                                    "precision_lp_rms_nm": same["err_lp_rms_nm"]}))
+    return _family("precision", "float32 vs float64", "all-accurate chain", _with_reference(ref, rows),
+                   ("err_lp_rms_nm", "RMS lp error vs reference [nm]"),
+                   note="precision_* columns in the JSON: the same settings in float64 as the reference, i.e. what "
+                        "the precision alone changes")
+
+
+def knob_srf(ctx: Context) -> Family:
+    """SRF support cut-off (± 1, 1.5, 2 FWHM of the eq. 1 model) and the measured S2A responses."""
+    ref = reference_run(ctx)
+    runs: list[tuple[str, ChainRun, dict[str, Any]]] = []
+    for support in (1.0, 1.5, 2.0):
+        run = default_run(ctx) if support == 1.0 else run_chain(ctx, f"±{support:g}", {"sensor.support": support})
+        runs.append((f"model SRF ±{support:g} FWHM", run, {"default": support == 1.0}))
+    skipped = []
+    try:
+        run = run_chain(ctx, "measured", {"sensor.srf": "measured-S2A"})
+        runs.append(("measured S2A SRF (Py6S; a different sensor model, not a cut)", run,
+                     {"extra": {"model_change": True}}))
+    except Exception as err:  # Py6S missing: the row says so instead of failing the suite
+        skipped.append({"setting": f"measured S2A SRF: unavailable ({type(err).__name__}: {err})", "skipped": True})
+    time_runs(ctx, ref, *(r for _, r, _ in runs))
+    rows = [knob_row(label, run, ref, **kw) for label, run, kw in runs] + skipped
+    return _family("srf", "SRF support and model vs measured SRF", "all-accurate chain",
+                   _with_reference(ref, rows), RADIANCE_ERROR)
+
+
+def _fit_rows(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Fit-knob input: the slice's reflectance for accuracy, tiled to a larger population for time."""
+    refl, centres, target = slice_reflectance(ctx)
+    n = 200_000 if ctx.quick else 1_000_000
+    return refl, centres, target, np.ascontiguousarray(np.resize(refl, (refl.shape[0], n)))
+
+
+def knob_lm(ctx: Context) -> Family:
+    """IGRM fit: iteration limit and tolerance, incl. the closed-form initial guess alone."""
+    from s2cl.reference.igrm import _normalise, initial_guess
+
+    refl, centres, target, population = _fit_rows(ctx)
+    ref_fit = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t=REFERENCE_FIT_REAL)
+    ref = ref_fit.fit(refl.astype(np.float64), centres)
+    ref_score = score_igrm(ref, target)
+    check(ref.fitted().mean() > 0.99, "reference fits fail on the slice")
+    population64 = population.astype(np.float64)
+
+    def row(setting: str, lp: np.ndarray, fitted: np.ndarray, rms: float, seconds: float, **extra: Any
+            ) -> dict[str, Any]:
+        both = fitted & ref.fitted()
+        d = lp[both].astype(np.float64) - ref.lp[both]
+        return {"setting": setting, "seconds": seconds,
+                "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))),
+                "frac_at_optimum": float(np.mean(np.abs(d) <= 0.05) * both.mean()), "rms_cab": rms,
+                "err_rms_cab": abs(rms - ref_score.rms), "default": False, **extra}
+
+    timers: list[Any] = [lambda: ref_fit.fit(population64, centres)]
+    rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, math.nan,
+                reference=True)]
+    # the closed-form (data) initial guess alone, in float32 numpy: what zero iterations give
+    c = kernel_config(IgrmSettings(), len(BANDS), "float32")
+    x = _normalise(centres, c, np.float32)
+
+    def guess(y: np.ndarray) -> np.ndarray:
+        _, _, p2, p3, _ = initial_guess(y, x, c)
+        return (p2 + p3) * np.float32(c.xw) + np.float32(c.xc)
+
+    lp0 = guess(refl)
+    fitted0 = np.ones(lp0.shape, bool)
+    rms0 = score_retrieval(lp0.astype(np.float64), target).rms
+    rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0, math.nan))
+    timers.append(lambda: guess(population))
+    settings = [(f"max_iter {m}", IgrmSettings(max_iter=m)) for m in (1, 2, 3, 5, 10, 20, 50, 255)]
+    settings += [(f"tol {t:g}", IgrmSettings(tol=t)) for t in (1e-2, 1e-3, 1e-4, 1e-7)]
+    settings += [("grid initial guess (6×6)", IgrmSettings(init="grid"))]
+    for label, st in settings:
+        fitter = IgrmFitter(len(BANDS), st)
+        r = fitter.fit(refl, centres)
+        timers.append(lambda f=fitter: f.fit(population, centres))
+        default = st == IgrmSettings()
+        rows.append(row(label + (" (default: tol 1e-5)" if default else ""), r.lp, r.fitted(),
+                        score_igrm(r, target).rms, math.nan, mean_iterations=float(r.iterations.mean()),
+                        frac_iteration_limit=float(np.mean(r.status == 1))))
+        rows[-1]["default"] = default
+    for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
+        r["seconds"], r["pixels_per_s"] = sec, population.shape[1] / sec
+    for r in rows:
+        r["speedup"] = rows[0]["seconds"] / r["seconds"]
+    return _family("lm", "IGRM fit: iterations, tolerance, initial guess (float32 kernel)",
+                   "float64 fit, tol 1e-10, 255 iterations, same input", rows,
+                   ("err_lp_rms_nm", "RMS lp error vs converged fit [nm]"),
+                   timed=f"Time: fitting {population.shape[1]:,} pixels (the slice's reflectance tiled); accuracy "
+                         "on the slice itself")
+
+
+def _thin(arrays: dict[str, np.ndarray], axis: str, state_node: int) -> dict[str, np.ndarray]:
+    """Drop every other node of ``axis`` (endpoints kept), choosing the phase that drops ``state_node``."""
+    n = arrays[axis].size
+    keep = sorted({0, n - 1, *range(1 - state_node % 2, n, 2)} - {state_node})
+    out = dict(arrays)
+    out[axis] = arrays[axis][keep]
+    if axis == "aot550":
+        for k in ("path_reflectance_scattering", "t_down"):
+            out[k] = arrays[k][:, :, keep]
+        for k in ("t_up", "spherical_albedo"):
+            out[k] = arrays[k][:, keep]
+    elif axis == "solar_zenith":
+        for k, v in arrays.items():
+            if k in ("path_reflectance_scattering", "t_down") or (k.startswith("t_") and v.ndim == 3
+                                                                 and k not in ("t_up", "t_water")):
+                out[k] = v[:, keep]
+    elif axis == "water_vapour":
+        out["t_water"] = arrays["t_water"][:, keep]
+    return out
+
+
+def knob_lut(ctx: Context) -> Family:
+    """Atmosphere LUT: linear vs nearest interpolation, and every other node of an axis dropped.
+
+    The paper's standard atmosphere (AOT 0.2347, SZA 40°, 1.5 g/cm² H2O) lies on nodes of the
+    shipped LUT, so the full LUT gives its exact terms; thinning drops exactly those nodes, so
+    interpolation has to bridge the widest gap it would meet."""
+    from s2cl.atmosphere import AtmosphereLUT, default_lut_path
+    from s2cl.lut_format import write_npz_atomic
+    from s2cl.reference.forward import resample, toa_radiance
+
+    validated(ctx)
+    scene = ctx.scene()
+    lut, state = scene_lut(scene), true_state(scene)
+    ax = lut.axes
+    nodes = {"aot550": int(np.argmin(np.abs(ax.aot550 - state.aot550))),
+             "solar_zenith": int(np.argmin(np.abs(ax.solar_zenith - state.solar_zenith))),
+             "water_vapour": int(np.argmin(np.abs(ax.water_vapour - state.water_vapour)))}
+    check(abs(ax.aot550[nodes["aot550"]] - state.aot550) < 1e-5 and state.solar_zenith == ax.reference_zenith
+          and abs(ax.water_vapour[nodes["water_vapour"]] - state.water_vapour) < 1e-6,
+          "the paper's state is expected on LUT nodes")
+    with np.load(default_lut_path(), allow_pickle=False) as npz:
+        full = {k: np.asarray(npz[k]) for k in npz.files}
+    lib = scene_library(scene)
+    lib = lib.subset(ctx.slice_index(lib.size))
+    weights = [b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands]
+
+    def radiance(terms: Any) -> np.ndarray:
+        return resample(toa_radiance(lib.spectra, terms.path_radiance, terms.ground_term, terms.spherical_albedo),
+                        weights)
+
+    exact_terms = lut.terms(state, scene.grid, "linear")
+    exact = radiance(exact_terms)
+    sigma = noise_sigma(scene, exact)
+    base = default_run(ctx, timed=False)  # only its accuracy is used here
+    timers: list[Any] = []
+    variants: list[tuple[str, tuple[str, ...]]] = [("every node", ()), ("every other AOT node", ("aot550",)),
+                                                   ("every other SZA node", ("solar_zenith",)),
+                                                   ("every other H2O node", ("water_vapour",)),
+                                                   ("every other node of all three", tuple(nodes))]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, axes in variants:
+            arrays = full
+            for a in axes:
+                arrays = _thin(arrays, a, nodes[a])
+            path = Path(tmp) / f"lut-{len(rows)}.npz"
+            write_npz_atomic(path, arrays)
+            thin = AtmosphereLUT.load(path)
+            for method in ("linear", "nearest"):
+                terms = thin.terms(state, scene.grid, method)
+                timers.append(lambda t=thin, m=method: t.terms(state, scene.grid, m))
+                err = np.abs(radiance(terms) - exact)
+                run = run_chain(ctx, label, {"atmosphere.lut": str(path), "atmosphere.interpolation": method},
+                                timed=False)
+                d = run.fit.lp.astype(np.float64) - base.fit.lp
+                rows.append({"setting": f"{label}, {method}", "default": not axes and method == "linear",
+                             "nodes": int(np.prod([arrays[k].size for k in nodes])),
+                             "err_radiance_rel_max": float(np.max(err / exact)),
+                             "err_radiance_ner_max": float(np.max(err / sigma)),
+                             "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))), "rms_cab": run.score.rms,
+                             "err_rms_cab": abs(run.score.rms - base.score.rms)})
+        for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
+            r["seconds"] = sec
+    t_ref = rows[0]["seconds"]  # every node, linear: the shipped setting and, on nodes, exact
+    for r in rows:
+        r["speedup"] = t_ref / r["seconds"]
+    return _family("lut", "Atmosphere LUT interpolation and node density", "exact LUT nodes (shipped LUT)", rows,
+                   RADIANCE_ERROR, timed="Time: the LUT terms for one state on the 1 nm grid (host, once per scene)",
+                   note="lp and Cab errors: the whole chain (simulation and correction) on the thinned LUT, against "
+                        "the default chain")
+
+
+# -- physics knobs: what an effect or a sample size changes --------------------------------------
+
+def knob_copies(ctx: Context) -> Family:
+    """Noise copies per spectrum: the confidence interval of the chlorophyll RMS each buys."""
+    from s2cl import Simulator
+
+    validated(ctx)
+    seeds = range(1, (10 if ctx.quick else 30) + 1)
+    rows = []
+    for copies in (10, 100, 1000):
+        scene = ctx.scene(**{"surface.copies": copies})
+        lib = scene_library(scene)  # the whole Lib1 (120 spectra), as the default scene runs it
+        sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
+        fitter = IgrmFitter(len(BANDS))
+        slots = [scene.sensor.band_names.index(b) for b in BANDS]
+        centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
+        target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
+        rms, times = [], []
+        for seed in seeds:
+            t0 = time.perf_counter()
+            res = sim.run_library(lib, copies=copies, seed=seed)
+            assert res.reflectance is not None
+            r = fitter.fit(res.reflectance[slots].reshape(len(slots), -1), centres)
+            times.append(time.perf_counter() - t0)
+            rms.append(score_igrm(r, target).rms)
+        sd = statistics.stdev(rms)
+        rows.append({"setting": f"{copies} copies", "default": copies == 100, "seconds": statistics.median(times),
+                     "rms_cab": statistics.mean(rms), "rms_cab_sd": sd, "ci95_halfwidth": 1.96 * sd,
+                     "seeds": len(rms), "pixels": lib.size * copies})
+    ref = rows[-1]["seconds"]
+    for r in rows:
+        r["speedup"] = ref / r["seconds"]
+    return _family("copies", "Noise copies per spectrum", f"spread over {len(seeds)} noise seeds (vs 1000 copies)",
+                   rows, ("ci95_halfwidth", "95 % half-width of the Cab RMS [ug/cm2]"),
+                   timed="Whole Lib1 (120 spectra); time: one seed, simulate the library with its copies and fit "
+                         "(compiled chain)")
+
+
+def knob_bits(ctx: Context) -> Family:
+    """Quantisation bits, against the same noisy chain without quantisation."""
+    ref = run_chain(ctx, "float", {"effects.quantise": False, "effects.calibrate": False})
+    runs = {bits: default_run(ctx) if bits == 12 else run_chain(ctx, f"{bits}", {"effects.bits": bits})
+            for bits in (8, 10, 12, 14, 16)}
+    time_runs(ctx, ref, *runs.values())
+    rows = [knob_row("no quantisation (reference)", ref, ref, extra={"reference": True})]
+    rows += [knob_row(f"{bits} bits", run, ref, default=bits == 12) for bits, run in runs.items()]
+    return _family("bits", "Quantisation bits", "noisy chain without quantisation", rows,
+                   ("err_lp_rms_nm", "RMS lp change vs unquantised [nm]"))
+
+
+def knob_atmosphere(ctx: Context) -> Family:
+    """Atmosphere effect on (6S LUT, band-effective correction) vs off (TOA radiance ρ·E0·cos θs/π,
+    no path radiance, no transmittance losses; reflectance = radiance / band-effective E0·cos θs/π)."""
+    on = default_run(ctx)
+    scene = ctx.scene()
+    terms = scene_atmosphere(scene)
+    assert terms is not None
+    scale = terms.e0 * terms.mu_s / np.pi
+    lib = scene_library(scene)
+    radiance_lib = SpectralLibrary(lib.grid, lib.spectra * scale, lib.names, quantity="radiance", groups=lib.groups,
+                                   params=dict(lib.params), source="Lib1 × E0·cos θs/π (no atmosphere)")
+    divisor = np.array([w.weights @ scale[w.start:w.stop]
+                        for w in (b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands)])
+    off = run_chain(ctx, "off", {"effects.atmosphere": False, "effects.correct": False,
+                                 "surface.quantity": "radiance"}, library=radiance_lib, divisor=divisor)
+    time_runs(ctx, on, off)
+    rows = [knob_row("atmosphere on (6S LUT + correction)", on, on, default=True, extra={"reference": True}),
+            knob_row("atmosphere off (exo-atmospheric sun, no correction)", off, on)]
+    return _family("atmosphere", "Atmosphere effect on/off", "atmosphere on", rows,
+                   ("err_rms_cab", "Cab RMS change (abs) [ug/cm2]"))
+
+
+KNOBS = {
+    "grid": knob_grid,
+    "precision": knob_precision,
+    "srf": knob_srf,
+    "lm": knob_lm,
+    "lut": knob_lut,
+    "copies": knob_copies,
+    "bits": knob_bits,
+    "atmosphere": knob_atmosphere,
+}
+
