@@ -8,7 +8,7 @@ Both are validated on a slice against the float64 numpy oracle (:mod:`s2cl.refer
 before timing; the float64 numpy forward + resample is timed as a baseline in the same run.
 Writes bench/results/atmosphere.json (atomically). Timings are medians; the machine is shared.
 
-    python bench/bench_atmosphere.py [--pixels 20000] [--repeat 3]
+    python -m bench.bench_atmosphere [--pixels 20000] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from common import machine_info, median_time
+
+from bench.common import machine_info, median_and_times
 
 RESULT = Path(__file__).resolve().parent / "results" / "atmosphere.json"
 TOLERANCE = 2e-6   # float32 kernel vs float64 oracle, max |error| / max |value|
@@ -73,10 +74,10 @@ def main() -> None:
         resampler.enqueue(out_dev, src, n)
         rt.finish()
 
-    t_off, all_off = median_time(lambda: kernel(off, rad_dev), args.repeat)
-    t_on, all_on = median_time(lambda: kernel(on, rho_dev), args.repeat)
+    t_off, all_off = median_and_times(lambda: kernel(off, rad_dev), args.repeat)
+    t_on, all_on = median_and_times(lambda: kernel(on, rho_dev), args.repeat)
     sample = rho[: min(n, 5000)]
-    t_np, _ = median_time(lambda: oracle(sample), args.repeat)
+    t_np, _ = median_and_times(lambda: oracle(sample), args.repeat)
     t_np *= n / sample.shape[0]
     rate = {"kernel_atmosphere_off": n / t_off, "kernel_atmosphere_on": n / t_on,
             "numpy_float64_forward_resample": n / t_np}

@@ -8,9 +8,9 @@ The numpy evaluator is validated against the kernel on a slice of configurations
 on a sample of configurations and extrapolated to the whole sweep. Timings are medians; the machine
 may be shared (see ``machine`` and ``load_average`` in the output). Nothing here asserts a timing.
 
-    PYTHONPATH=. python bench/bench_sweep.py                         # kernel vs numpy, Dask scaling
-    PYTHONPATH=. python bench/bench_sweep.py --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
-    PYTHONPATH=. python bench/bench_sweep.py --table3-run            # + run Table 3 now (minutes)
+    PYTHONPATH=. python -m bench.bench_sweep                         # kernel vs numpy, Dask scaling
+    PYTHONPATH=. python -m bench.bench_sweep --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
+    PYTHONPATH=. python -m bench.bench_sweep --table3-run            # + run Table 3 now (minutes)
 
 ``--table3-from DIR`` reads ``DIR/<scene>.time`` (GNU time -v output of
 ``s2cl optimise <scene> -o DIR/<scene>``); ``--table3-run`` runs the six sweeps itself in
@@ -34,8 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from common import machine_info, median_time
-
+from bench.common import machine_info, median_and_times
 from s2cl.metrics import regression_metrics
 from s2cl.optimise import plan_sweep
 from s2cl.output import write_json
@@ -89,10 +88,10 @@ def time_kernel(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
     hi = min(lo + KERNEL_BLOCK, t.n_configs)
     evals = (hi - lo) * t.n_pixels
     raw = kernel(lo, hi)  # warm
-    t_kernel, times = median_time(lambda: kernel(lo, hi), repeat=5, warmup=0)
-    t_metrics, _ = median_time(lambda: regression_metrics(raw.index, raw.status, raw.bounds, t.target),
+    t_kernel, times = median_and_times(lambda: kernel(lo, hi), repeat=5, warmup=0)
+    t_metrics, _ = median_and_times(lambda: regression_metrics(raw.index, raw.status, raw.bounds, t.target),
                                repeat=3, warmup=0)
-    t_rows, _ = median_time(lambda: evaluate_chunk(job, lo, hi), repeat=3, warmup=1)
+    t_rows, _ = median_and_times(lambda: evaluate_chunk(job, lo, hi), repeat=3, warmup=1)
     return {"configurations": hi - lo, "evaluations": evals,
             "kernel_s": t_kernel, "kernel_s_min": min(times), "kernel_evaluations_per_s": evals / t_kernel,
             "metrics_s": t_metrics, "evaluate_chunk_s": t_rows,
@@ -107,7 +106,7 @@ def time_numpy(job: SweepJob) -> dict[str, Any]:
         for c in sample:
             evaluate(t, a, c, c + 1)
 
-    raw_s, times = median_time(one_pass, repeat=3, warmup=0)
+    raw_s, times = median_and_times(one_pass, repeat=3, warmup=0)
     evals = len(sample) * t.n_pixels
     return {"sample_configurations": sample, "evaluations": evals,
             "evaluate_s": raw_s, "evaluate_s_min": min(times), "evaluations_per_s": evals / raw_s,

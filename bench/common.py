@@ -49,6 +49,12 @@ def median_time(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> floa
     return statistics.median(time_repeats(fn, repeat, warmup))
 
 
+def median_and_times(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> tuple[float, list[float]]:
+    """Median wall time (seconds) and every timed run, for results that keep the spread."""
+    times = time_repeats(fn, repeat, warmup)
+    return statistics.median(times), times
+
+
 def interleaved_medians(fns: list[Callable[[], Any]], repeat: int = 3, warmup: int = 0) -> list[float]:
     """Median wall time of each of ``fns``, timed in interleaved rounds (a, b, c, a, b, c, ...) so
     that drift in the machine's load (other users) hits every setting alike; after ``warmup``

@@ -24,7 +24,7 @@ Tables 5 and 6 run with noise off, and Table 6 with the 8 full-range minerals an
 
 Writes bench/results/paper_sensitivity.json and docs/paper/table4_sensitivity.png.
 
-    PYTHONPATH=. python bench/paper_sensitivity.py
+    PYTHONPATH=. python -m bench.paper_sensitivity
 """
 
 from __future__ import annotations
@@ -41,8 +41,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from common import machine_info
-
+from bench.common import machine_info
 from s2cl.metrics import regression_metrics
 from s2cl.optimise import plan_sweep
 from s2cl.output import atomic_path, write_json
