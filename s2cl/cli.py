@@ -201,6 +201,29 @@ def devices() -> None:
 
 
 @cli.command()
+@click.option("--library", "-l", "libraries", multiple=True,
+              help="library to check (repeatable; default: flat, lib1, lib2, minerals)")
+def residuals(libraries: tuple[str, ...]) -> None:
+    """Band-averaging residual of the atmospheric correction, without noise (paper standard atmosphere).
+
+    Reflectance -> TOA radiance per wavelength -> SRF resampling -> band-effective correction, against
+    the SRF-weighted true reflectance: the largest |error| per band in reflectance units.
+    """
+    from rich.table import Table
+
+    from .correction_residuals import DEFAULT_LIBRARIES, band_averaging_residuals
+
+    results = band_averaging_residuals(libraries or DEFAULT_LIBRARIES)
+    table = Table(title="band-averaging residual: max |corrected - true| band reflectance (x 1e-4)")
+    table.add_column("library")
+    for band in results[0].bands:
+        table.add_column(band, justify="right")
+    for r in results:
+        table.add_row(r.library, *(f"{1e4 * v:.2f}" for v in r.max_abs()))
+    _console().print(table)
+
+
+@cli.command()
 @click.option("--file", "sensor_file", type=click.Path(dir_okay=False, path_type=Path),
               help="sensor CSV (default: the built-in Sentinel-2 MRD table)")
 def sensor(sensor_file: Path | None) -> None:

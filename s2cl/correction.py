@@ -8,7 +8,7 @@ of the (assumed) atmospheric state::
 
 and inverts ``y = (L − Lp_k) / G_k``, ``ρ_k = y / (1 + S_k·y)``. For spectrally flat targets this
 recovers ρ up to the covariance of G and S inside the band (the "band-averaging residual",
-reported by ``s2cl atmosphere residuals``). A denominator ``1 + S·y`` below 1e-6 (unphysical
+reported by ``s2cl residuals``). A denominator ``1 + S·y`` below 1e-6 (unphysical
 radiance far below the path radiance) is clamped, so the result stays finite.
 """
 

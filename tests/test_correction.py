@@ -91,3 +91,20 @@ def test_correct_needs_terms_and_atmosphere(rt) -> None:
         Sensing(rt, Radiometry.of(bands, 12), CORRECT_ONLY)
     with pytest.raises(InputError, match="atmosphere"):
         EffectSet(atmosphere=False, correct=True).validate()
+
+
+def test_shipped_lut_round_trip_and_band_averaging_residual() -> None:
+    """Real 6S terms, no noise: flat 0.1/0.2 come back within 1e-5; spectra with structure inside a
+    band (vegetation, minerals) carry a residual, largest in B10 where the atmosphere is opaque."""
+    from s2cl.correction_residuals import band_averaging_residuals
+
+    flat, lib1, minerals = band_averaging_residuals(("builtin:flat", "builtin:lib1", "builtin:minerals"))
+    assert np.allclose(flat.true, [[0.1, 0.2]] * len(flat.bands), atol=1e-12)
+    assert flat.max_abs().max() < 1e-5
+    for r in (lib1, minerals):
+        assert np.isfinite(r.difference).all()
+        b10 = r.bands.index("B10")
+        others = np.delete(r.max_abs(), b10)
+        assert others.max() < 1.5e-2
+        assert r.max_abs()[b10] > others.max()  # the opaque band is the worst
+    assert lib1.max_abs().max() > 10 * flat.max_abs().max()  # structure inside bands does cost
