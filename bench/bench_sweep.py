@@ -201,6 +201,14 @@ def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, An
             "peak_rss_mb": max(r["peak_rss_mb"] for r in runs.values()), "target_s": 600}
 
 
+def load_note(before: tuple[float, ...], after: tuple[float, ...]) -> str:
+    """What the 1-minute load averages around a run say about other jobs on the machine."""
+    cores = os.cpu_count() or 1
+    return (f"load average {before[0]:.1f} before and {after[0]:.1f} after, on {cores} cores (this benchmark "
+            f"alone loads about {cores}): well above that, other jobs shared the machine and the wall times "
+            "are upper bounds of a quiet machine's")
+
+
 def plan_config_count(scene: str) -> int:
     from s2cl.sweep_tables import sweep_space
 
@@ -243,8 +251,7 @@ def main() -> None:
     elif args.table3_run:
         result["table3"] = table3_run()
     if "table3" in result:
-        result["table3"]["note"] = ("the 2-core machine was shared with two other developers' jobs while this "
-                                    "ran: wall times are upper bounds of a quiet machine's")
+        result["table3"]["note"] = load_note(result["load_average_start"], os.getloadavg())
         print("table3:", {k: v for k, v in result["table3"].items() if k != "runs"}, flush=True)
     result["load_average_end"] = os.getloadavg()
     write_json(OUTPUT, result)
