@@ -1,7 +1,7 @@
 """Run s2cl's benchmark suite on this machine.
 
-    python -m bench                    # full suite (minutes; under an hour on 2 cores), regenerates docs/bench.md
-    python -m bench --quick            # reduced sizes (under 5 minutes on 2 cores); docs only with --docs
+    python -m bench                    # full suite (its measured total is in each report), regenerates docs/bench.md
+    python -m bench --quick            # reduced sizes (a few minutes on 2 cores); docs only with --docs
     python -m bench --only lm,grid     # some parts only (see --list); leaves the docs alone
     python -m bench --report bench/results/RESULT.json   # re-render Markdown/plots (and docs) from a JSON
     python -m bench --list
@@ -9,7 +9,10 @@
 Writes ``bench/results/<machine>-<date>[-quick].json`` and ``.md`` with PNG plots beside them
 (``-pareto.png``, ``-scaling.png``), atomically. Every part validates a slice against its float64
 reference before timing and stops the suite (exit 1) if it disagrees; a part that fails otherwise
-is recorded in the report and the exit code is 1.
+is recorded in the report and the exit code is 1. The docs are regenerated (unless ``--docs`` or
+``--no-docs`` says otherwise) only from a full, complete run: every part, full sizes, none failed.
+The 1-minute load averages before and after the run are recorded, and the report says from them
+whether other jobs shared the machine.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.common import RESULTS, BenchValidationError, machine_info, machine_name, write_json
+from bench.common import RESULTS, BenchValidationError, load_average, machine_info, machine_name, write_json
 
 GROUPS = ("knobs", "scaling", "baselines")
 CONTEXT_KEYS = ("repeat", "spectra", "copies", "block", "loops", "time_pixels")
@@ -56,15 +59,23 @@ def select(only: list[str] | None, names: dict[str, tuple[str, str, Any]]) -> li
     return list(dict.fromkeys(wanted))
 
 
+def _docs_default(results: dict[str, Any]) -> bool:
+    """Whether a run's results regenerate docs/bench.md by default: a full, complete run (every
+    part, full sizes, none failed)."""
+    return (not results.get("quick") and results.get("parts") == list(registry())
+            and not any("error" in part for group in GROUPS for part in results.get(group, {}).values()))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="reduced sizes and repeats (< 5 min on 2 cores)")
+    parser.add_argument("--quick", action="store_true", help="reduced sizes and repeats (a few minutes on 2 cores)")
     parser.add_argument("--only", action="append", metavar="NAME[,NAME]",
                         help="parts or groups (knobs, scaling, baselines) to run; see --list")
     parser.add_argument("--list", action="store_true", help="list the parts and exit")
     parser.add_argument("--out", type=Path, default=RESULTS, help="results folder (default bench/results)")
     parser.add_argument("--docs", action=argparse.BooleanOptionalAction, default=None,
-                        help="regenerate docs/bench.md and docs/bench/*.png (default: for a full, complete run)")
+                        help="regenerate docs/bench.md and docs/bench/*.png (default: for a full, complete run: "
+                             "every part, full sizes, none failed)")
     parser.add_argument("--report", type=Path, metavar="RESULT.json",
                         help="only rewrite the Markdown, plots (and docs) from an earlier run's JSON")
     args = parser.parse_args(argv)
@@ -74,9 +85,8 @@ def main(argv: list[str] | None = None) -> int:
         from bench.report import write_reports
 
         results = json.loads(args.report.read_text(encoding="utf-8"))
-        for p in write_reports(results, args.report.parent, args.report.stem,
-                               docs=bool(args.docs) if args.docs is not None
-                               else results.get("parts") == list(registry()) and not results.get("quick")):
+        docs = args.docs if args.docs is not None else _docs_default(results)
+        for p in write_reports(results, args.report.parent, args.report.stem, docs=docs):
             print(f"[bench] wrote {p}")
         return 0
 
@@ -93,8 +103,9 @@ def main(argv: list[str] | None = None) -> int:
 
     ctx = Context.make(args.quick)
     t_start = time.perf_counter()
-    results: dict[str, Any] = {"benchmark": "s2cl suite", "quick": args.quick, "parts": parts,
-                               "machine": machine_info(get_runtime()),
+    machine = machine_info(get_runtime())
+    results: dict[str, Any] = {"benchmark": "s2cl suite", "quick": args.quick, "parts": parts, "machine": machine,
+                               "load_average": {"before": machine["load_average"]},
                                "context": {k: getattr(ctx, k) for k in CONTEXT_KEYS},
                                "knobs": {}, "scaling": {}, "baselines": {}, "seconds": {}}
     failed = False
@@ -114,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         results["seconds"][name] = time.perf_counter() - t0
         print(f"[bench] {name}: {results['seconds'][name]:.1f} s", flush=True)
     results["seconds_total"] = time.perf_counter() - t_start
+    results["load_average"]["after"] = load_average()
     results["validation"] = {f"chain: {k}": v for k, v in ctx.cache.get("validation", {}).items()}
     for group in GROUPS:
         for key, part in results[group].items():
@@ -125,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.only:
         stem += "-" + "-".join(parts)[:60]
     written = [write_json(args.out / f"{stem}.json", results)]
-    docs = args.docs if args.docs is not None else not (args.quick or args.only)
+    docs = args.docs if args.docs is not None else _docs_default(results)
     written += write_reports(results, args.out, stem, docs=docs)
     for p in written:
         print(f"[bench] wrote {p}")

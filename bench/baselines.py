@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from bench.chain import BANDS, Context
-from bench.common import check, median_time
+from bench.common import check, max_rel_error, median_time
 
 
 def _rows(rates: dict[str, float], base: str, extra: dict[str, dict[str, Any]] | None = None
@@ -31,18 +31,16 @@ def resample(ctx: Context) -> dict[str, Any]:
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()
-    plan = ResamplePlan(tuple(sensor.band_names), tuple(b.weights(DEFAULT_GRID) for b in sensor.bands),
-                        DEFAULT_GRID.size)
+    plan = ResamplePlan.of(sensor.bands, DEFAULT_GRID)
     n = 20_000 if ctx.quick else 100_000
     spectra = np.random.default_rng(0).random((n, DEFAULT_GRID.size), dtype=np.float32)
     res = Resampler(rt, plan, "float32")
-    got = res(spectra[:500])
     want = ref_resample(spectra[:500], plan.weights)
-    err = float(np.abs(got - want).max() / np.abs(want).max())
+    err = max_rel_error(res(spectra[:500]), want)
     check(err < 2e-6, f"s2cl resampling disagrees with the float64 oracle: {err:.2e}")
     dense = plan.dense().astype(np.float32)
-    check(float(np.abs((spectra[:500] @ dense.T).T - want).max() / np.abs(want).max()) < 2e-5,
-          "numpy matmul baseline is wrong")
+    err_np = max_rel_error((spectra[:500] @ dense.T).T, want)
+    check(err_np < 2e-5, f"numpy matmul baseline disagrees with the float64 oracle: {err_np:.2e}")
     spy = BandResampler(DEFAULT_GRID.wavelengths, [b.centre_nm for b in sensor.bands], None,
                         [b.fwhm_nm for b in sensor.bands])
     sample = spectra[: 500 if ctx.quick else 2000]
@@ -66,7 +64,7 @@ def resample(ctx: Context) -> dict[str, Any]:
 def igrm(ctx: Context) -> dict[str, Any]:
     """IGRM fits of noisy PROSAIL canopies on B4 B5 B6 B8, each method at its own accuracy."""
     from bench.bench_igrm import REFERENCE_SETTINGS, at_optimum
-    from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
+    from s2cl.igrm import IgrmFitter, IgrmSettings
     from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
     from s2cl.reference.igrm_cases import band_centres, prosail_population
 
@@ -89,10 +87,7 @@ def igrm(ctx: Context) -> dict[str, Any]:
     t_np = median_time(lambda: fit_numpy_lm(y[:, :m], wl), 1) * n / m
     sp = fit_scipy(y[:, sample].astype(np.float64), wl, IgrmSettings())
     t_sp = median_time(lambda: fit_scipy(y[:, sample].astype(np.float64), wl, IgrmSettings()), 1) * n / n_scipy
-    sub_ref = IgrmResult(*(getattr(ref, f)[sample] for f in ("rmax", "rmin", "l0", "s", "lp", "rms", "status",
-                                                              "iterations", "bounds")))
-    sub_np = IgrmResult(*(getattr(ref, f)[:m] for f in ("rmax", "rmin", "l0", "s", "lp", "rms", "status",
-                                                         "iterations", "bounds")))
+    sub_ref, sub_np = ref.take(sample), ref.take(slice(0, m))
     s2cl_, numpy_, scipy_ = ("s2cl OpenCL float32", "numpy vectorised LM float32 (same algorithm, 1 thread)",
                              "scipy least_squares trf per pixel (sampled, extrapolated)")
     acc = {s2cl_: float(at_optimum(r_fast, ref).mean()), numpy_: float(at_optimum(r_np, sub_np).mean()),
@@ -117,16 +112,26 @@ def sam(ctx: Context) -> dict[str, Any]:
     n = 100_000 if ctx.quick else 1_000_000
     refs, _, pix = sam_scene(n, 13, 20)
     clf = SamClassifier(refs)
-    best, angle, _ = ref.classify(pix[:, :20000], refs)
-    got = clf.classify(pix[:, :20000])
+    k = 20_000  # the validated slice
+    best, angle, _ = ref.classify(pix[:, :k], refs)
+    got = clf.classify(pix[:, :k])
     agree = float(np.mean(got.reference == best))
     check(agree > 0.999 and float(np.max(np.abs(got.angle - angle))) < 1e-3, "SAM disagrees with the float64 oracle")
     cube = np.ascontiguousarray(pix.T).reshape(1000, n // 1000, 13)
     refs32 = refs.astype(np.float32)
 
-    def spy() -> Any:
-        a = spectral.spectral_angles(cube, refs32)
+    def spy(c: np.ndarray = cube) -> Any:
+        a = spectral.spectral_angles(c, refs32)
         return np.argmin(a, axis=2), np.min(a, axis=2)
+
+    # the baselines on the same slice before timing them: the same classes and angles as the oracle
+    spy_best, spy_angle = spy(np.ascontiguousarray(pix[:, :k].T).reshape(1, k, 13))
+    np_best, np_angle = numpy_sam(pix[:, :k], clf.unit_refs)
+    for what, b, a in (("SPy spectral_angles", spy_best.ravel(), spy_angle.ravel()), ("numpy SAM", np_best, np_angle)):
+        b_agree, d_angle = float(np.mean(b == best)), float(np.max(np.abs(a - angle)))
+        check(b_agree > 0.999 and d_angle < 1e-3,
+              f"{what} baseline disagrees with the float64 oracle: {b_agree:.4%} same class, max |d angle| "
+              f"{d_angle:.1e} rad")
 
     t_s2cl = median_time(lambda: clf.classify(pix), ctx.repeat, warmup=1)
     t_spy = median_time(spy, ctx.repeat, warmup=1)

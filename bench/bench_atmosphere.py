@@ -6,7 +6,8 @@ radiance, ``L = Lp + G·ρ/(1 − S·ρ)`` (6S LUT terms of the paper's standard
 SRFs (atmosphere on). 2101 wavelengths (400–2500 nm, 1 nm) into the 13 Sentinel-2 bands, float32.
 Both are validated on a slice against the float64 numpy oracle (:mod:`s2cl.reference.forward`)
 before timing; the float64 numpy forward + resample is timed as a baseline in the same run.
-Writes bench/results/atmosphere.json (atomically). Timings are medians; the machine is shared.
+Writes bench/results/atmosphere.json (atomically). Timings are medians after one untimed warm-up
+call (the first call compiles); the machine may be shared (see ``machine.load_average``).
 
     python -m bench.bench_atmosphere [--pixels 20000] [--repeat 3]
 """
@@ -14,14 +15,14 @@ Writes bench/results/atmosphere.json (atomically). Timings are medians; the mach
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
-from bench.common import machine_info, median_and_times
+from bench.chain import oracle_band_radiance
+from bench.common import check, machine_info, max_rel_error, median_and_times, write_json
 
-RESULT = Path(__file__).resolve().parent / "results" / "atmosphere.json"
-TOLERANCE = 2e-6   # float32 kernel vs float64 oracle, max |error| / max |value|
+RESULT = "atmosphere.json"  # in bench/results/
+TOLERANCE = 2e-6   # float32 kernel vs float64 oracle, max pointwise |error| / |value|
 
 
 def main() -> None:
@@ -33,17 +34,14 @@ def main() -> None:
 
     from s2cl.atmosphere import AtmosphereLUT, AtmosphereState
     from s2cl.grid import DEFAULT_GRID
-    from s2cl.output import write_json
     from s2cl.reference.forward import resample as ref_resample
-    from s2cl.reference.forward import toa_radiance as ref_toa
     from s2cl.resample import ResamplePlan, Resampler
     from s2cl.runtime import get_runtime
     from s2cl.sensor import Sensor
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()
-    plan = ResamplePlan(tuple(sensor.band_names), tuple(b.weights(DEFAULT_GRID) for b in sensor.bands),
-                        DEFAULT_GRID.size)
+    plan = ResamplePlan.of(sensor.bands, DEFAULT_GRID)
     terms = AtmosphereLUT.load().terms(AtmosphereState.paper_standard(), DEFAULT_GRID)
     n, nw = args.pixels, DEFAULT_GRID.size
     rng = np.random.default_rng(0)
@@ -53,18 +51,16 @@ def main() -> None:
     on = Resampler(rt, plan, "float32", atmosphere=terms)
 
     def oracle(x: np.ndarray) -> np.ndarray:
-        return ref_resample(ref_toa(x, terms.path_radiance, terms.ground_term, terms.spherical_albedo),
-                            plan.weights)
+        return oracle_band_radiance(x, terms, plan.weights)
 
     # validate a slice against the float64 oracle before timing
     k = min(args.check, n)
     errors = {}
     for label, got, expected in (("atmosphere_off", off(radiance[:k]), ref_resample(radiance[:k], plan.weights)),
                                  ("atmosphere_on", on(rho[:k]), oracle(rho[:k]))):
-        errors[label] = float(np.abs(got - expected).max() / np.abs(expected).max())
-        if not errors[label] < TOLERANCE:
-            raise SystemExit(f"{label}: kernel differs from the float64 oracle by {errors[label]:.2e} "
-                             f"(> {TOLERANCE:g}); not timing")
+        errors[label] = max_rel_error(got, expected)
+        check(errors[label] < TOLERANCE, f"{label}: kernel differs from the float64 oracle by {errors[label]:.2e} "
+                                         f"(> {TOLERANCE:g}); not timing")
 
     out_dev = rt.empty(plan.n_bands * n * 4)
     rho_dev = rt.to_device(rho, zero_copy=True)
@@ -74,10 +70,10 @@ def main() -> None:
         resampler.enqueue(out_dev, src, n)
         rt.finish()
 
-    t_off, all_off = median_and_times(lambda: kernel(off, rad_dev), args.repeat)
-    t_on, all_on = median_and_times(lambda: kernel(on, rho_dev), args.repeat)
+    t_off, all_off = median_and_times(lambda: kernel(off, rad_dev), args.repeat, warmup=1)
+    t_on, all_on = median_and_times(lambda: kernel(on, rho_dev), args.repeat, warmup=1)
     sample = rho[: min(n, 5000)]
-    t_np, _ = median_and_times(lambda: oracle(sample), args.repeat)
+    t_np, _ = median_and_times(lambda: oracle(sample), args.repeat, warmup=1)
     t_np *= n / sample.shape[0]
     rate = {"kernel_atmosphere_off": n / t_off, "kernel_atmosphere_on": n / t_on,
             "numpy_float64_forward_resample": n / t_np}

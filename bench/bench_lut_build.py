@@ -25,20 +25,20 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench.common import RESULTS, check, write_json
 from s2cl.atmosphere import PAPER_AOT550, AtmosphereLUT, AtmosphereState
 from s2cl.lut_build import LUTAxes, build_lut
 from s2cl.lut_validate import sixs_input_for, validate
 from s2cl.sixs import SixSInput, describe, run_many
 
-RESULTS = Path(__file__).resolve().parent / "results" / "lut_build.json"
+RESULT = RESULTS / "lut_build.json"
 BRUTE_OZONE_NODES = 5
 
 
 def check_correctness(lut: AtmosphereLUT, workers: int) -> float:
     rows = validate(lut, AtmosphereState.paper_standard(), (550.0, 945.0), (0.3,), workers=workers)
     worst = max(abs(r.relative_error) for r in rows)
-    if worst > 3e-4:
-        raise SystemExit(f"shipped LUT disagrees with 6S by {worst:.2e}: not benchmarking")
+    check(worst <= 3e-4, f"shipped LUT disagrees with 6S by {worst:.2e}: not benchmarking")
     return worst
 
 
@@ -91,7 +91,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-j", "--workers", type=int, default=2)
     parser.add_argument("--sample", type=int, default=24, help="brute-force (wavelength, state) pairs per kind")
-    parser.add_argument("--output", type=Path, default=RESULTS)
+    parser.add_argument("--output", type=Path, default=RESULT)
     args = parser.parse_args()
 
     lut = AtmosphereLUT.load()
@@ -138,11 +138,7 @@ def main() -> None:
             "ratio_brute_over_separable": brute_full / shipped["seconds"],
         },
     }
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=args.output.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as handle:
-        json.dump(result, handle, indent=2)
-    os.replace(tmp, args.output)
+    write_json(args.output.resolve(), result)
     print(json.dumps(result, indent=2))
     print(
         f"slice: separable {separable['seconds']:.0f} s vs brute force ~{brute_slice / 3600:.1f} h "

@@ -10,11 +10,10 @@ spectrum once (2101 × 4 B) at that bandwidth. Writes JSON to bench/results/.
 from __future__ import annotations
 
 import argparse
-import statistics
 
 import numpy as np
 
-from bench.common import machine_info, median_time, time_repeats, write_result
+from bench.common import check, machine_info, max_rel_error, median_and_times, median_time, write_result
 
 
 def copy_bandwidth(rt, nbytes: int, repeat: int) -> float:
@@ -50,18 +49,15 @@ def main() -> None:
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()
-    plan = ResamplePlan(tuple(sensor.band_names), tuple(b.weights(DEFAULT_GRID) for b in sensor.bands),
-                        DEFAULT_GRID.size)
+    plan = ResamplePlan.of(sensor.bands, DEFAULT_GRID)
     n, nw = args.pixels, DEFAULT_GRID.size
     rng = np.random.default_rng(0)
     spectra = rng.random((n, nw), dtype=np.float32)
     resampler = Resampler(rt, plan, "float32")
 
     # validate a slice against the float64 oracle before timing
-    check = resampler(spectra[:500])
-    expected = ref_resample(spectra[:500], plan.weights)
-    max_rel = float(np.abs(check - expected).max() / np.abs(expected).max())
-    assert max_rel < 2e-6, max_rel
+    max_rel = max_rel_error(resampler(spectra[:500]), ref_resample(spectra[:500], plan.weights))
+    check(max_rel < 2e-6, f"resampling disagrees with the float64 oracle: max rel {max_rel:.2e}; not timing")
 
     spectra_dev = rt.to_device(spectra, zero_copy=True)
     out_dev = rt.empty(plan.n_bands * n * 4)
@@ -70,8 +66,7 @@ def main() -> None:
         resampler.enqueue(out_dev, spectra_dev, n)
         rt.finish()
 
-    times_kernel = time_repeats(kernel_only, args.repeat, warmup=1)
-    t_kernel = statistics.median(times_kernel)
+    t_kernel, times_kernel = median_and_times(kernel_only, args.repeat, warmup=1)
     t_host = median_time(lambda: resampler(spectra), args.repeat, warmup=1)
 
     dense = plan.dense().astype(np.float32)

@@ -6,15 +6,20 @@ to end with peak memory.
 
 The numpy evaluator is validated against the kernel on a slice of configurations first, then timed
 on a sample of configurations and extrapolated to the whole sweep. Timings are medians; the machine
-may be shared (see ``machine`` and ``load_average`` in the output). Nothing here asserts a timing.
+may be shared (see ``machine`` and ``load_average_*`` in the output). Nothing here asserts a timing.
+A validation failure raises :class:`bench.common.BenchValidationError` before anything is timed.
 
-    PYTHONPATH=. python -m bench.bench_sweep                         # kernel vs numpy, Dask scaling
-    PYTHONPATH=. python -m bench.bench_sweep --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
-    PYTHONPATH=. python -m bench.bench_sweep --table3-run            # + run Table 3 now (minutes)
+Run from the repository root:
+
+    python -m bench.bench_sweep                          # kernel vs numpy, Dask scaling
+    python -m bench.bench_sweep --lanes 8,16             # + the kernel alone at other pixels per work-item
+    python -m bench.bench_sweep --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
+    python -m bench.bench_sweep --table3-run             # + run Table 3 now (minutes)
 
 ``--table3-from DIR`` reads ``DIR/<scene>.time`` (GNU time -v output of
 ``s2cl optimise <scene> -o DIR/<scene>``); ``--table3-run`` runs the six sweeps itself in
-subprocesses (fresh output folders) and measures wall time and peak resident memory.
+subprocesses (fresh output folders) and measures wall time and peak resident memory; only then
+does the result say, from the load averages before and after, whether the machine was shared.
 """
 
 from __future__ import annotations
@@ -29,22 +34,29 @@ import tempfile
 import time
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from bench.common import machine_info, median_and_times
+from bench.common import (
+    RESULTS,
+    ROOT,
+    check,
+    load_average,
+    load_note,
+    machine_info,
+    max_rel_error,
+    median_and_times,
+    write_json,
+)
 from s2cl.metrics import regression_metrics
 from s2cl.optimise import plan_sweep
-from s2cl.output import write_json
 from s2cl.reference.sweep import evaluate
 from s2cl.scene import Scene
 from s2cl.sweep import SweepJob, evaluate_chunk, run_sweep
 from s2cl.sweep_kernel import SweepKernel
 
-ROOT = Path(__file__).resolve().parent.parent
-OUTPUT = ROOT / "bench" / "results" / "sweep.json"
+OUTPUT = RESULTS / "sweep.json"
 MAIN_SCENE = "table3-lib1-b4567"  # 43,056 configurations × 12,000 pixels
 DASK_SCENE = "table3-lib1-b4568"  # 3,312 configurations
 TABLE3 = tuple(f"table3-{lib}-b{bands}" for lib in ("lib1", "lib2") for bands in ("4567", "4568", "4568a"))
@@ -61,7 +73,7 @@ def spread(n_configs: int, k: int) -> list[int]:
 def validate(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
     """The numpy evaluator against the kernel on a few configurations: statuses, λp, metrics."""
     t, a = job.tables, job.analysis
-    same, dlp, drms = [], [], []
+    same, dlp, rms_ref, rms_got = [], [], [], []
     for c in spread(t.n_configs, VALIDATE_CONFIGS):
         ref = evaluate(t, a, c, c + 1)
         got = kernel(c, c + 1)
@@ -69,26 +81,36 @@ def validate(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
         same.append(s.mean())
         ok = s & (ref.status == 0)
         dlp.append(np.abs(got.index - ref.index)[ok])
-        m_ref = regression_metrics(ref.index, ref.status, ref.bounds, t.target)["rms"][0]
-        m_got = regression_metrics(got.index, got.status, got.bounds, t.target)["rms"][0]
-        drms.append(abs(m_got - m_ref) / m_ref)
+        rms_ref.append(regression_metrics(ref.index, ref.status, ref.bounds, t.target)["rms"][0])
+        rms_got.append(regression_metrics(got.index, got.status, got.bounds, t.target)["rms"][0])
     d = np.concatenate(dlp)
     out = {"configurations": spread(t.n_configs, VALIDATE_CONFIGS), "same_status_fraction": float(np.mean(same)),
            "lp_abs_diff_nm": {"p50": float(np.median(d)), "p99": float(np.percentile(d, 99)), "max": float(d.max())},
-           "rms_rel_diff_max": float(max(drms)),
+           "rms_rel_diff_max": max_rel_error(rms_got, rms_ref),
            "what": "float32 kernel against the float64 numpy evaluator, same noise draws"}
-    if out["same_status_fraction"] < 0.99 or out["rms_rel_diff_max"] > 0.01:
-        raise SystemExit(f"validation failed: {out}")
+    check(out["same_status_fraction"] >= 0.99 and out["rms_rel_diff_max"] <= 0.01, f"validation failed: {out}")
     return out
 
 
+def _kernel_block(job: SweepJob) -> tuple[int, int]:
+    """The timed block of configurations: ``KERNEL_BLOCK`` from a third of the way into the sweep."""
+    lo = job.tables.n_configs // 3
+    return lo, min(lo + KERNEL_BLOCK, job.tables.n_configs)
+
+
+def kernel_rate(job: SweepJob, kernel: SweepKernel) -> tuple[float, list[float]]:
+    """The kernel alone on the timed block (after one untimed warm-up call): median seconds and every time."""
+    lo, hi = _kernel_block(job)
+    return median_and_times(lambda: kernel(lo, hi), repeat=5, warmup=1)
+
+
 def time_kernel(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
+    """The kernel, the per-configuration metrics on its output and the whole ``evaluate_chunk``."""
     t = job.tables
-    lo = t.n_configs // 3
-    hi = min(lo + KERNEL_BLOCK, t.n_configs)
+    lo, hi = _kernel_block(job)
     evals = (hi - lo) * t.n_pixels
-    raw = kernel(lo, hi)  # warm
-    t_kernel, times = median_and_times(lambda: kernel(lo, hi), repeat=5, warmup=0)
+    t_kernel, times = kernel_rate(job, kernel)
+    raw = kernel(lo, hi)
     t_metrics, _ = median_and_times(lambda: regression_metrics(raw.index, raw.status, raw.bounds, t.target),
                                repeat=3, warmup=0)
     t_rows, _ = median_and_times(lambda: evaluate_chunk(job, lo, hi), repeat=3, warmup=1)
@@ -131,21 +153,13 @@ def time_dask(scene: str) -> dict[str, Any]:
         for label, workers, env in (("workers_1", 1, {}), ("workers_2", 2, {}),
                                     ("workers_1_one_pocl_thread", 1, one_thread),
                                     ("workers_2_one_pocl_thread", 2, one_thread)):
-            saved = {k: os.environ.get(k) for k in env}
-            os.environ.update(env)  # inherited by the worker processes
-            try:
-                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-                    for run in ("cold", "warm"):
-                        t0 = time.perf_counter()
-                        run_sweep(job, Path(tmp) / f"{label}_{run}", scheduler=cluster.scheduler_address)
-                        out[f"dask_{label}_{run}_s"] = time.perf_counter() - t0
-            finally:
-                for k, v in saved.items():
-                    if v is None:
-                        os.environ.pop(k, None)
-                    else:
-                        os.environ[k] = v
+            with mock.patch.dict(os.environ, env), \
+                    LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                 dashboard_address=None) as cluster:  # the workers inherit ``env``
+                for run in ("cold", "warm"):
+                    t0 = time.perf_counter()
+                    run_sweep(job, Path(tmp) / f"{label}_{run}", scheduler=cluster.scheduler_address)
+                    out[f"dask_{label}_{run}_s"] = time.perf_counter() - t0
     out["speedup_2_vs_1_warm"] = out["dask_workers_1_warm_s"] / out["dask_workers_2_warm_s"]
     out["speedup_2_vs_1_warm_one_pocl_thread"] = (out["dask_workers_1_one_pocl_thread_warm_s"]
                                                   / out["dask_workers_2_one_pocl_thread_warm_s"])
@@ -201,14 +215,6 @@ def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, An
             "peak_rss_mb": max(r["peak_rss_mb"] for r in runs.values()), "target_s": 600}
 
 
-def load_note(before: tuple[float, ...], after: tuple[float, ...]) -> str:
-    """What the 1-minute load averages around a run say about other jobs on the machine."""
-    cores = os.cpu_count() or 1
-    return (f"load average {before[0]:.1f} before and {after[0]:.1f} after, on {cores} cores (this benchmark "
-            f"alone loads about {cores}): well above that, other jobs shared the machine and the wall times "
-            "are upper bounds of a quiet machine's")
-
-
 def plan_config_count(scene: str) -> int:
     from s2cl.sweep_tables import sweep_space
 
@@ -220,18 +226,31 @@ def main() -> None:
     ap.add_argument("--table3-from", type=Path, help="folder with <scene>.time files (GNU time -v)")
     ap.add_argument("--table3-run", action="store_true", help="run the six Table 3 sweeps now")
     ap.add_argument("--skip-dask", action="store_true")
+    ap.add_argument("--lanes", default="", metavar="L[,L]",
+                    help="also time the kernel with these pixels per work-item (e.g. 8,16)")
+    ap.add_argument("--output", type=Path, default=OUTPUT,
+                    help=f"result file (default {OUTPUT.relative_to(ROOT)})")
     args = ap.parse_args()
 
     job = plan_sweep(Scene.load(MAIN_SCENE))
     kernel = SweepKernel(job.tables, job.analysis, precision=job.precision)
-    result: dict[str, Any] = {"benchmark": "sweep", "machine": machine_info(kernel.rt),
-                              "load_average_start": os.getloadavg(), "scene": MAIN_SCENE,
+    machine = machine_info(kernel.rt)
+    result: dict[str, Any] = {"benchmark": "sweep", "machine": machine,
+                              "load_average_start": machine["load_average"], "scene": MAIN_SCENE,
                               "configurations": job.n_configs, "pixels": job.tables.n_pixels,
                               "evaluation": "noise + quantise + calibrate + correct + IGRM fit (+ metrics)"}
     result["validation"] = validate(job, kernel)
     print("validated:", result["validation"], flush=True)
     result["opencl"] = time_kernel(job, kernel)
     print("opencl:", result["opencl"], flush=True)
+    result["lanes"] = {}
+    for lanes in sorted({int(v) for v in args.lanes.split(",") if v}):
+        other = SweepKernel(job.tables, job.analysis, precision=job.precision, lanes=lanes)
+        validate(job, other)
+        lo, hi = _kernel_block(job)
+        result["lanes"][lanes] = (hi - lo) * job.tables.n_pixels / kernel_rate(job, other)[0]
+    if result["lanes"]:
+        print("kernel evaluations/s by lanes:", result["lanes"], flush=True)
     result["numpy"] = time_numpy(job)
     print("numpy:", result["numpy"], flush=True)
     result["ratio_kernel"] = result["opencl"]["kernel_evaluations_per_s"] / result["numpy"]["evaluations_per_s"]
@@ -247,15 +266,14 @@ def main() -> None:
         result["dask"] = time_dask(DASK_SCENE)
         print("dask:", result["dask"], flush=True)
     if args.table3_from:
-        result["table3"] = table3_from(args.table3_from)
+        result["table3"] = table3_from(args.table3_from)  # measured elsewhere: this run's load says nothing
     elif args.table3_run:
         result["table3"] = table3_run()
+        result["table3"]["note"] = load_note(result["load_average_start"], load_average())
     if "table3" in result:
-        result["table3"]["note"] = load_note(result["load_average_start"], os.getloadavg())
         print("table3:", {k: v for k, v in result["table3"].items() if k != "runs"}, flush=True)
-    result["load_average_end"] = os.getloadavg()
-    write_json(OUTPUT, result)
-    print("wrote", OUTPUT)
+    result["load_average_end"] = load_average()
+    print("wrote", write_json(args.output.resolve(), result))
 
 
 if __name__ == "__main__":

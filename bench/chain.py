@@ -12,17 +12,20 @@ import time
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bench.common import check, interleaved_medians
+from bench.common import check, interleaved_medians, max_rel_error
 from s2cl import Scene, Simulator, SpectralLibrary
 from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.quantify import RetrievalScore, score_igrm
+from s2cl.reference.forward import resample, toa_radiance
 from s2cl.scene import find_scene
 from s2cl.simulate import scene_atmosphere, scene_library
+from s2cl.srf import BandWeights
 
 BANDS = ("B4", "B5", "B6", "B8")  # the default scene's analysis (and sweep) bands, in wavelength order
 #: converged float64 fits: the reference every fit setting is scored against
@@ -55,14 +58,19 @@ class Context:
     def time_pixels(self) -> int:
         return self.block * self.loops
 
-    @property
+    @cached_property
     def scene_path(self) -> Path:
         return find_scene("default")
+
+    @cached_property
+    def scene_toml(self) -> dict[str, Any]:
+        """The default scene's TOML, parsed once (every :meth:`scene` works on a deep copy)."""
+        return tomllib.loads(self.scene_path.read_text("utf-8"))
 
     def scene(self, *, all_bands: bool = False, **overrides: Any) -> Scene:
         """The default scene with ``{"section.key": value}`` overrides, simulating the analysis
         bands only unless ``all_bands``."""
-        data = copy.deepcopy(self.cache.setdefault("toml", tomllib.loads(self.scene_path.read_text("utf-8"))))
+        data = copy.deepcopy(self.scene_toml)
         if not all_bands:
             data.setdefault("sensor", {})["bands"] = list(BANDS)
         for dotted, value in overrides.items():
@@ -73,12 +81,36 @@ class Context:
     def slice_index(self, size: int) -> np.ndarray:
         return np.unique(np.linspace(0, size - 1, min(self.spectra, size)).round().astype(int))
 
+    def library_slice(self, scene: Scene, library: SpectralLibrary | None = None, *,
+                      first: int | None = None) -> SpectralLibrary:
+        """The Lib1 slice (``ctx.spectra`` spectra evenly spaced; the first ``first`` of them) of
+        ``library``, by default the scene's own library."""
+        lib = library if library is not None else scene_library(scene)
+        return lib.subset(self.slice_index(lib.size)[:first])
+
+
+def analysis_bands(scene: Scene, lib: SpectralLibrary, copies: int) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """The fit's inputs for ``scene``: the rows of B4 B5 B6 B8 among its bands, their centres (nm),
+    and the chlorophyll of every pixel (each of ``lib``'s spectra ``copies`` times)."""
+    rows = [scene.sensor.band_names.index(b) for b in BANDS]
+    centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
+    target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
+    return rows, centres, target
+
+
+def oracle_band_radiance(spectra: np.ndarray, terms: Any, weights: list[BandWeights] | tuple[BandWeights, ...]
+                         ) -> np.ndarray:
+    """The float64 numpy oracle: TOA radiance of reflectance ``spectra`` under the atmosphere
+    ``terms`` (L = Lp + G·ρ/(1 − S·ρ) per wavelength), resampled with ``weights``: (bands, n)."""
+    return resample(toa_radiance(spectra, terms.path_radiance, terms.ground_term, terms.spherical_albedo), weights)
+
 
 @dataclass
 class ChainRun:
     """One chain setting's outputs on the slice, and its timing."""
 
     label: str
+    weights: tuple[BandWeights, ...]  # the chain's SRF weights per band (the Simulator's plan)
     band_radiance: np.ndarray  # (4, n_spectra) float64, noise-free TOA radiance
     sigma: np.ndarray  # (4, n_spectra) noise std (NER) at that radiance
     fit: IgrmResult
@@ -98,11 +130,13 @@ def noise_sigma(scene: Scene, radiance: np.ndarray) -> np.ndarray:
     return np.stack([b.noise.sigma(radiance[k], b.fwhm_nm) for k, b in enumerate(scene.sensor.bands)])
 
 
+SEED = 1  # noise seed of every chain run
+
+
 def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None, *,
-              fit: IgrmSettings | None = None, fit_real: str = "float32", copies: int | None = None,
-              seed: int = 1, library: SpectralLibrary | None = None, divisor: np.ndarray | None = None,
-              timed: bool = True) -> ChainRun:
-    """Simulate the Lib1 slice with ``copies`` noisy copies under the default scene with
+              fit: IgrmSettings | None = None, fit_real: str = "float32", library: SpectralLibrary | None = None,
+              divisor: np.ndarray | None = None, timed: bool = True) -> ChainRun:
+    """Simulate the Lib1 slice with ``ctx.copies`` noisy copies under the default scene with
     ``overrides``, fit IGRM on B4 B5 B6 B8 and score chlorophyll (the accuracy). The run is not yet
     timed: :func:`time_runs` times the runs of a family together. The time is the median of
     ``ctx.time_pixels`` pixels (blocks of ``ctx.block`` distinct spectra, the slice tiled
@@ -110,16 +144,14 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
 
     ``divisor`` (per band): the scene has no atmosphere and the library holds TOA radiance;
     reflectance is calibrated radiance / divisor (the atmosphere-off knob)."""
-    copies = copies or ctx.copies
+    copies = ctx.copies
     validated(ctx)
     t0 = time.perf_counter()
     scene = ctx.scene(**{"surface.copies": copies, **(overrides or {})})
-    lib = library if library is not None else scene_library(scene)
-    lib = lib.subset(ctx.slice_index(lib.size))
+    lib = ctx.library_slice(scene, library)
     sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
     fitter = IgrmFitter(len(BANDS), fit or IgrmSettings(), real_t=fit_real)
-    rows = [scene.sensor.band_names.index(b) for b in BANDS]
-    centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
+    rows, centres, target = analysis_bands(scene, lib, copies)
     setup = time.perf_counter() - t0
 
     def reflectance(out: Any) -> np.ndarray:
@@ -128,7 +160,7 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
         return out.calibrated[rows] / divisor[rows].reshape((-1,) + (1,) * (out.calibrated.ndim - 1))
 
     def once() -> tuple[Any, IgrmResult]:
-        res = sim.run_library(lib, copies=copies, seed=seed)
+        res = sim.run_library(lib, copies=copies, seed=SEED)
         return res, fitter.fit(reflectance(res).reshape(len(rows), -1), centres)
 
     res, r = once()
@@ -139,15 +171,14 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
     def image() -> None:
         for k in range(ctx.loops):
             radiance = sim.band_radiance(pixels)
-            out = sim.sense(radiance, seed=seed, pixel_offset=k * ctx.block)
-            assert out is not None
+            out = sim.sense(radiance, seed=SEED, pixel_offset=k * ctx.block)
+            check(out is not None, "the chain does not sense (no noise, DN or correction stage)")
             fitter.fit(reflectance(out), centres)
 
     if timed:
         image()  # warm-up: first-enqueue compilation, buffer pools
     radiance = res.band_radiance.astype(np.float64)
-    target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
-    return ChainRun(label, radiance, noise_sigma(scene, radiance), r, score_igrm(r, target), setup, n,
+    return ChainRun(label, sim.plan.weights, radiance, noise_sigma(scene, radiance), r, score_igrm(r, target), setup, n,
                     image if timed else None)
 
 
@@ -178,24 +209,18 @@ def validated(ctx: Context) -> None:
 def validate_reference(ctx: Context) -> None:
     """Before timing anything: the reference chain's kernels against the numpy float64 oracles on
     a small slice (TOA band radiance, and the IGRM fit against scipy.optimize.least_squares)."""
-    from s2cl.reference.forward import resample, toa_radiance
     from s2cl.reference.igrm import fit_scipy
 
     scene = ctx.scene(**REFERENCE_OVERRIDES)
-    lib = scene_library(scene)
-    lib = lib.subset(ctx.slice_index(lib.size)[:12])
+    lib = ctx.library_slice(scene, first=12)
     terms = scene_atmosphere(scene)
-    assert terms is not None
+    check(terms is not None, "the reference scene has no atmosphere")
     sim = Simulator.for_scene(scene, atmosphere=terms)
-    got = sim.band_radiance(lib.spectra)
-    weights = [b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands]
-    want = resample(toa_radiance(lib.spectra, terms.path_radiance, terms.ground_term, terms.spherical_albedo),
-                    weights)
-    err = float(np.max(np.abs(got - want) / np.abs(want)))
+    weights = sim.plan.weights
+    err = max_rel_error(sim.band_radiance(lib.spectra), oracle_band_radiance(lib.spectra, terms, weights))
     check(err < 1e-10, f"float64 chain band radiance disagrees with the numpy oracle: max rel {err:.2e}")
-    rows = [scene.sensor.band_names.index(b) for b in BANDS]
-    centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
-    refl = np.stack([lib.spectra[:, w.start:w.stop] @ w.weights for w in (weights[k] for k in rows)])
+    rows, centres, _ = analysis_bands(scene, lib, 1)
+    refl = resample(lib.spectra, [weights[k] for k in rows])
     ours = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t="float64").fit(refl, centres)
     theirs = fit_scipy(refl, centres, REFERENCE_FIT)
     both = ours.fitted() & theirs.fitted()
@@ -212,7 +237,7 @@ def compare(run: ChainRun, ref: ChainRun) -> dict[str, float]:
     both = run.fit.fitted() & ref.fit.fitted()
     dlp = run.fit.lp[both].astype(np.float64) - ref.fit.lp[both]
     return {
-        "err_radiance_rel_max": float(np.max(d / np.abs(ref.band_radiance))),
+        "err_radiance_rel_max": max_rel_error(run.band_radiance, ref.band_radiance),
         "err_radiance_ner_max": float(np.max(d / ref.sigma)),
         "err_lp_rms_nm": float(np.sqrt(np.mean(dlp**2))) if dlp.size else float("nan"),
         "err_rms_cab": abs(run.score.rms - ref.score.rms),
@@ -226,19 +251,14 @@ def knob_row(setting: str, run: ChainRun, ref: ChainRun, *, default: bool = Fals
             **compare(run, ref), **(extra or {})}
 
 
-
-def slice_reflectance(ctx: Context, copies: int | None = None, seed: int = 1) -> tuple[np.ndarray, np.ndarray,
-                                                                                           np.ndarray]:
+def slice_reflectance(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Corrected band reflectance (4, n) float32 of the slice under the default scene, the band
     centres and the per-pixel chlorophyll: the input of the fit-setting knobs."""
-    copies = copies or ctx.copies
+    copies = ctx.copies
     validated(ctx)
     scene = ctx.scene(**{"surface.copies": copies})
-    lib = scene_library(scene)
-    lib = lib.subset(ctx.slice_index(lib.size))
-    res = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene)).run_library(lib, copies=copies, seed=seed)
-    assert res.reflectance is not None
-    rows = [scene.sensor.band_names.index(b) for b in BANDS]
-    centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
-    target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
+    lib = ctx.library_slice(scene)
+    res = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene)).run_library(lib, copies=copies, seed=SEED)
+    check(res.reflectance is not None, "the default scene does not correct to reflectance")
+    rows, centres, target = analysis_bands(scene, lib, copies)
     return np.ascontiguousarray(res.reflectance[rows].reshape(len(rows), -1)), centres, target

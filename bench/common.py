@@ -1,4 +1,5 @@
-"""Shared helpers of the benchmarks: timing (medians of repeats), machine description, atomic output.
+"""Shared helpers of the benchmarks: timing (medians of repeats), validation (:func:`check`,
+:func:`max_rel_error`), machine description and load averages, atomic output.
 
 Benchmarks never assert timings; they validate a small slice against the float64 reference
 before timing anything (raising :class:`BenchValidationError` when it is wrong), and report
@@ -30,6 +31,40 @@ def check(ok: bool, what: str) -> None:
     """Fail loudly (not with ``assert``, which ``python -O`` drops) when a validation fails."""
     if not ok:
         raise BenchValidationError(what)
+
+
+def max_rel_error(got: Any, want: Any) -> float:
+    """Largest pointwise relative error ``max(|got - want| / |want|)``: every validation's "max rel"."""
+    import numpy as np
+
+    want = np.asarray(want, dtype=np.float64)
+    return float(np.max(np.abs(np.asarray(got, dtype=np.float64) - want) / np.abs(want)))
+
+
+def load_average() -> tuple[float, float, float]:
+    """The 1-, 5- and 15-minute load averages now (zeros where the platform has none)."""
+    try:
+        return os.getloadavg()
+    except OSError:
+        return (0.0, 0.0, 0.0)
+
+
+def machine_busy(before: Any, after: Any, cores: int | None = None) -> bool:
+    """Did other jobs share the machine? The 1-minute load average around a run above 1.25 × the
+    cores (a benchmark that keeps every core busy alone loads about the core count)."""
+    cores = cores or os.cpu_count() or 1
+    return max(float(before[0]), float(after[0])) > 1.25 * cores
+
+
+def load_note(before: Any, after: Any, cores: int | None = None) -> str:
+    """One sentence from the 1-minute load averages before and after a run: shared or quiet."""
+    cores = cores or os.cpu_count() or 1
+    measured = (f"the 1-minute load average was {float(before[0]):.1f} before and {float(after[0]):.1f} after the "
+                f"run on {cores} cores (the benchmark alone loads about {cores})")
+    if machine_busy(before, after, cores):
+        return (f"{measured}: other jobs shared the machine, so the times are upper bounds of a quiet machine's; "
+                "read ratios, not absolute numbers")
+    return f"{measured}: the machine was otherwise quiet"
 
 
 def time_repeats(fn: Callable[[], Any], repeat: int = 3, warmup: int = 0) -> list[float]:
@@ -100,6 +135,7 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
         "platform": platform.platform(),
         "numpy": np.__version__,
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "load_average": load_average(),  # when the description was taken: the start of a run
     }
     try:
         import pyopencl
@@ -125,12 +161,6 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
     """Write ``bench/results/<name>-<machine>-<date>.json`` atomically; return the path."""
     date = _dt.date.today().isoformat()
     return write_json(RESULTS / f"{name}-{machine_name()}-{date}.json", data)
-
-
-def write_text(path: Path, text: str) -> Path:
-    from s2cl.output import write_text as _write
-
-    return _write(path, text)
 
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:

@@ -8,7 +8,6 @@ a row holds ``setting``, ``default`` (the shipped setting), ``seconds`` (median)
 
 from __future__ import annotations
 
-import math
 import statistics
 import tempfile
 import time
@@ -23,10 +22,12 @@ from bench.chain import (
     REFERENCE_FIT_REAL,
     ChainRun,
     Context,
+    analysis_bands,
     compare,
     default_run,
     knob_row,
     noise_sigma,
+    oracle_band_radiance,
     reference_run,
     run_chain,
     slice_reflectance,
@@ -35,8 +36,10 @@ from bench.chain import (
 )
 from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
+from s2cl.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensions, by name
 from s2cl.igrm import IgrmFitter, IgrmSettings, kernel_config
 from s2cl.quantify import score_igrm, score_retrieval
+from s2cl.reference.forward import resample
 from s2cl.scene_atmosphere import scene_lut, true_state
 from s2cl.simulate import scene_atmosphere, scene_library
 
@@ -126,18 +129,17 @@ def knob_lm(ctx: Context) -> Family:
     check(ref.fitted().mean() > 0.99, "reference fits fail on the slice")
     population64 = population.astype(np.float64)
 
-    def row(setting: str, lp: np.ndarray, fitted: np.ndarray, rms: float, seconds: float, **extra: Any
+    def row(setting: str, lp: np.ndarray, fitted: np.ndarray, rms: float, *, default: bool = False, **extra: Any
             ) -> dict[str, Any]:
+        """Accuracy of one setting; ``seconds``, ``pixels_per_s`` and ``speedup`` are added once timed."""
         both = fitted & ref.fitted()
         d = lp[both].astype(np.float64) - ref.lp[both]
-        return {"setting": setting, "seconds": seconds,
-                "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))),
+        return {"setting": setting, "err_lp_rms_nm": float(np.sqrt(np.mean(d**2))),
                 "frac_at_optimum": float(np.mean(np.abs(d) <= 0.05) * both.mean()), "rms_cab": rms,
-                "err_rms_cab": abs(rms - ref_score.rms), "default": False, **extra}
+                "err_rms_cab": abs(rms - ref_score.rms), "default": default, **extra}
 
     timers: list[Any] = [lambda: ref_fit.fit(population64, centres)]
-    rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, math.nan,
-                reference=True)]
+    rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, reference=True)]
     # the closed-form (data) initial guess alone, in float32 numpy: what zero iterations give
     c = kernel_config(IgrmSettings(), len(BANDS), "float32")
     x = _normalise(centres, c, np.float32)
@@ -149,7 +151,7 @@ def knob_lm(ctx: Context) -> Family:
     lp0 = guess(refl)
     fitted0 = np.ones(lp0.shape, bool)
     rms0 = score_retrieval(lp0.astype(np.float64), target).rms
-    rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0, math.nan))
+    rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0))
     timers.append(lambda: guess(population))
     settings = [(f"max_iter {m}", IgrmSettings(max_iter=m)) for m in (1, 2, 3, 5, 10, 20, 50, 255)]
     settings += [(f"tol {t:g}", IgrmSettings(tol=t)) for t in (1e-2, 1e-3, 1e-4, 1e-7)]
@@ -160,9 +162,8 @@ def knob_lm(ctx: Context) -> Family:
         timers.append(lambda f=fitter: f.fit(population, centres))
         default = st == IgrmSettings()
         rows.append(row(label + (" (default: tol 1e-5)" if default else ""), r.lp, r.fitted(),
-                        score_igrm(r, target).rms, math.nan, mean_iterations=float(r.iterations.mean()),
+                        score_igrm(r, target).rms, default=default, mean_iterations=float(r.iterations.mean()),
                         frac_iteration_limit=float(np.mean(r.status == 1))))
-        rows[-1]["default"] = default
     for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
         r["seconds"], r["pixels_per_s"] = sec, population.shape[1] / sec
     for r in rows:
@@ -174,24 +175,21 @@ def knob_lm(ctx: Context) -> Family:
                          "on the slice itself")
 
 
+#: LUT axis (its array in the .npz) -> the dimension's name in s2cl.atmosphere's array layout
+LUT_AXIS_DIM = {"aot550": "aot", "solar_zenith": "sza", "water_vapour": "wv"}
+
+
 def _thin(arrays: dict[str, np.ndarray], axis: str, state_node: int) -> dict[str, np.ndarray]:
-    """Drop every other node of ``axis`` (endpoints kept), choosing the phase that drops ``state_node``."""
+    """Drop every other node of ``axis`` (endpoints kept), choosing the phase that drops ``state_node``,
+    from the axis and from every LUT array along that dimension."""
     n = arrays[axis].size
     keep = sorted({0, n - 1, *range(1 - state_node % 2, n, 2)} - {state_node})
     out = dict(arrays)
     out[axis] = arrays[axis][keep]
-    if axis == "aot550":
-        for k in ("path_reflectance_scattering", "t_down"):
-            out[k] = arrays[k][:, :, keep]
-        for k in ("t_up", "spherical_albedo"):
-            out[k] = arrays[k][:, keep]
-    elif axis == "solar_zenith":
-        for k, v in arrays.items():
-            if k in ("path_reflectance_scattering", "t_down") or (k.startswith("t_") and v.ndim == 3
-                                                                 and k not in ("t_up", "t_water")):
-                out[k] = v[:, keep]
-    elif axis == "water_vapour":
-        out["t_water"] = arrays["t_water"][:, keep]
+    dim = LUT_AXIS_DIM[axis]
+    for key, dims in LUT_DIMS.items():
+        if dim in dims:
+            out[key] = np.take(arrays[key], keep, axis=dims.index(dim))
     return out
 
 
@@ -202,8 +200,6 @@ def knob_lut(ctx: Context) -> Family:
     shipped LUT, so the full LUT gives its exact terms; thinning drops exactly those nodes, so
     interpolation has to bridge the widest gap it would meet."""
     from s2cl.atmosphere import AtmosphereLUT, default_lut_path
-    from s2cl.lut_format import write_npz_atomic
-    from s2cl.reference.forward import resample, toa_radiance
 
     validated(ctx)
     scene = ctx.scene()
@@ -217,18 +213,14 @@ def knob_lut(ctx: Context) -> Family:
           "the paper's state is expected on LUT nodes")
     with np.load(default_lut_path(), allow_pickle=False) as npz:
         full = {k: np.asarray(npz[k]) for k in npz.files}
-    lib = scene_library(scene)
-    lib = lib.subset(ctx.slice_index(lib.size))
-    weights = [b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands]
+    lib = ctx.library_slice(scene)
+    base = default_run(ctx, timed=False)  # only its accuracy (and its SRF weights) are used here
 
     def radiance(terms: Any) -> np.ndarray:
-        return resample(toa_radiance(lib.spectra, terms.path_radiance, terms.ground_term, terms.spherical_albedo),
-                        weights)
+        return oracle_band_radiance(lib.spectra, terms, base.weights)
 
-    exact_terms = lut.terms(state, scene.grid, "linear")
-    exact = radiance(exact_terms)
+    exact = radiance(lut.terms(state, scene.grid, "linear"))
     sigma = noise_sigma(scene, exact)
-    base = default_run(ctx, timed=False)  # only its accuracy is used here
     timers: list[Any] = []
     variants: list[tuple[str, tuple[str, ...]]] = [("every node", ()), ("every other AOT node", ("aot550",)),
                                                    ("every other SZA node", ("solar_zenith",)),
@@ -241,7 +233,7 @@ def knob_lut(ctx: Context) -> Family:
             for a in axes:
                 arrays = _thin(arrays, a, nodes[a])
             path = Path(tmp) / f"lut-{len(rows)}.npz"
-            write_npz_atomic(path, arrays)
+            np.savez(path, **arrays)  # a private temporary folder: no atomic write needed
             thin = AtmosphereLUT.load(path)
             for method in ("linear", "nearest"):
                 terms = thin.terms(state, scene.grid, method)
@@ -281,14 +273,12 @@ def knob_copies(ctx: Context) -> Family:
         lib = scene_library(scene)  # the whole Lib1 (120 spectra), as the default scene runs it
         sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
         fitter = IgrmFitter(len(BANDS))
-        slots = [scene.sensor.band_names.index(b) for b in BANDS]
-        centres = np.array([scene.sensor.band(b).centre_nm for b in BANDS])
-        target = np.repeat(np.asarray(lib.params["cab"], dtype=np.float64), copies)
+        slots, centres, target = analysis_bands(scene, lib, copies)
         rms, times = [], []
         for seed in seeds:
             t0 = time.perf_counter()
             res = sim.run_library(lib, copies=copies, seed=seed)
-            assert res.reflectance is not None
+            check(res.reflectance is not None, "the default scene does not correct to reflectance")
             r = fitter.fit(res.reflectance[slots].reshape(len(slots), -1), centres)
             times.append(time.perf_counter() - t0)
             rms.append(score_igrm(r, target).rms)
@@ -323,13 +313,12 @@ def knob_atmosphere(ctx: Context) -> Family:
     on = default_run(ctx)
     scene = ctx.scene()
     terms = scene_atmosphere(scene)
-    assert terms is not None
+    check(terms is not None, "the default scene has no atmosphere")
     scale = terms.e0 * terms.mu_s / np.pi
     lib = scene_library(scene)
     radiance_lib = SpectralLibrary(lib.grid, lib.spectra * scale, lib.names, quantity="radiance", groups=lib.groups,
                                    params=dict(lib.params), source="Lib1 × E0·cos θs/π (no atmosphere)")
-    divisor = np.array([w.weights @ scale[w.start:w.stop]
-                        for w in (b.weights(scene.grid, scene.spec.sensor.support) for b in scene.sensor.bands)])
+    divisor = resample(scale[None, :], on.weights)[:, 0]  # band-effective E0·cos θs/π, the chain's SRFs
     off = run_chain(ctx, "off", {"effects.atmosphere": False, "effects.correct": False,
                                  "surface.quantity": "radiance"}, library=radiance_lib, divisor=divisor)
     time_runs(ctx, on, off)

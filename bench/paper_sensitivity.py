@@ -22,35 +22,35 @@ reflectances (noise, quantisation, calibration, correction as in the sweep):
 ``noise-x3`` and ``noise-x10`` multiply every band's noise σ (the reach of another noise model).
 Tables 5 and 6 run with noise off, and Table 6 with the 8 full-range minerals and an AOT error.
 
-Writes bench/results/paper_sensitivity.json and docs/paper/table4_sensitivity.png.
+Writes bench/results/paper_sensitivity.json and docs/paper/table4_sensitivity.png. Run from the
+repository root:
 
-    PYTHONPATH=. python -m bench.paper_sensitivity
+    python -m bench.paper_sensitivity
+    python -m bench.paper_sensitivity --plot-only   # redraw the figure from the JSON
 """
 
 from __future__ import annotations
 
 import copy
+import json
 import sys
 import time
 import tomllib
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from bench.common import machine_info
+from bench.common import RESULTS, ROOT, machine_info, save_figure, write_json
 from s2cl.metrics import regression_metrics
 from s2cl.optimise import plan_sweep
-from s2cl.output import atomic_path, write_json
 from s2cl.reference.sweep import band_reflectance, variant_indices
 from s2cl.scene import Scene, find_scene
 from s2cl.simulate import scene_library
 from s2cl.sweep import SweepJob, evaluate_chunk
 
-ROOT = Path(__file__).resolve().parent.parent
+RESULT = RESULTS / "paper_sensitivity.json"
+FIGURE = ROOT / "docs" / "paper" / "table4_sensitivity.png"
 SCENE = "table4-b4"
 S_GRID_NM = np.arange(2.0, 200.01, 0.25)
 WIDE = {"l0_min_nm": 600.0, "l0_max_nm": 760.0, "s_min_nm": 2.0, "s_max_nm": 200.0, "rmin_min": -1.0}
@@ -135,12 +135,23 @@ def fit_variant(job: SweepJob, name: str) -> dict[str, np.ndarray]:
     return rows
 
 
-def grid(rows: dict[str, np.ndarray], column: str) -> tuple[list[float], list[float], list[list[float]]]:
-    c, w = np.asarray(rows["B4_centre_nm"]), np.asarray(rows["B4_width_nm"])
-    centres, widths = np.unique(c), np.unique(w)
-    values = np.full((centres.size, widths.size), np.nan)
-    values[np.searchsorted(centres, c), np.searchsorted(widths, w)] = np.asarray(rows[column], dtype=np.float64)
-    return centres.tolist(), widths.tolist(), np.round(values, 4).tolist()
+def variant_entry(name: str, change: dict[str, Any], rows: dict[str, np.ndarray], seconds: float,
+                  columns: tuple[str, ...] = COLUMNS) -> dict[str, Any]:
+    """One Table 4 variant's result: its rows summarised, and each of ``columns`` as a B4 centre ×
+    width grid (s2cl.report.centre_width_grid; one configuration per pair here); printed."""
+    import pandas as pd
+
+    from s2cl.report import centre_width_grid
+
+    entry = {"change": change, **summarise(rows), "seconds": seconds}
+    df = pd.DataFrame(rows)
+    for col in columns:
+        centres, widths, values = centre_width_grid(df, "B4", col)
+        entry[col] = np.round(values, 4).tolist()
+    entry["centres_nm"], entry["widths_nm"] = centres.tolist(), widths.tolist()
+    print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
+          f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
+    return entry
 
 
 def per_subset(scene: Scene, job: SweepJob, index: np.ndarray, status: np.ndarray, by: str) -> dict[str, Any]:
@@ -178,38 +189,21 @@ def main() -> None:
         scene = scene_variant(change)
         job = plan_sweep(scene)
         rows = evaluate_chunk(job, 0, job.n_configs)
-        entry = {"change": change, **summarise(rows), "seconds": time.perf_counter() - t0}
-        for col in COLUMNS:
-            centres, widths, entry[col] = grid(rows, col)
-        entry["centres_nm"], entry["widths_nm"] = centres, widths
+        out["variants"][name] = variant_entry(name, change, rows, time.perf_counter() - t0)
         if name in ("default", "lib2"):
             jobs[name] = (scene, job)
-        out["variants"][name] = entry
-        print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
-              f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
     scene, job = jobs["default"]
     for name in FIT_VARIANTS:
         t0 = time.perf_counter()
         rows = fit_variant(job, name)
-        entry = {"change": {"fit": name}, **summarise(rows), "seconds": time.perf_counter() - t0}
-        for col in ("rms", "robust_rms"):
-            centres, widths, entry[col] = grid(rows, col)
-        entry["centres_nm"], entry["widths_nm"] = centres, widths
-        out["variants"][name] = entry
-        print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
-              f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
+        out["variants"][name] = variant_entry(name, {"fit": name}, rows, time.perf_counter() - t0,
+                                              ("rms", "robust_rms"))
     for k in NOISE_SCALES:
         t0 = time.perf_counter()
         tables = replace(job.tables, sigma=tuple(sig * k for sig in job.tables.sigma))
         rows = evaluate_chunk(replace(job, tables=tables), 0, job.n_configs)
-        name = f"noise-x{k:g}"
-        entry = {"change": {"sigma_scale": k}, **summarise(rows), "seconds": time.perf_counter() - t0}
-        for col in COLUMNS:
-            centres, widths, entry[col] = grid(rows, col)
-        entry["centres_nm"], entry["widths_nm"] = centres, widths
-        out["variants"][name] = entry
-        print(f"{name:16s} best {entry['best']} rms {entry['rms_best']:.2f}; 660/30 {entry['rms_660_30']:.2f}, "
-              f"665/30 {entry['rms_665_30']:.2f}, 680/30 {entry['rms_680_30']:.2f}", flush=True)
+        out["variants"][f"noise-x{k:g}"] = variant_entry(f"noise-x{k:g}", {"sigma_scale": k}, rows,
+                                                         time.perf_counter() - t0)
     # RMS of the shipped fit per background and per LAI (each subset regressed alone), Lib1 and Lib2
     from s2cl.sweep import evaluator
 
@@ -223,8 +217,8 @@ def main() -> None:
                 f"{centre:g}/30": {g: float(v[(c == centre) & (w == 30)][0]) for g, v in per.items()}
                 for centre in (660.0, 665.0, 675.0, 680.0)}
     out["swir"] = swir()
-    write_json(ROOT / "bench" / "results" / "paper_sensitivity.json", out)
-    plot(out, ROOT / "docs" / "paper" / "table4_sensitivity.png")
+    print("wrote", write_json(RESULT, out))
+    plot(out)
 
 
 def swir() -> dict[str, Any]:
@@ -254,15 +248,16 @@ def swir() -> dict[str, Any]:
     return out
 
 
-def plot(out: dict[str, Any], path: Path) -> None:
-    import json
-
+def plot(out: dict[str, Any]) -> None:
+    """Table 4's B4 sensitivity at FWHM 30 nm: the paper's RMS and every s2cl variant's."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    paper = json.loads((ROOT / "s2cl" / "data" / "segl2012_results.json").read_text())["table4"]
+    from s2cl.report import paper_results
+
+    paper = paper_results()["table4"]
     j = paper["widths"].index(30)
     fig, ax = plt.subplots(figsize=(8.4, 4.2), dpi=100)
     colours = [*plt.get_cmap("tab10").colors, "navy", "darkgoldenrod", "crimson"]
@@ -278,18 +273,12 @@ def plot(out: dict[str, Any], path: Path) -> None:
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_title("Table 4: B4 sensitivity, s2cl variants vs paper", fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+    print("wrote", save_figure(fig, FIGURE, dpi=100))
     plt.close(fig)
-    print("wrote", path)
 
 
 if __name__ == "__main__":
     if sys.argv[1:] == ["--plot-only"]:  # redraw from the JSON
-        import json
-
-        plot(json.loads((ROOT / "bench" / "results" / "paper_sensitivity.json").read_text()),
-             ROOT / "docs" / "paper" / "table4_sensitivity.png")
+        plot(json.loads(RESULT.read_text(encoding="utf-8")))
     else:
         main()

@@ -6,7 +6,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bench.common import ROOT, save_figure, write_text
+from bench.common import ROOT, load_note, save_figure
+from s2cl.output import write_text
 
 DOCS = ROOT / "docs"
 
@@ -96,21 +97,21 @@ def _accuracy(fam: dict[str, Any], r: dict[str, Any]) -> str:
     return ", ".join(parts)
 
 
-def key_rows(knobs: dict[str, dict[str, Any]], *, compact: bool = True) -> list[list[Any]]:
+def key_rows(knobs: dict[str, dict[str, Any]]) -> list[list[Any]]:
     """The key table: the reference, then per knob the default and the telling alternatives."""
     out = []
     grid = knobs.get("grid") or knobs.get("precision") or knobs.get("srf")
-    if compact and grid:
+    if grid:
         ref = next(r for r in grid["rows"] if r.get("reference"))
         out.append(["reference", "float64, 1 nm, SRF ±3 FWHM, converged fits", _ms(ref["seconds"]), 1.0, "—"])
     for name, fam in knobs.items():
         if "rows" not in fam:
             continue
-        wanted = KEY_SETTINGS.get(name, ()) if compact else ()
+        wanted = KEY_SETTINGS.get(name, ())
         for r in fam["rows"]:
-            if r.get("skipped") or (compact and r.get("reference")):
+            if r.get("skipped") or r.get("reference"):
                 continue
-            if compact and not (r.get("default") or r["setting"].startswith(wanted)):
+            if not (r.get("default") or r["setting"].startswith(wanted)):
                 continue
             out.append([fam["title"].split(":")[0], _setting(r), _ms(r["seconds"]), r.get("speedup"),
                         _accuracy(fam, r)])
@@ -347,19 +348,30 @@ def justification(knobs: dict[str, dict[str, Any]]) -> str:
     return "\n\n".join(s)
 
 
+def load_sentence(results: dict[str, Any]) -> str:
+    """What the load averages recorded around the run say about other jobs on the machine."""
+    load = results.get("load_average")
+    if not load:
+        return "The machine's load was not recorded during this run: read ratios, not absolute numbers."
+    note = load_note(load["before"], load["after"], results["machine"]["cores"])
+    return note[0].upper() + note[1:] + "."
+
+
 def markdown(results: dict[str, Any], pareto: str | None, scaling_png: str | None, *, docs: bool = False) -> str:
     m = results["machine"]
     knobs, scaling, baselines = results.get("knobs", {}), results.get("scaling", {}), results.get("baselines", {})
     head = "# Benchmarks: what accuracy costs in time\n\n" if docs else f"# s2cl benchmark — {m['machine']}\n\n"
+    command = f"python -m bench{' --quick' if results['quick'] else ''}"
     out = [head + f"Measured on {m['cpu']} ({m['cores']} cores), OpenCL device `{m.get('opencl_device', '?')}`, "
-           f"{m['date']}; `python -m bench{' --quick' if results['quick'] else ''}` took "
-           f"{results['seconds_total']:.0f} s. Times are medians of repeats in one process on a shared machine "
-           "(other users' sweeps ran beside it): read ratios, not absolute numbers, and expect ±20 %. "
+           f"{m['date']}; `{command}` took {results['seconds_total']:.0f} s. Times are medians of repeats in one "
+           f"process. {load_sentence(results)} "
            "Nothing here asserts a timing; every benchmark first validates a slice against the float64 reference "
            "and stops if it disagrees."]
     if docs:
-        out.append("Regenerate with `python -m bench` (the full suite: a few minutes here, under an hour on 2 cores; "
-                   "it rewrites this page and `docs/bench/*.png`) or `python -m bench --quick` (under 5 minutes; "
+        took = f", {results['seconds_total']:.0f} s in the run above"
+        full, quick = ("", took) if results["quick"] else (took, "")
+        out.append(f"Regenerate with `python -m bench` (the full suite{full}; it rewrites this page and "
+                   f"`docs/bench/*.png`) or `python -m bench --quick` (reduced sizes{quick}; "
                    "add `--docs` to rewrite this page with its numbers); `--only NAME` runs one part (`python -m "
                    "bench --list`). Every run writes `bench/results/<machine>-<date>[-quick].{json,md}` and its "
                    "plots; `--report RESULT.json` re-renders them. Generated file: edit `bench/report.py`, not "
@@ -411,7 +423,6 @@ def write_reports(results: dict[str, Any], out_dir: Path, stem: str, *, docs: bo
     written.append(write_text(out_dir / f"{stem}.md", markdown(results, pareto and pareto.name,
                                                                scaling and scaling.name)))
     if docs:
-        (DOCS / "bench").mkdir(parents=True, exist_ok=True)
         dp = plot_pareto(results.get("knobs", {}), DOCS / "bench" / "pareto.png")
         ds = plot_scaling(results.get("scaling", {}), DOCS / "bench" / "scaling.png")
         written += [p for p in (dp, ds) if p]

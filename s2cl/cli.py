@@ -12,6 +12,7 @@ from typing import Any
 import click
 
 from .errors import S2CLError
+from .study_cli import study
 
 DEVICE_HELP = ("OpenCL device: PLATFORM:DEVICE indices or part of its name (default: $PYOPENCL_CTX, "
                "else the PoCL CPU); see `s2cl devices`")
@@ -30,6 +31,8 @@ def cli() -> None:
       s2cl libraries             list built-in spectral libraries
       s2cl sensor                show the sensor table and its noise model
       s2cl srf B1 --plot srf.png model vs measured SRF of a band (paper Fig. 2)
+      s2cl study NAME            the paper's atmospheric-band studies (cirrus, water-vapour, ...)
+      s2cl residuals             band-averaging residual of the atmospheric correction
       s2cl devices               list OpenCL devices
     """
 
@@ -202,7 +205,8 @@ def devices() -> None:
 
 @cli.command()
 @click.option("--library", "-l", "libraries", multiple=True,
-              help="library to check (repeatable; default: flat, lib1, lib2, minerals)")
+              help="builtin:NAME or a .csv/.sli library file (repeatable; default: builtin:flat, "
+                   "builtin:lib1, builtin:lib2, builtin:minerals)")
 def residuals(libraries: tuple[str, ...]) -> None:
     """Band-averaging residual of the atmospheric correction, without noise (paper standard atmosphere).
 
@@ -318,7 +322,7 @@ def _sweep_options(f: Callable) -> Callable:
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
                backend: str, chunk: int | None, device: str | None, quiet: bool) -> None:
     from .optimise import plan_sweep, reference_row
-    from .report import heatmap, load, summarise, write_summary
+    from .report import load, summarise
     from .scene import Scene
     from .sweep import run_sweep
 
@@ -341,16 +345,24 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
         results = run_sweep(job, out, workers=workers, scheduler=scheduler, overwrite=overwrite, device=device,
                             progress=advance, on_start=on_start)
     df, meta = load(results)
-    reference = reference_row(sc, job, device)
-    summary = summarise(df, meta, reference)
+    summary = summarise(df, meta, reference_row(sc, job, device))
     summary["seconds"] = time.perf_counter() - t0
-    plots = _paper(df, summary, out)
-    write_summary(out / "summary.json", summary)
-    moving = [b for b in summary["bands"] if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
-    plots = [heatmap(df, b, out / f"heatmap_{b}.png") for b in moving] + plots
+    plots = _report(df, summary, out, summary["bands"])
+    click.echo(f"wrote {results}" + "".join(f", {p}" for p in plots))
+
+
+def _report(df: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
+    """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder``;
+    print the ranking and the paper-style table; return the files written."""
+    from .report import heatmap, write_summary
+
+    plots = _paper(df, summary, folder)
+    written = [write_summary(folder / "summary.json", summary)]
+    moving = [b for b in bands if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
+    written += [heatmap(df, b, folder / f"heatmap_{b}.png") for b in moving] + plots
     _print_sweep(summary)
     _print_paper(summary)
-    click.echo(f"wrote {results}, {out / 'summary.json'}" + "".join(f", {p}" for p in plots))
+    return written
 
 
 def _paper(df: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
@@ -451,19 +463,24 @@ def sweep_run(**kwargs: Any) -> None:
 @click.option("--band", help="band of the heatmap (default: every band that moves)")
 def sweep_report(results: Path, band: str | None) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
-    from .report import bands_of, heatmap, load, summarise, write_summary
+    from .report import bands_of, load, read_summary, summarise
 
     df, meta = load(results)
     folder = results if results.is_dir() else results.parent
-    summary = summarise(df, meta)
-    for p in _paper(df, summary, folder):
+    previous = folder / "summary.json"
+    # the reference row (the sensor's own bands) and run time come from the run, not from the table
+    kept = read_summary(previous) if previous.exists() else {}
+    reference = None
+    if "reference" in kept:  # back to the row form summarise takes
+        ref = kept["reference"]
+        reference = {k: v for k, v in ref.items() if k not in ("bands", "configurations_better")}
+        for b, (c, w) in ref["bands"].items():
+            reference |= {f"{b}_centre_nm": c, f"{b}_width_nm": w}
+    summary = summarise(df, meta, reference)
+    if "seconds" in kept:
+        summary["seconds"] = kept["seconds"]
+    for p in _report(df, summary, folder, [band] if band else bands_of(df)):
         click.echo(f"wrote {p}")
-    write_summary(folder / "summary.json", summary)
-    for b in [band] if band else bands_of(df):
-        if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1:
-            click.echo(f"wrote {heatmap(df, b, folder / f'heatmap_{b}.png')}")
-    _print_sweep(summary)
-    _print_paper(summary)
 
 
 @cli.command()
@@ -476,18 +493,12 @@ def optimise(**kwargs: Any) -> None:
     resumable), ranks the configurations, compares with the sensor's own bands, and writes
     results.parquet, summary.json and heatmaps (centre × width, best marked). The paper's scenes
     (table3-*, table4-b4, table5-b11, table6-b12) also print Segl et al. (2012)'s values beside
-    s2cl's and write heatmap_<band>_vs_paper.png (docs/paper.md).
+    s2cl's; Tables 4-6 also write heatmap_<band>_vs_paper.png (docs/paper.md).
     """
     _run_sweep(**kwargs)
 
 
-def _register_study() -> None:
-    from .study_cli import study
-
-    cli.add_command(study)
-
-
-_register_study()
+cli.add_command(study)
 
 
 def main(argv: list[str] | None = None) -> None:

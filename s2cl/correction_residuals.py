@@ -36,10 +36,6 @@ class Residuals:
         """Largest |corrected − true| per band (reflectance units)."""
         return np.abs(self.difference).max(axis=1)
 
-    def max_rel_pct(self) -> np.ndarray:
-        """Largest relative error per band (%)."""
-        return 100 * np.abs(self.difference / self.true).max(axis=1)
-
 
 def band_averaging_residuals(libraries: tuple[str, ...] = DEFAULT_LIBRARIES,
                              state: AtmosphereState | None = None,

@@ -285,6 +285,10 @@ class IgrmResult:
         """The six parameter arrays stacked, shape ``(6, n_pixels)`` (order of ``PARAM_NAMES``)."""
         return np.stack([getattr(self, k) for k in PARAM_NAMES])
 
+    def take(self, idx: Any) -> IgrmResult:
+        """The results of the pixels ``idx`` (an index array, a mask or a slice), every field alike."""
+        return IgrmResult(*(getattr(self, f.name)[idx] for f in dataclasses.fields(self)))
+
 
 Exp = Literal["poly", "builtin"]
 

@@ -40,8 +40,9 @@ import click
 import numpy as np
 
 from . import __version__
+from .cache import write_npz_atomic
 from .errors import InputError
-from .lut_format import FIXED_GASES, FORMAT_NAME, FORMAT_VERSION, fixed_gas_key, write_npz_atomic
+from .lut_format import FIXED_GASES, FORMAT_NAME, FORMAT_VERSION, fixed_gas_key
 from .sixs import (
     SIXS_GRID_START_UM,
     SIXS_GRID_STEP_UM,

@@ -34,12 +34,6 @@ key                               shape                         meaning
 
 from __future__ import annotations
 
-import os
-import tempfile
-from pathlib import Path
-
-import numpy as np
-
 FORMAT_NAME = "s2cl-atmosphere-lut"
 FORMAT_VERSION = 1
 
@@ -55,20 +49,3 @@ def fixed_gas_key(gas: str) -> str:
     return "t_" + gas
 
 
-def write_npz_atomic(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write ``arrays`` as a compressed ``.npz`` at ``path`` through a temporary file and
-    :func:`os.replace`, so that readers never see a half-written LUT.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            np.savez_compressed(handle, **arrays)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a shipped data file must be readable
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

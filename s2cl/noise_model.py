@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import nnls
 
 from .errors import InputError
 
@@ -66,5 +65,7 @@ def fit_noise_model(points: list[tuple[float, float]], fwhm_ref_nm: float, *, ba
         return NoiseModel(a=0.0, b=float(var[0] / L[0]), fwhm_ref_nm=fwhm_ref_nm)
     weight = 1.0 / var
     design = np.stack([np.ones_like(L), L], axis=1) * weight[:, None]
+    from scipy.optimize import nnls  # here, not at the top: scipy costs every CLI command ~0.4 s
+
     (a, b), _ = nnls(design, var * weight)
     return NoiseModel(a=float(a), b=float(b), fwhm_ref_nm=fwhm_ref_nm)

@@ -14,7 +14,14 @@ from .errors import InputError
 
 
 def _umask() -> int:
-    """The process's file-creation mask (read by setting and restoring it)."""
+    """The process's file-creation mask: from /proc (Linux) where it can be read without changing
+    it, else by setting and restoring it (a brief window in which other threads see 0o022)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
     mask = os.umask(0o022)
     os.umask(mask)
     return mask

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -11,7 +12,8 @@ from .sensor import Sensor
 from .srf import DEFAULT_SUPPORT, measured_sentinel2_srf, super_gaussian
 
 
-def _pyplot():
+def pyplot() -> Any:
+    """``matplotlib.pyplot`` on the Agg backend (no screen needed); imported on first use."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -20,9 +22,17 @@ def _pyplot():
     return plt
 
 
+def save_png(fig: Any, path: str | Path, dpi: float | None = None) -> Path:
+    """Write ``fig`` as PNG atomically (temporary file + rename) and close it."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    pyplot().close(fig)
+    return Path(path)
+
+
 def plot_srf(band_name: str, platform: str | None, path: Path, sensor: Sensor | None = None) -> Path:
     """Model SRF (eq. 1, peak-normalised) of a band against the measured Sentinel-2 response."""
-    plt = _pyplot()
+    plt = pyplot()
     band = (sensor or Sensor.sentinel2()).band(band_name)
     c, w = band.centre_nm, band.fwhm_nm
     wl = np.arange(c - 2 * w, c + 2 * w + 0.01, 0.1)
@@ -41,7 +51,4 @@ def plot_srf(band_name: str, platform: str | None, path: Path, sensor: Sensor | 
                  fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return path
+    return save_png(fig, path)

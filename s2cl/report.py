@@ -3,13 +3,15 @@ tables and heatmaps, and JSON for the record."""
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .output import atomic_path, write_json
+from .output import write_json
+from .plots import pyplot, save_png
 
 LOWER_IS_BETTER = {"rms": True, "robust_rms": True, "omission_error_pct": True}
 
@@ -80,42 +82,42 @@ def centre_width_grid(df: Any, band: str, metric: str) -> tuple[np.ndarray, np.n
     return centres, widths, values
 
 
+def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
+               digits: int | None = None) -> Any:
+    """Centre × width table ``values`` on ``ax``: cells written where there are at most 150, the
+    lowest boxed in red; its own colour scale. Returns the image (for a colour bar)."""
+    plt = pyplot()
+    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r")
+    ax.set_xticks(range(len(widths)), [f"{w:g}" for w in widths], fontsize=fontsize)
+    ax.set_yticks(range(len(centres)), [f"{c:g}" for c in centres], fontsize=fontsize)
+    ax.set_xlabel(f"{band} FWHM (nm)", fontsize=fontsize + 1)
+    ax.set_ylabel(f"{band} centre (nm)", fontsize=fontsize + 1)
+    finite = values[np.isfinite(values)]
+    if values.size <= 150:
+        mid = np.median(finite) if finite.size else 0.0
+        if digits is None:
+            spread = np.ptp(finite) if finite.size else 0.0
+            digits = 1 if spread >= 2 else (2 if spread >= 0.2 else 3)
+        for i, j in zip(*np.nonzero(np.isfinite(values)), strict=True):
+            ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=fontsize - 1,
+                    color="white" if values[i, j] > mid else "black")
+    if finite.size:
+        i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
+    return im
+
+
 def heatmap(df: Any, band: str, path: str | Path, *, metric: str | None = None, title: str = "",
             unit: str = "") -> Path:
     """Centre × width heatmap of ``band`` (best over the other bands), the best pair marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     metric = metric or metric_of(list(df.columns))
     centres, widths, values = centre_width_grid(df, band, metric)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.62 * widths.size, 1.2 + 0.42 * centres.size), dpi=120)
-    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r")
-    ax.set_xticks(range(widths.size), [f"{w:g}" for w in widths])
-    ax.set_yticks(range(centres.size), [f"{c:g}" for c in centres])
-    ax.set_xlabel(f"{band} FWHM (nm)")
-    ax.set_ylabel(f"{band} centre (nm)")
-    if values.size <= 150:
-        finite = values[np.isfinite(values)]
-        mid = np.median(finite) if finite.size else 0
-        spread = np.ptp(finite) if finite.size else 0.0
-        digits = 1 if spread >= 2 else (2 if spread >= 0.2 else 3)
-        for i in range(centres.size):
-            for j in range(widths.size):
-                if np.isfinite(values[i, j]):
-                    ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=7,
-                            color="white" if values[i, j] > mid else "black")
-    if np.isfinite(values).any():
-        i, j = np.unravel_index(np.nanargmin(values), values.shape)
-        ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
+    fig, ax = pyplot().subplots(figsize=(1.0 + 0.62 * widths.size, 1.2 + 0.42 * centres.size), dpi=120)
+    im = _draw_grid(ax, centres, widths, values, band, fontsize=8)
     fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
     ax.set_title(title or f"{band}: {metric} (best over the other bands; red: best)", fontsize=9)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
+    return save_png(fig, path)
 
 
 def write_summary(path: str | Path, summary: dict[str, Any]) -> Path:
@@ -136,8 +138,9 @@ _GRIDS = {"table4-b4": ("table4", "B4", "rms"), "table5-b11": ("table5", "B11", 
           "table6-b12": ("table6", "B12", "omission_error")}
 
 
+@functools.cache
 def paper_results() -> dict[str, Any]:
-    """The paper's printed results (s2cl/data/segl2012_results.json)."""
+    """The paper's printed results (s2cl/data/segl2012_results.json), read once; do not modify."""
     import importlib.resources
 
     return json.loads((importlib.resources.files("s2cl") / "data" / PAPER_FILE).read_text(encoding="utf-8"))
@@ -194,24 +197,16 @@ def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, 
     return out
 
 
-def _rank(a: np.ndarray) -> np.ndarray:
-    r = np.empty(a.size)
-    r[np.argsort(a, kind="stable")] = np.arange(a.size)
-    return r
-
-
 def _grid_table(df: Any, summary: dict[str, Any], table: str, band: str, paper: dict[str, Any],
                 paper_metric: str) -> dict[str, Any]:
+    import pandas as pd
+    from scipy.stats import spearmanr
+
     metric = summary["metric"]
     centres, widths, values = centre_width_grid(df, band, metric)
     pc, pw = np.asarray(paper["centres"], float), np.asarray(paper["widths"], float)
     pv = np.asarray(paper[paper_metric], float)
-    ours = np.full(pv.shape, np.nan)
-    for i, c in enumerate(pc):
-        for j, w in enumerate(pw):
-            ci, wj = np.flatnonzero(centres == c), np.flatnonzero(widths == w)
-            if ci.size and wj.size:
-                ours[i, j] = values[ci[0], wj[0]]
+    ours = pd.DataFrame(values, index=centres, columns=widths).reindex(index=pc, columns=pw).to_numpy()
     pi, pj = np.unravel_index(np.argmin(pv), pv.shape)
     out: dict[str, Any] = {
         "table": table, "band": band, "metric": metric, "unit": paper.get("unit", ""),
@@ -226,42 +221,20 @@ def _grid_table(df: Any, summary: dict[str, Any], table: str, band: str, paper: 
         out["s2cl_best"] = {"bands": [float(pc[si]), float(pw[sj])], "value": float(ours[si, sj]),
                             "paper_value": float(pv[si, sj])}
         out["cells"] = int(both.sum())
-        if both.sum() >= 3:  # Spearman rank correlation of the cells both have: do the surfaces agree in shape?
-            a, b = _rank(ours[both]), _rank(pv[both])
-            out["rank_correlation"] = float(np.corrcoef(a, b)[0, 1]) if np.ptp(a) and np.ptp(b) else None
+        if both.sum() >= 3:  # Spearman rank correlation (ties averaged) of the cells both have: same shape?
+            rho = spearmanr(ours[both], pv[both]).statistic if np.ptp(ours[both]) and np.ptp(pv[both]) else np.nan
+            out["rank_correlation"] = None if np.isnan(rho) else float(rho)
     return out
 
 
 def heatmap_vs_paper(comparison: dict[str, Any], path: str | Path) -> Path:
-    """s2cl's centre × width table beside the paper's (same colour scale each, best marked)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """s2cl's centre × width table beside the paper's (own colour scale each, best marked)."""
     pc, pw = comparison["centres_nm"], comparison["widths_nm"]
     grids = {"s2cl": np.array(comparison["s2cl"], dtype=float), "Segl et al. 2012": np.array(comparison["paper"])}
-    fig, axes = plt.subplots(1, 2, figsize=(2.0 + 1.1 * len(pw), 1.4 + 0.38 * len(pc)), dpi=110)
+    fig, axes = pyplot().subplots(1, 2, figsize=(2.0 + 1.1 * len(pw), 1.4 + 0.38 * len(pc)), dpi=110)
     for ax, (label, v) in zip(axes, grids.items(), strict=True):
-        im = ax.imshow(v, origin="lower", aspect="auto", cmap="viridis_r")
-        ax.set_xticks(range(len(pw)), [f"{w:g}" for w in pw], fontsize=7)
-        ax.set_yticks(range(len(pc)), [f"{c:g}" for c in pc], fontsize=7)
-        ax.set_xlabel(f"{comparison['band']} FWHM (nm)", fontsize=8)
-        ax.set_ylabel(f"{comparison['band']} centre (nm)", fontsize=8)
-        finite = v[np.isfinite(v)]
-        mid = np.median(finite) if finite.size else 0.0
-        for i in range(len(pc)):
-            for j in range(len(pw)):
-                if np.isfinite(v[i, j]):
-                    ax.text(j, i, f"{v[i, j]:.1f}", ha="center", va="center", fontsize=6,
-                            color="white" if v[i, j] > mid else "black")
-        if finite.size:
-            i, j = np.unravel_index(np.nanargmin(v), v.shape)
-            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
+        im = _draw_grid(ax, pc, pw, v, comparison["band"], fontsize=7, digits=1)
         fig.colorbar(im, ax=ax, fraction=0.05)
         ax.set_title(f"{label}: {comparison['metric']} {comparison['unit']}".strip(), fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
+    return save_png(fig, path)

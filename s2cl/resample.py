@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -13,6 +14,10 @@ from .kernel_args import Arg, bind, signature
 from .runtime import Runtime
 from .srf import BandWeights
 from .templates import render
+
+if TYPE_CHECKING:
+    from .grid import SpectralGrid
+    from .sensor import Band
 
 TEMPLATE = "resample.cl.mako"
 
@@ -33,6 +38,11 @@ class ResamplePlan:
     names: tuple[str, ...]
     weights: tuple[BandWeights, ...]
     n_wavelengths: int
+
+    @classmethod
+    def of(cls, bands: Sequence[Band], grid: SpectralGrid) -> ResamplePlan:
+        """The plan of ``bands``' model SRFs on ``grid`` with the default support cut-off."""
+        return cls(tuple(b.name for b in bands), tuple(b.weights(grid) for b in bands), grid.size)
 
     @property
     def n_bands(self) -> int:
@@ -94,7 +104,6 @@ class Resampler:
         values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels}
         if self.atmosphere_dev:
             values.update(self.atmosphere_dev)
-        local_size = local_size or self.default_local_size()
         global_size = _round_up(n_pixels, local_size or 1)
         self.kernel(self.rt.queue, (global_size,), (local_size,) if local_size else None,
                     *bind(self.args, values, self.dtype))
@@ -115,11 +124,6 @@ class Resampler:
             out[:, lo:hi] = self.rt.fetch(out_dev, (self.plan.n_bands, hi - lo), self.dtype)
             del spectra_dev
         return out
-
-    def default_local_size(self) -> int | None:
-        """Work-group size: 32 on CPU devices (PoCL's own choice was ~10 % slower in
-        ``bench_resample``; results do not depend on it, tested), the driver's choice elsewhere."""
-        return 32 if self.rt.host_memory else None
 
     def default_chunk(self) -> int:
         """Pixels per chunk: input at most 256 MiB and a quarter of the device's largest allocation."""

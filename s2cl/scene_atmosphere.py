@@ -57,7 +57,8 @@ def assumed_state(scene: Scene) -> Any:
     return _state(scene, values, "correction")
 
 
-def _terms(scene: Scene, state: Any, section: str) -> Any:
+def state_terms(scene: Scene, state: Any, section: str) -> Any:
+    """Per-wavelength terms of ``state`` from the scene's LUT on its grid; errors name ``section``."""
     try:
         return scene_lut(scene).terms(state, scene.grid, scene.spec.atmosphere.interpolation)
     except InputError as err:
@@ -68,9 +69,9 @@ def _terms(scene: Scene, state: Any, section: str) -> Any:
 
 def scene_terms(scene: Scene) -> Any:
     """Per-wavelength terms of the true atmosphere on the scene's grid."""
-    return _terms(scene, true_state(scene), "atmosphere")
+    return state_terms(scene, true_state(scene), "atmosphere")
 
 
 def correction_terms(scene: Scene) -> Any:
     """Per-wavelength terms of the atmosphere the correction assumes."""
-    return _terms(scene, assumed_state(scene), "correction")
+    return state_terms(scene, assumed_state(scene), "correction")

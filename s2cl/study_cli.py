@@ -20,15 +20,13 @@ def study(name: str, quick: bool, output: Path | None) -> None:
     NAME: cirrus (B10, Fig. 4), water-vapour (B9 APDA), aerosol (DDV, B1),
           ozone (B1-B5, Fig. 5), methane (B11); or a scene file with a [study] section.
     """
-    from rich.console import Console
     from rich.table import Table
 
+    from .cli import _console  # not at module level: cli imports this module
     from .studies import run_study
 
     result, js, png = run_study(name, quick=quick, output=output)
-    console = Console()
-    if not console.is_terminal:
-        console = Console(width=160)
+    console = _console()
     table = Table(title=result.title)
     for c in result.columns:
         table.add_column(c, justify="right")

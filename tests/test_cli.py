@@ -80,6 +80,8 @@ def test_sweep_count_run_report_and_refuse_mixing(tmp_path) -> None:
     assert mixed.stderr.count("\n") == 1 and "different sweep" in mixed.stderr and "--overwrite" in mixed.stderr
     report = run("sweep", "report", "out", cwd=tmp_path)
     assert report.returncode == 0 and "best of 6" in report.stdout
+    assert "reference" in report.stdout  # the sensor's own bands survive a re-report
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["reference"] == summary["reference"]
 
 
 def test_paper_scene_prints_the_papers_values(tmp_path) -> None:

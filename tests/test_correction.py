@@ -101,10 +101,10 @@ def test_shipped_lut_round_trip_and_band_averaging_residual() -> None:
     flat, lib1, minerals = band_averaging_residuals(("builtin:flat", "builtin:lib1", "builtin:minerals"))
     assert np.allclose(flat.true, [[0.1, 0.2]] * len(flat.bands), atol=1e-12)
     assert flat.max_abs().max() < 1e-5
-    for r in (lib1, minerals):
+    for r, bound in ((lib1, 1e-3), (minerals, 1.5e-2)):  # the bounds docs/atmos.md states
         assert np.isfinite(r.difference).all()
         b10 = r.bands.index("B10")
         others = np.delete(r.max_abs(), b10)
-        assert others.max() < 1.5e-2
+        assert others.max() < bound
         assert r.max_abs()[b10] > others.max()  # the opaque band is the worst
     assert lib1.max_abs().max() > 10 * flat.max_abs().max()  # structure inside bands does cost

@@ -91,18 +91,3 @@ def test_image_layout_needs_square_copies() -> None:
     assert image_layout(2, 3, "rows").tolist() == [[0, 1, 2], [3, 4, 5]]
     with pytest.raises(InputError, match="square"):
         image_layout(2, 3, "blocks")
-
-
-def test_atomic_outputs_get_usual_permissions(tmp_path) -> None:
-    """mkstemp creates 0600 files; outputs must be readable like any other file (umask applies)."""
-    import os
-
-    from s2cl.output import write_atomic
-
-    old = os.umask(0o022)
-    try:
-        path = write_atomic(tmp_path / "a.txt", lambda p: p.write_text("x"))
-    finally:
-        os.umask(old)
-    assert (path.stat().st_mode & 0o777) == 0o644
-    assert not list(tmp_path.glob(".a.txt.*"))

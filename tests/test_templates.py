@@ -63,7 +63,7 @@ def test_effect_off_is_not_in_the_kernel(rt, flag: str) -> None:
 
 def test_atmosphere_off_is_not_in_the_kernel(rt) -> None:
     s = Sensor.sentinel2()
-    plan = ResamplePlan(tuple(s.band_names), tuple(b.weights(DEFAULT_GRID) for b in s.bands), DEFAULT_GRID.size)
+    plan = ResamplePlan.of(s.bands, DEFAULT_GRID)
     assert "s2_toa" not in Resampler(rt, plan).source
     assert "s2_toa" in Resampler(rt, plan, atmosphere=_Terms(DEFAULT_GRID.size)).source
 

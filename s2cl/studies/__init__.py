@@ -51,6 +51,6 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     png = result.plot(out / f"{stem}.png")
     from .. import __version__
 
-    payload = {**result.to_json(), "scene": scene.source, "quick": quick, "s2cl_version": __version__}
+    payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick, "s2cl_version": __version__}
     js = write_json(out / f"{stem}.json", payload)
     return result, js, png

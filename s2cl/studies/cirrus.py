@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import SpectralGrid
+from ..plots import pyplot, save_png
 from ..srf import BandWeights
-from .common import KeyFigure, StudyResult, StudySetup, apply, pyplot, save
+from .common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_CHANGE_PCT = {0.4: -15.0, 1.0: -34.0}  # Segl et al. 2012, Sec. 3.3: 1380/30 vs 1375/30
 BAND = "B10"
@@ -38,20 +39,23 @@ def run(setup: StudySetup) -> StudyResult:
     variants = space.per_band[space.bands.index(BAND)]  # (n, 2): centre, width
     wl = setup.scene.grid.wavelengths
     window = (wl >= variants[:, 0].min() - 10) & (wl <= variants[:, 0].max() + 10)
+    weights = [setup.weights(BAND, c, w) for c, w in variants]
+    w_ref, w_alt = setup.weights(BAND, 1375.0, 30.0), setup.weights(BAND, 1380.0, 30.0)
+    gaussians = [gaussian_weights(setup.scene.grid, c, 30.0) for c in (1375.0, 1380.0)]
+    i1375 = int(np.argmin(np.abs(wl - 1375.0)))
+    widths = sorted(set(variants[:, 1].tolist()))
     spectra, bands, ref, alt, gauss = {}, {}, {}, {}, {}
     for wv in st.water_vapour:
         L = setup.terms(setup.truth(water_vapour=wv)).toa_radiance(np.full(wl.size, rho))
         spectra[wv] = L
-        bands[wv] = np.array([apply(setup.weights(BAND, c, w), L) for c, w in variants])
-        ref[wv] = float(apply(setup.weights(BAND, 1375.0, 30.0), L))
-        alt[wv] = float(apply(setup.weights(BAND, 1380.0, 30.0), L))
-        g = [float(apply(gaussian_weights(setup.scene.grid, c, 30.0), L)) for c in (1375.0, 1380.0)]
+        bands[wv] = np.array([apply(wt, L) for wt in weights])
+        ref[wv] = float(apply(w_ref, L))
+        alt[wv] = float(apply(w_alt, L))
+        g = [float(apply(wt, L)) for wt in gaussians]
         gauss[wv] = 100.0 * (g[1] / g[0] - 1.0)
     rows, figures = [], []
     for wv in st.water_vapour:
         change = 100.0 * (alt[wv] / ref[wv] - 1.0)
-        i1375 = int(np.argmin(np.abs(wl - 1375.0)))
-        widths = sorted(set(variants[:, 1].tolist()))
         best = {w: variants[variants[:, 1] == w][np.argmin(bands[wv][variants[:, 1] == w]), 0] for w in widths}
         rows.append([f"{wv:g}", f"{spectra[wv][i1375]:.3f}", f"{ref[wv]:.3f}", f"{alt[wv]:.3f}",
                      f"{change:+.1f}", f"{gauss[wv]:+.1f}",
@@ -73,7 +77,7 @@ def run(setup: StudySetup) -> StudyResult:
         return _plot(path, wl[window], {k: v[window] for k, v in spectra.items()}, variants, bands, ref, alt)
 
     return StudyResult(
-        name="cirrus", title=f"B10 cirrus: TOA radiance over ρ = {rho:g} (W m⁻² sr⁻¹ µm⁻¹)",
+        title=f"B10 cirrus: TOA radiance over ρ = {rho:g} (W m⁻² sr⁻¹ µm⁻¹)",
         columns=["WV g/cm²", "L 1375 nm (1 nm)", "L 1375/30", "L 1380/30", "change %", "Gaussian SRF %", "paper %",
                  "darkest centre/width"],
         rows=rows, key_figures=figures, data=data, plot=plot,
@@ -112,4 +116,4 @@ def _plot(path: Path, wl: np.ndarray, spectra: dict, variants: np.ndarray, bands
     ax.set_title("paper vs s2cl", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    return save(fig, path)
+    return save_png(fig, path)

@@ -14,11 +14,14 @@ from typing import Any
 import numpy as np
 
 from ..atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
+from ..correction import BandAtmosphere
 from ..errors import InputError
 from ..libraries import load_library
 from ..library import SpectralLibrary
-from ..reference.philox import sensor_noise
+from ..reference.forward import add_noise
 from ..scene import Scene, StudySpec
+from ..scene_atmosphere import assumed_state, scene_lut, state_terms, true_state
+from ..sense import Radiometry
 from ..sensor import Band
 from ..srf import BandWeights
 from ..sweep_tables import sweep_space
@@ -40,7 +43,6 @@ class KeyFigure:
 class StudyResult:
     """What a study produced: a table (rows of cells), key figures, JSON data and a plot function."""
 
-    name: str
     title: str
     columns: list[str]
     rows: list[list[Any]]
@@ -51,7 +53,6 @@ class StudyResult:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "study": self.name,
             "title": self.title,
             "table": {"columns": self.columns, "rows": self.rows},
             "key_figures": [vars(k) for k in self.key_figures],
@@ -62,44 +63,48 @@ class StudyResult:
 
 @dataclass(frozen=True)
 class StudySetup:
-    """A loaded study scene: the scene, its [study] section (``--quick`` applied) and the LUT."""
+    """A loaded study scene: the scene and its [study] section (``--quick`` applied)."""
 
     scene: Scene
     study: StudySpec
-    lut: AtmosphereLUT
-    quick: bool
 
     @property
     def source(self) -> str:
         return self.scene.source
 
+    @property
+    def lut(self) -> AtmosphereLUT:
+        """The scene's LUT (:func:`s2cl.scene_atmosphere.scene_lut`: path relative to the scene, cached)."""
+        return scene_lut(self.scene)
+
     def truth(self, **changes: Any) -> AtmosphereState:
         """The scene's [atmosphere] state, with ``changes``."""
-        a = self.scene.spec.atmosphere
-        aot = a.aot550 if a.aot550 is not None else AtmosphereState.from_visibility(a.visibility_km or 23.0).aot550
-        state = AtmosphereState(profile=a.profile, water_vapour=a.water_vapour, aot550=aot, ozone=a.ozone,
-                                solar_zenith=a.solar_zenith)
+        state = true_state(self.scene)
         return state.replace(**changes) if changes else state
 
     def assumed(self, **changes: Any) -> AtmosphereState:
         """The state the correction assumes: [correction] keys over [atmosphere], with ``changes``."""
-        c = self.scene.spec.correction
-        base = self.truth()
-        keys = {k: getattr(c, k) for k in ("profile", "water_vapour", "aot550", "ozone", "solar_zenith")
-                if getattr(c, k) is not None}
-        if c.visibility_km is not None:
-            keys["aot550"] = AtmosphereState.from_visibility(c.visibility_km).aot550
-        return base.replace(**keys, **changes)
+        state = assumed_state(self.scene)
+        return state.replace(**changes) if changes else state
 
     def terms(self, state: AtmosphereState) -> AtmosphericTerms:
-        try:
-            return self.lut.terms(state, self.scene.grid, method=self.scene.spec.atmosphere.interpolation)
-        except InputError as err:
-            raise err.within(self.source, "study") from None
+        return state_terms(self.scene, state, "study")
 
     def space(self) -> SweepSpace:
         """The [sweep] section as band variants (:mod:`s2cl.variants`)."""
         return sweep_space(self.scene).validate(self.source)
+
+    def nominal(self, space: SweepSpace) -> int:
+        """The configuration of ``space`` whose bands have the sensor's own shapes.
+
+        :raises InputError: if the [sweep] section lacks one of them.
+        """
+        shapes = [(b.centre_nm, b.fwhm_nm) for b in map(self.band, space.bands)]
+        k = space.find(shapes)
+        if k is None:
+            want = ", ".join(f"{n} {c:g}/{w:g}" for n, (c, w) in zip(space.bands, shapes, strict=True))
+            raise InputError(f"the sweep lacks the nominal bands ({want} nm)", source=self.source, key="sweep")
+        return k
 
     def band(self, name: str) -> Band:
         return self.scene.sensor.band(name)
@@ -121,21 +126,21 @@ class StudySetup:
         return out
 
 
-def load_study(scene: Scene, quick: bool = False, lut: AtmosphereLUT | None = None) -> StudySetup:
+def load_study(scene: Scene, quick: bool = False) -> StudySetup:
     """Check that ``scene`` has a [study] section and apply its ``quick`` overrides."""
     spec = scene.spec.study
     if spec is None:
         raise InputError("the scene has no [study] section", source=scene.source, key="study")
+    data = spec.model_dump()
+    unknown = set(spec.quick) - set(data) | ({"kind", "quick"} & set(spec.quick))
+    if unknown:   # checked on every run, not only under --quick
+        raise InputError(f"quick cannot replace {', '.join(sorted(unknown))}", source=scene.source,
+                         key="study.quick")
     if quick and spec.quick:
-        data = spec.model_dump()
-        unknown = set(spec.quick) - set(data) | ({"kind", "quick"} & set(spec.quick))
-        if unknown:
-            raise InputError(f"quick cannot replace {', '.join(sorted(unknown))}", source=scene.source,
-                             key="study.quick")
         data.update(spec.quick)
         data["quick"] = {}
         spec = StudySpec.model_validate(data)
-    return StudySetup(scene=scene, study=spec, lut=lut or AtmosphereLUT.load(scene.spec.atmosphere.lut), quick=quick)
+    return StudySetup(scene=scene, study=spec)
 
 
 def apply(weights: BandWeights, spectrum: np.ndarray) -> np.ndarray:
@@ -143,19 +148,13 @@ def apply(weights: BandWeights, spectrum: np.ndarray) -> np.ndarray:
     return spectrum[..., weights.start:weights.stop] @ weights.weights
 
 
-def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]) -> dict[str, np.ndarray]:
-    """Band-effective Lp, G, S (as :class:`s2cl.correction.BandAtmosphere`) for each state × band:
-    arrays ``(n_states, n_bands)``."""
-    from ..correction import BandAtmosphere
-
+def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]) -> list[dict[str, np.ndarray]]:
+    """Band-effective Lp, G, S (:class:`s2cl.correction.BandAtmosphere`) of each band over a state
+    axis: one dict per band with keys ``lp``, ``g``, ``s``, each ``(n_states,)``."""
     per = [BandAtmosphere.of(t, list(weights)) for t in terms]
-    return {"lp": np.array([b.path_radiance for b in per]), "g": np.array([b.ground_term for b in per]),
-            "s": np.array([b.spherical_albedo for b in per])}
-
-
-def forward(lp: np.ndarray, g: np.ndarray, s: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """Band-level forward model ``Lp + G·ρ/(1 − S·ρ)`` (broadcasting)."""
-    return lp + g * rho / (1.0 - s * rho)
+    lp, g, s = (np.array([getattr(b, n) for b in per])
+                for n in ("path_radiance", "ground_term", "spherical_albedo"))
+    return [{"lp": lp[:, k], "g": g[:, k], "s": s[:, k]} for k in range(len(weights))]
 
 
 def inverse(lp: np.ndarray, g: np.ndarray, s: np.ndarray, radiance: np.ndarray) -> np.ndarray:
@@ -164,18 +163,19 @@ def inverse(lp: np.ndarray, g: np.ndarray, s: np.ndarray, radiance: np.ndarray) 
     return y / (1.0 + s * y)
 
 
-def noisy(setup: StudySetup, band: Band, width_nm: float, radiance: np.ndarray, band_id: int,
+def noisy(setup: StudySetup, bands: Sequence[Band], radiance: np.ndarray, band_ids: Sequence[int],
           pixels: int) -> np.ndarray:
-    """``pixels`` noisy copies of each radiance ``(n,)`` → ``(n, pixels)``: the sensor's noise model
-    (σ from its SNR table at this width) times the sense kernel's own Philox deviates (seed from
-    [effects]); no noise when the scene switches noise off."""
+    """``pixels`` noisy copies of band radiances ``(n_bands, n)`` → ``(n_bands, n, pixels)``: the
+    sensor's noise model at each band's width (:class:`s2cl.sense.Radiometry`) times the sense
+    kernel's Philox deviates keyed by ``band_ids`` (:func:`s2cl.reference.forward.add_noise`, seed
+    and frame from [effects]); no noise when the scene switches noise off."""
     radiance = np.asarray(radiance, dtype=np.float64)
-    if not setup.scene.effects.noise:
-        return np.repeat(radiance[:, None], pixels, axis=1)
-    idx = np.arange(radiance.size * pixels)
-    z = sensor_noise(setup.scene.spec.effects.seed, idx, [band_id], setup.scene.spec.effects.frame)[0]
-    sigma = band.noise.sigma(radiance, width_nm)
-    return radiance[:, None] + sigma[:, None] * z.reshape(radiance.size, pixels)
+    L = np.repeat(radiance, pixels, axis=1)
+    if setup.scene.effects.noise:
+        e = setup.scene.spec.effects
+        r = Radiometry.of(list(bands), setup.scene.sensor.bits, list(band_ids))
+        L = add_noise(L, r, e.seed, frame=e.frame)
+    return L.reshape(*radiance.shape, pixels)
 
 
 def crossing(x: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -199,22 +199,3 @@ def rel_rms(estimate: np.ndarray, truth: np.ndarray | float) -> float:
     """sqrt(mean(((estimate − truth)/truth)²)), unitless."""
     e = (np.asarray(estimate, dtype=np.float64) - truth) / truth
     return float(np.sqrt(np.mean(e**2)))
-
-
-def pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def save(fig: Any, path: Path) -> Path:
-    """Write a matplotlib figure atomically as PNG and close it."""
-    from ..output import atomic_path
-
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    pyplot().close(fig)
-    return Path(path)

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import KeyFigure, StudyResult, StudySetup, apply, pyplot, save
+from ..plots import pyplot, save_png
+from .common import KeyFigure, StudyResult, StudySetup, apply, inverse
 
 PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
 BAND = "B11"
@@ -25,27 +26,23 @@ def run(setup: StudySetup) -> StudyResult:
     terms = setup.terms(setup.truth())
     t_ch4 = terms.t_methane
     wl = setup.scene.grid.wavelengths
+    radiance = {rho: terms.toa_radiance(np.full(wl.size, rho)) for rho in st.reflectance}
+    # correction without methane: all of Lp, and G, divided by T_CH4; S as the band's
+    lp_free, g_free = terms.path_radiance / t_ch4, terms.ground_term / t_ch4
     rows, trans, errs = [], [], []
     for c, w in variants:
         wt = setup.weights(BAND, c, w)
         signal = apply(wt, terms.ground_term)
         t_band = float(apply(wt, terms.ground_term * t_ch4) / signal)
-        # correction without methane: G and the absorbed part of Lp divided by T_CH4
-        e = []
-        for rho in st.reflectance:
-            L = terms.toa_radiance(np.full(wl.size, rho))
-            Lb = apply(wt, L)
-            lp = apply(wt, terms.path_radiance / terms.t_methane)
-            g = apply(wt, terms.ground_term / terms.t_methane)
-            s = apply(wt, terms.ground_term * terms.spherical_albedo) / apply(wt, terms.ground_term)
-            y = (Lb - lp) / g
-            e.append(100.0 * (y / (1 + s * y) / rho - 1.0))
+        lp, g = apply(wt, lp_free), apply(wt, g_free)
+        s = apply(wt, terms.ground_term * terms.spherical_albedo) / signal
+        e = [100.0 * (inverse(lp, g, s, apply(wt, L)) / rho - 1.0) for rho, L in radiance.items()]
         trans.append(t_band)
         errs.append(e)
         rows.append([f"{c:g}", f"{w:g}", f"{t_band:.5f}", f"{100 * (1 - t_band):.3f}",
                      *(f"{x:+.3f}" for x in e)])
     absorb = 100 * (1 - np.array(trans))
-    nominal = int(np.argmin(np.abs(variants[:, 0] - 1610) + np.abs(variants[:, 1] - 90)))
+    nominal = setup.nominal(space)
     figures = [KeyFigure(f"B11 {variants[nominal, 0]:g}/{variants[nominal, 1]:g} methane absorption",
                          round(float(absorb[nominal]), 3), PAPER_MAX_PCT, "%", "paper: < 0.5 %"),
                KeyFigure("largest over the B11 variants", round(float(absorb.max()), 3), PAPER_MAX_PCT, "%")]
@@ -72,10 +69,10 @@ def run(setup: StudySetup) -> StudyResult:
         ax.set_title("B11 variants vs the paper's bound", fontsize=9)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        return save(fig, path)
+        return save_png(fig, path)
 
     return StudyResult(
-        name="methane", title="Methane in B11: band transmittance and reflectance error if ignored",
+        title="Methane in B11: band transmittance and reflectance error if ignored",
         columns=["centre nm", "width nm", "T CH4", "absorption %",
                  *(f"err ρ={r:g} %" for r in st.reflectance)],
         rows=rows, key_figures=figures, data=data, plot=plot,

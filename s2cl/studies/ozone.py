@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, inverse, pyplot, save
+from ..correction import BandAtmosphere
+from ..plots import pyplot, save_png
+from .common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_MAX_B3_PCT = 6.0  # "relative errors of up to about 6 %" in B3 (Fig. 5, MODTRAN4)
 
@@ -23,8 +25,8 @@ def run(setup: StudySetup) -> StudyResult:
     shapes = space.shapes(0, 1)[0]  # the bands as given (fixed) in [sweep]
     weights = [setup.weights(b, c, w) for b, (c, w) in zip(space.bands, shapes, strict=True)]
     assumed = setup.assumed()
-    corr = band_terms([setup.terms(assumed)], weights)
     t_assumed = setup.terms(assumed)
+    corr = BandAtmosphere.of(t_assumed, weights)
     wl = setup.scene.grid.wavelengths
     err = {}   # (o3, rho) -> per-band %
     spec_err = {}
@@ -33,8 +35,7 @@ def run(setup: StudySetup) -> StudyResult:
         for rho in st.reflectance:
             L = t_true.toa_radiance(np.full(wl.size, rho))
             Lb = np.array([apply(w, L) for w in weights])
-            rho_b = inverse(corr["lp"][0], corr["g"][0], corr["s"][0], Lb)
-            err[(o3, rho)] = 100.0 * (rho_b / rho - 1.0)
+            err[(o3, rho)] = 100.0 * (corr.reflectance(Lb) / rho - 1.0)
             spec_err[(o3, rho)] = 100.0 * (t_assumed.surface_reflectance(L) / rho - 1.0)
     rows = [[f"{o3:g}", f"{rho:g}", *(f"{e:+.2f}" for e in err[(o3, rho)])] for (o3, rho) in err]
     worst = max(err, key=lambda k: np.abs(err[k]).max())
@@ -42,16 +43,21 @@ def run(setup: StudySetup) -> StudyResult:
     figures = [KeyFigure(f"largest |error| (band {band_of_max}, {worst[0]:g} DU, ρ {worst[1]:g})",
                          round(float(np.abs(err[worst]).max()), 2), PAPER_MAX_B3_PCT, "%",
                          "paper: B3, 'up to about 6 %'")]
-    for o3 in st.ozone:
-        b3 = space.bands.index("B3") if "B3" in space.bands else None
-        if b3 is not None:
-            figures.append(KeyFigure(f"B3 error, {o3:g} DU true, ρ {min(st.reflectance):g}",
-                                     round(float(err[(o3, min(st.reflectance))][b3]), 2), None, "%"))
+    if "B3" in space.bands:
+        b3 = space.bands.index("B3")
+        figures += [KeyFigure(f"B3 error, {o3:g} DU true, ρ {min(st.reflectance):g}",
+                              round(float(err[(o3, min(st.reflectance))][b3]), 2), None, "%") for o3 in st.ozone]
+    sel = (wl >= 400) & (wl <= 760)
+    # the 1 nm error curves' largest |error| in the plotted range (the paper's Fig. 5 is spectral)
+    spec_max = {}
+    for (o3, rho), e in spec_err.items():
+        i = int(np.argmax(np.abs(e[sel])))
+        spec_max[f"{o3:g}DU rho={rho:g}"] = {"error_pct": float(e[sel][i]), "wavelength_nm": float(wl[sel][i])}
     data = {
         "assumed_ozone_du": assumed.ozone, "bands": space.bands, "shapes": shapes.tolist(),
         "band_error_pct": {f"{o3:g}DU rho={rho:g}": v.tolist() for (o3, rho), v in err.items()},
+        "spectral_error_max_pct": spec_max,
     }
-    sel = (wl >= 400) & (wl <= 760)
 
     def plot(path: Path) -> Path:
         plt = pyplot()
@@ -78,9 +84,9 @@ def run(setup: StudySetup) -> StudyResult:
         ax.set_title("band errors, s2cl vs the paper's figure", fontsize=9)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        return save(fig, path)
+        return save_png(fig, path)
 
     return StudyResult(
-        name="ozone", title=f"Ozone: relative reflectance error (%), corrected with {assumed.ozone:g} DU",
+        title=f"Ozone: relative reflectance error (%), corrected with {assumed.ozone:g} DU",
         columns=["true O3 DU", "ρ", *space.bands], rows=rows, key_figures=figures, data=data, plot=plot,
         notes=["6S ozone: Chappuis band, Beer's law in the LUT; the paper used MODTRAN4."])

@@ -2,7 +2,8 @@
 
 Truth: each target spectrum of [study] ``targets`` under the [atmosphere] state with each water
 column of [study] ``water_vapour`` (g/cm²) → band radiances → sensor noise (the SNR-table noise model
-with the sense kernel's Philox deviates, :func:`s2cl.studies.common.noisy`).
+with the sense kernel's Philox deviates, :func:`s2cl.studies.common.noisy`; one noise
+stream per [sweep] band, shared by its variants).
 
 Retrieval (APDA, Schläpfer et al. 1998, two channels): for every node ``w`` of a fine water-vapour
 axis the band-effective LUT terms of the assumed state give the path-radiance-corrected ratio
@@ -25,24 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from ..library import SpectralLibrary
-from .common import (
-    KeyFigure,
-    StudyResult,
-    StudySetup,
-    apply,
-    band_terms,
-    crossing,
-    inverse,
-    noisy,
-    pyplot,
-    rel_rms,
-    save,
-)
+from ..plots import pyplot, save_png
+from ..srf import BandWeights
+from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 PAPER_RMS_PCT = (5.0, 10.0)   # "the 5–10 % accuracy of the 865-/945-nm water vapor retrievals"
 # "Relative RMS errors ... increase by 6 % if winter scenes are processed with summer LUTs"
 PAPER_WINTER_INCREASE_PCT = 6.0
-NOMINAL = {"B9": (945.0, 20.0), "B8a": (865.0, 20.0)}
 SUMMER, WINTER = "midlatitude_summer", "midlatitude_winter"
 
 
@@ -52,11 +42,17 @@ def wv_axis(setup: StudySetup, n: int = 48) -> np.ndarray:
     return np.linspace(np.sqrt(max(lo, 0.2) * 1.001), np.sqrt(min(hi, 5.0) * 0.999), n) ** 2
 
 
+def band_weights(setup: StudySetup, variants: dict[str, np.ndarray]) -> dict[str, list[BandWeights]]:
+    """Model-SRF weights of every variant of each band."""
+    return {name: [setup.weights(name, c, w) for c, w in var] for name, var in variants.items()}
+
+
 class _Truth:
-    """Noisy band radiances of every target × true column × pixel, per band variant."""
+    """Noisy band radiances of every target × true column × pixel, per band variant. Band ``k`` of
+    ``variants`` (its slot) keys the noise stream of all its variants."""
 
     def __init__(self, setup: StudySetup, profile: str, variants: dict[str, np.ndarray],
-                 targets: dict[str, SpectralLibrary]):
+                 weights: dict[str, list[BandWeights]], targets: dict[str, SpectralLibrary]):
         st = setup.study
         spectra = np.concatenate([lib.spectra for lib in targets.values()])
         self.labels = np.concatenate([[k] * lib.size for k, lib in targets.items()])
@@ -66,34 +62,38 @@ class _Truth:
             per_state.append(setup.terms(setup.truth(profile=profile, water_vapour=wv)).toa_radiance(spectra))
         toa = np.stack(per_state, axis=1)  # (n_spectra, n_wv, n_wl)
         self.radiance: dict[str, np.ndarray] = {}
-        band_id = 0
-        for name, var in variants.items():
-            out = np.empty((len(var), spectra.shape[0], len(st.water_vapour), st.pixels))
-            for i, (c, w) in enumerate(var):
-                L = apply(setup.weights(name, c, w), toa).ravel()
-                out[i] = noisy(setup, setup.band(name), w, L, band_id, st.pixels).reshape(out.shape[1:])
-                band_id += 1
-            self.radiance[name] = out
+        for slot, (name, var) in enumerate(variants.items()):
+            L = np.stack([apply(wt, toa).ravel() for wt in weights[name]])
+            bands = [setup.band(name).with_shape(c, w) for c, w in var]
+            self.radiance[name] = noisy(setup, bands, L, [slot] * len(var), st.pixels).reshape(
+                len(var), spectra.shape[0], len(st.water_vapour), st.pixels)
+
+
+def reference(L8: np.ndarray, t8: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the retrieval needs of the B8a radiances ``L8 (...)`` on the axis, each ``(..., n)``:
+    the B8a reflectance ρ, ``L8 − Lp8`` and ``1 − S8·ρ``."""
+    L8 = L8[..., None]
+    rho8 = inverse(**t8, radiance=L8)
+    return rho8, L8 - t8["lp"], 1 - t8["s"] * rho8
 
 
 def retrieve(L9: np.ndarray, L8: np.ndarray, t9: dict[str, np.ndarray], t8: dict[str, np.ndarray],
-             axis: np.ndarray) -> np.ndarray:
-    """APDA water vapour (g/cm²) of radiances ``L9, L8 (...)`` from band terms on ``axis`` (each ``(n,)``)."""
-    L9, L8 = L9[..., None], L8[..., None]
-    rho8 = inverse(t8["lp"], t8["g"], t8["s"], L8)
+             axis: np.ndarray, ref: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """APDA water vapour (g/cm²) of radiances ``L9, L8 (...)`` from band terms on ``axis`` (each ``(n,)``);
+    ``ref`` is :func:`reference` of ``L8, t8`` where the caller has it already."""
+    rho8, d8, a8 = ref if ref is not None else reference(L8, t8)
+    L9 = L9[..., None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = (L9 - t9["lp"]) / (L8 - t8["lp"])
-        model = t9["g"] / t8["g"] * (1 - t8["s"] * rho8) / (1 - t9["s"] * rho8)
+        ratio = (L9 - t9["lp"]) / d8
+        model = t9["g"] / t8["g"] * a8 / (1 - t9["s"] * rho8)
     return crossing(np.sqrt(axis), ratio - model) ** 2
 
 
-def _lut_terms(setup: StudySetup, profile: str, axis: np.ndarray, variants: dict[str, np.ndarray]) -> dict:
+def _lut_terms(setup: StudySetup, profile: str, axis: np.ndarray,
+               weights: dict[str, list[BandWeights]]) -> dict[str, list[dict[str, np.ndarray]]]:
+    """Band terms (lp, g, s over ``axis``) of every variant of each band, assumed state with ``profile``."""
     terms = [setup.terms(setup.assumed(profile=profile, water_vapour=w)) for w in axis]
-    out = {}
-    for name, var in variants.items():
-        bt = band_terms(terms, [setup.weights(name, c, w) for c, w in var])
-        out[name] = [{k: v[:, i] for k, v in bt.items()} for i in range(len(var))]
-    return out
+    return {name: band_terms(terms, wts) for name, wts in weights.items()}
 
 
 def _scores(wv: np.ndarray, truth: _Truth) -> dict[str, float]:
@@ -107,26 +107,32 @@ def _scores(wv: np.ndarray, truth: _Truth) -> dict[str, float]:
 def run(setup: StudySetup) -> StudyResult:
     space = setup.space()
     variants = {b: space.per_band[k] for k, b in enumerate(space.bands)}
+    weights = band_weights(setup, variants)
     targets = setup.targets()
     axis = wv_axis(setup)
-    truth = _Truth(setup, SUMMER, variants, targets)
-    lut = _lut_terms(setup, SUMMER, axis, variants)
+    truth = _Truth(setup, SUMMER, variants, weights, targets)
+    lut = _lut_terms(setup, SUMMER, axis, weights)
+    refs = [reference(L8, t8) for L8, t8 in zip(truth.radiance["B8a"], lut["B8a"], strict=True)]
     idx = space.indices(0, space.size)
     scores = []
     for i9, i8 in idx:
-        wv = retrieve(truth.radiance["B9"][i9], truth.radiance["B8a"][i8], lut["B9"][i9], lut["B8a"][i8], axis)
+        wv = retrieve(truth.radiance["B9"][i9], truth.radiance["B8a"][i8], lut["B9"][i9], lut["B8a"][i8], axis,
+                      refs[i8])
         scores.append(_scores(wv, truth))
     classes = list(scores[0])
     shapes = space.shapes(0, space.size)
-    nominal = space.find([NOMINAL[b] for b in space.bands])
-    # winter scenes, nominal bands (or the first configuration if the sweep lacks them)
-    k = nominal if nominal is not None else 0
+    k = setup.nominal(space)
+    # winter scenes, nominal bands
     i9, i8 = idx[k]
-    nom_vars = {"B9": variants["B9"][i9:i9 + 1], "B8a": variants["B8a"][i8:i8 + 1]}
-    winter_truth = _Truth(setup, WINTER, nom_vars, targets)
+    nom = {"B9": [i9], "B8a": [i8]}
+    nom_vars = {b: variants[b][i] for b, i in nom.items()}
+    nom_weights = {b: [weights[b][i] for i in nom[b]] for b in nom}
+    winter_truth = _Truth(setup, WINTER, nom_vars, nom_weights, targets)
+    luts = {WINTER: _lut_terms(setup, WINTER, axis, nom_weights),
+            SUMMER: {b: [lut[b][i] for i in nom[b]] for b in nom}}
     winter = {}
     for lut_profile in (WINTER, SUMMER):
-        lt = _lut_terms(setup, lut_profile, axis, nom_vars)
+        lt = luts[lut_profile]
         wv = retrieve(winter_truth.radiance["B9"][0], winter_truth.radiance["B8a"][0], lt["B9"][0], lt["B8a"][0],
                       axis)
         winter[lut_profile] = _scores(wv, winter_truth)
@@ -136,14 +142,13 @@ def run(setup: StudySetup) -> StudyResult:
 
     order = np.argsort([s["all"] for s in scores])
     shown: list[tuple[str, int]] = []
-    if nominal is not None:
-        shown.append(("ESA nominal", nominal))
-        for j in range(space.size):   # B8a shifts with the nominal B9
-            if j != nominal and np.allclose(shapes[j, 0], NOMINAL["B9"]):
-                shown.append(("B8a shift", j))
-        for j in range(space.size):   # B9 at 920 nm with the nominal B8a
-            if np.allclose(shapes[j, 1], NOMINAL["B8a"]) and shapes[j, 0, 0] == 920 and shapes[j, 0, 1] == 20:
-                shown.append(("B9 at 920", j))
+    shown.append(("ESA nominal", k))
+    for j in range(space.size):   # B8a shifts with the nominal B9
+        if j != k and np.allclose(shapes[j, 0], shapes[k, 0]):
+            shown.append(("B8a shift", j))
+    for j in range(space.size):   # B9 at 920 nm (nominal width) with the nominal B8a
+        if np.allclose(shapes[j, 1], shapes[k, 1]) and np.allclose(shapes[j, 0], (920.0, shapes[k, 0, 1])):
+            shown.append(("B9 at 920", j))
     shown += [(f"best #{r + 1}", int(j)) for r, j in enumerate(order[:5])]
     rows = [[tag, *label(j), *(f"{scores[j][c]:.2f}" for c in classes)] for tag, j in shown]
     rows.append(["winter, winter LUT", *label(k), *(f"{winter[WINTER][c]:.2f}" for c in classes)])
@@ -207,10 +212,10 @@ def run(setup: StudySetup) -> StudyResult:
         ax.set_title(f"profile mismatch: s2cl {rel_increase['all']:+.1f} % (all), paper +6 %", fontsize=9)
         ax.legend(fontsize=7)
         fig.tight_layout()
-        return save(fig, path)
+        return save_png(fig, path)
 
     return StudyResult(
-        name="water-vapour", title="B9 water vapour (APDA, B8a reference): relative RMS of retrieved WV (%)",
+        title="B9 water vapour (APDA, B8a reference): relative RMS of retrieved WV (%)",
         columns=["case", "B9 c/w", "B8a c/w", *classes], rows=rows, key_figures=figures, data=data, plot=plot,
         notes=[f"true WV {', '.join(f'{w:g}' for w in setup.study.water_vapour)} g/cm²; "
                f"{setup.study.pixels} noisy pixels per target and column; retrieval assumes ρ(B9) = ρ(B8a)."])
