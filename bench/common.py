@@ -123,6 +123,16 @@ def machine_name() -> str:
     return f"{label}-{os.cpu_count()}c".lower()
 
 
+def cpu_vector_flags() -> list[str]:
+    """The CPU's SIMD feature flags that decide the kernels' vector width (Linux; else empty)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return []
+    flags = next((line.split(":", 1)[1].split() for line in text.splitlines() if line.startswith("flags")), [])
+    return sorted(f for f in flags if f in ("avx", "avx2", "fma", "avx512f", "avx512vl", "avx512bw"))
+
+
 def machine_info(rt: Any | None = None) -> dict[str, Any]:
     """What the numbers were measured on: CPU, cores, OpenCL device and lanes, library versions."""
     import numpy as np
@@ -145,7 +155,9 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
         pass
     if rt is not None:
         info["opencl_device"] = rt.name
-        info["lanes"] = rt.lanes
+        info["lanes"] = {r: rt.lanes(r) for r in ("float32", "float64")}
+        info["native_vector_width"] = {r: rt.native_lanes(r) for r in ("float32", "float64")}
+        info["cpu_flags"] = cpu_vector_flags()
     return info
 
 

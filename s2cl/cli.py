@@ -20,7 +20,9 @@ DEVICE_HELP = ("OpenCL device: PLATFORM:DEVICE indices or part of its name (defa
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(package_name="s2cl")
-def cli() -> None:
+@click.option("--verbose", "-v", count=True,
+              help="show s2cl's DEBUG log on stderr (device and lane choice, kernel build logs)")
+def cli(verbose: int) -> None:
     """s2cl: end-to-end optical sensor simulation for spectral band selection.
 
     \b
@@ -34,7 +36,12 @@ def cli() -> None:
       s2cl study NAME            the paper's atmospheric-band studies (cirrus, water-vapour, ...)
       s2cl residuals             band-averaging residual of the atmospheric correction
       s2cl devices               list OpenCL devices
+
+    Put -v before the command (`s2cl -v simulate`) to see the DEBUG log.
     """
+    from .logs import configure
+
+    configure(verbose)
 
 
 @contextmanager
@@ -201,6 +208,8 @@ def devices() -> None:
     for info in infos:
         mark = "*" if info == default.info else " "
         click.echo(f"{mark} {info}")
+    click.echo(f"* = default; pixels per work-item there: {default.lanes('float32')} (float32), "
+               f"{default.lanes('float64')} (float64); set $S2CL_LANES to change")
 
 
 @cli.command()

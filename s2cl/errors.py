@@ -52,14 +52,17 @@ class BuildError(S2CLError):
     the path of the rendered source (so that the log's line numbers make sense).
     """
 
-    def __init__(self, *, template: str, device: str, options: list[str], log: str, source_path: Path):
+    def __init__(self, *, template: str, device: str, options: list[str], log: str, source_path: Path,
+                 reason: str | None = None):
         self.template = template
         self.device = device
         self.options = list(options)
         self.log = log
         self.source_path = source_path
+        self.reason = reason
+        why = f" ({reason})" if reason else ""
         super().__init__(
-            f"OpenCL build of {template} failed on {device} (options: {' '.join(options) or 'none'}); "
+            f"OpenCL build of {template} failed{why} on {device} (options: {' '.join(options) or 'none'}); "
             f"rendered source: {source_path}\n{log}"
         )
 

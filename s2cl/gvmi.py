@@ -31,7 +31,7 @@ class GvmiKernel:
     """Compiled GVMI for one precision and lane count.
 
     :param real_t: ``"float32"`` or ``"float64"``.
-    :param lanes: pixels per work-item (default ``rt.lanes``).
+    :param lanes: pixels per work-item (default: :meth:`Runtime.lanes`).
     :param max_abs: |reflectance| above which a pixel is invalid.
     """
 
@@ -40,7 +40,7 @@ class GvmiKernel:
         self.rt = rt or get_runtime()
         if real_t == "float64" and not self.rt.has_fp64:
             raise InputError(f"device {self.rt.name} has no float64 support", key="real_t")
-        self.types = VecTypes(real_t, self.rt.lanes if lanes is None else lanes)
+        self.types = VecTypes(real_t, self.rt.lanes(real_t, lanes))
         source = render("gvmi.cl.mako", T=self.types, max_abs=float(max_abs))
         self.kernel = self.rt.kernel(self.rt.build(source, template="gvmi.cl.mako"), "gvmi")
         self.buffers = BufferPool(self.rt)

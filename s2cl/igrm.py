@@ -293,28 +293,14 @@ class IgrmResult:
 Exp = Literal["poly", "builtin"]
 
 
-def default_lanes(rt_lanes: int, real_t: str) -> int:
-    """Pixels per work-item of the IGRM kernel: 64 bytes of reals per vector where the device
-    wants vectors (``rt.lanes`` > 1), else ``rt.lanes``.
-
-    The LM step is latency-bound (the LDL^T solve and the exp polynomial are long dependency
-    chains): on PoCL with AVX2 code, ``float16`` (two 256-bit registers per value, two independent
-    chains) ran 1.35-1.5x faster than ``float8`` (median of repeats, 4 and 6 bands), while
-    ``double16`` gained nothing over ``double8``.
-    """
-    if rt_lanes <= 1:
-        return rt_lanes
-    return max(rt_lanes, 64 // np.dtype(real_t).itemsize)
-
-
 class IgrmFitter:
     """A compiled IGRM fit for one (settings, band count, precision, lanes): build once, fit often.
 
     :param n_bands: number of bands (>= 4).
     :param settings: fit design; defaults to :class:`IgrmSettings` ().
     :param real_t: ``"float32"`` (default) or ``"float64"``.
-    :param lanes: pixels per work-item; default :func:`default_lanes` (16 for float32 and 8 for
-        float64 on PoCL CPU, 1 on GPUs).
+    :param lanes: pixels per work-item; default :meth:`Runtime.lanes` (the device's native vector
+        width on CPUs: 16 floats with AVX-512, 8 with AVX2; 1 on GPUs).
     :param exp: ``"poly"`` (own polynomial, fast on PoCL) or ``"builtin"`` (OpenCL ``exp``: the
         plain, obviously-correct variant that the fast one is checked against).
     :param exp_degree: polynomial degree (default 5 for float32, 12 for float64).
@@ -332,7 +318,7 @@ class IgrmFitter:
         self.n_bands = int(n_bands)
         if real_t == "float64" and not self.rt.has_fp64:
             raise InputError(f"device {self.rt.name} has no float64 support", key="real_t")
-        self.types = VecTypes(real_t, default_lanes(self.rt.lanes, real_t) if lanes is None else lanes)
+        self.types = VecTypes(real_t, self.rt.lanes(real_t, lanes))
         self.config = kernel_config(self.settings, self.n_bands, real_t, exp)
         self.exp_degree = EXP_DEGREE[real_t] if exp_degree is None else exp_degree
         self.iter_dtype = np.dtype(np.uint8 if self.settings.max_iter <= 255 else np.uint16)

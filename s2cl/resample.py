@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from .effects import build_options, real_dtype
-from .errors import DeviceError
+from .errors import DeviceError, InputError
 from .kernel_args import Arg, bind, signature
 from .runtime import Runtime
 from .srf import BandWeights
@@ -76,17 +76,22 @@ class Resampler:
 
     :param atmosphere: per-wavelength TOA terms; when given, input spectra are surface
         reflectance and are turned into TOA radiance at each wavelength before the SRFs.
+    :param vector_width: wavelengths per vector load, 4, 8 or 16 (default: the device's native width,
+        at least 4; a width the CPU cannot use cleanly falls back, see :func:`s2cl.runtime.choose_lanes`).
     """
 
     def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
-                 atmosphere: AtmosphereArrays | None = None):
+                 atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None):
         if real_t == "float64" and not rt.has_fp64:
             raise DeviceError(f"{rt.name} has no float64 support (cl_khr_fp64); use precision = 'float32'")
         self.rt, self.plan, self.real_t = rt, plan, real_t
         self.dtype = real_dtype(real_t)
         self.args = _args(atmosphere is not None)
         bands, weights = plan.packed()
-        self.vw = 16 if real_t == "float32" else 8
+        if vector_width not in (None, 4, 8, 16):
+            raise InputError(f"must be 4, 8 or 16, got {vector_width!r}", key="vector_width")
+        # the device's vector width (lanes of the pixel kernels); at least 4, as vload1 does not exist
+        self.vw = max(4, rt.lanes(real_t, vector_width))
         self.source = render(TEMPLATE, args=self.args, signature=signature, bands=bands,
                              n_wavelengths=plan.n_wavelengths, vw=self.vw, atmosphere=atmosphere is not None)
         program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))

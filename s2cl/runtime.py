@@ -9,8 +9,14 @@ case-insensitive substring of its platform or device name (``pocl``, ``nvidia``,
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
+import sys
 import tempfile
+import threading
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -18,7 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from .errors import BuildError, DeviceError
+from .errors import BuildError, DeviceError, InputError
+from .vectypes import VALID_LANES
+
+_log = logging.getLogger(__name__)
+
+#: ``S2CL_BUILD_WARNINGS=error`` turns a kernel build with compiler warnings into a :class:`BuildError`
+#: (the test suite sets it); otherwise build logs are DEBUG records and never reach the terminal.
+STRICT_ENV = "S2CL_BUILD_WARNINGS"
 
 INSTALL_HINT = (
     'install an OpenCL platform: `pip install "pyopencl[pocl]"` brings the PoCL CPU driver; '
@@ -101,11 +114,8 @@ def _builds(info: DeviceInfo) -> str | None:
     """None when ``info``'s device compiles a trivial kernel, else the build log."""
     cl = _cl()
     device = _platforms()[info.platform_index].get_devices()[info.device_index]
-    try:
-        cl.Program(cl.Context([device]), _PROBE).build()
-    except cl.Error as exc:
-        return str(exc)
-    return None
+    _, log, err = _quiet_build(lambda: cl.Program(cl.Context([device]), _PROBE).build(), device)
+    return None if err is None else log
 
 
 def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
@@ -121,6 +131,7 @@ def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
         log = _builds(info)
         if log is None:
             return info
+        _log.debug("skipping OpenCL device %s: it cannot compile a probe kernel: %s", info, log)
         errors = [line.strip() for line in log.splitlines() if "error" in line.lower()]
         logs.append(f"{info}: {errors[0] if errors else log.strip()[:200]}")
     text = " ".join(logs)
@@ -139,19 +150,37 @@ def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
     return next((i for i in infos if needle in i.name.lower() or needle in i.platform.lower()), None)
 
 
-def preferred_lanes(platform: str, device_type: str) -> int:
-    """Pixels per work-item (explicit ``floatN`` lanes) for the kernels that support it.
+LANES_ENV = "S2CL_LANES"
 
-    PoCL on CPUs does not vectorise across work-items when a kernel body holds a loop or a
-    builtin call (``shared/notes/pocl-performance.md``), so s2cl gives each work-item 8 pixels
-    as explicit vectors there. GPUs vectorise across work-items in hardware: one pixel each.
-    Kept in one place and unit-tested with fake attributes.
+
+def choose_lanes(*, native: int, device_type: str, requested: int | None = None) -> tuple[int, str | None]:
+    """Pixels per work-item (explicit ``floatN`` lanes) of a vectorised kernel, and why it differs
+    from ``requested`` (``None`` when it does not).
+
+    :param native: the device's native vector width for the precision
+        (``native_vector_width_float`` or ``_double``: PoCL reports 16 floats with AVX-512, 8 with AVX2).
+    :param device_type: the device's type string (``"CPU"``, ``"ALL | GPU"``...).
+    :param requested: an explicit lane count (``lanes=`` or ``$S2CL_LANES``); ``None``: the default.
+
+    PoCL on CPUs does not vectorise across work-items when a kernel holds a loop or a builtin call
+    (``shared/notes/pocl-performance.md``), so each work-item takes one native vector of pixels.
+    A vector wider than the native one is not faster (bench/results/lanes-*.json) and, on an x86 CPU
+    without AVX-512, every helper that takes or returns it draws clang's warning "AVX vector argument
+    ... changes the ABI": on CPUs the runtime caps lanes at the native width. GPUs vectorise across
+    work-items in hardware: one pixel per work-item by default, any width on request.
     """
-    if "GPU" in device_type.upper():
-        return 1
-    if "portable computing language" in platform.lower() or "CPU" in device_type.upper():
-        return 8
-    return 1
+    native = max(1, int(native))
+    cpu = "CPU" in device_type.upper()
+    default = native if cpu else 1
+    if requested is None:
+        return default, None
+    requested = int(requested)
+    if requested not in VALID_LANES:
+        raise InputError(f"must be one of {VALID_LANES}, got {requested}", key="lanes")
+    if cpu and requested > native:
+        return native, (f"{requested} lanes exceed this CPU device's native vector width ({native}): "
+                        f"using {native}")
+    return requested, None
 
 
 class Runtime:
@@ -163,16 +192,35 @@ class Runtime:
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
+        _log.debug("OpenCL device %s (%s); native vector width float %d, double %d; lanes float32 %d, float64 %d",
+                   self.info.spec, self.name, self.native_lanes("float32"), self.native_lanes("float64"),
+                   self.lanes("float32"), self.lanes("float64"))
 
     @cached_property
     def has_fp64(self) -> bool:
         """Whether the device supports double precision."""
         return "cl_khr_fp64" in self.device.extensions
 
-    @property
-    def lanes(self) -> int:
-        """Pixels per work-item for vectorised kernels on this device."""
-        return preferred_lanes(self.info.platform, self.info.kind)
+    def native_lanes(self, real_t: str = "float32") -> int:
+        """The device's native vector width for ``real_t`` (elements)."""
+        if real_t == "float64":
+            return int(self.device.native_vector_width_double)
+        return int(self.device.native_vector_width_float)
+
+    def lanes(self, real_t: str = "float32", requested: int | None = None) -> int:
+        """Pixels per work-item for the vectorised kernels in ``real_t``: ``requested``, else
+        ``$S2CL_LANES``, else the device's default (:func:`choose_lanes`); a width the device
+        cannot use cleanly is replaced, with a DEBUG record saying so."""
+        if requested is None:
+            env = os.environ.get(LANES_ENV, "").strip()
+            if env:
+                if not env.isdigit():
+                    raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
+                requested = int(env)
+        lanes, why = choose_lanes(native=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
+        if why:
+            _log.debug("%s, %s: %s", self.name, real_t, why)
+        return lanes
 
     @property
     def name(self) -> str:
@@ -187,7 +235,12 @@ class Runtime:
         return int(self.device.global_mem_size)
 
     def build(self, source: str, *, template: str, options: list[str] | tuple[str, ...] = ()) -> Any:
-        """Build ``source`` (cached on source + options); :class:`BuildError` on failure."""
+        """Build ``source`` (cached on source + options); :class:`BuildError` on failure.
+
+        The compiler's output never reaches the terminal: the build log goes to the ``s2cl.runtime``
+        logger at DEBUG (``s2cl -v`` shows it) and into the error when a build fails, or when it warns
+        and ``$S2CL_BUILD_WARNINGS`` is ``error``.
+        """
         cl = _cl()
         from .templates import include_options
 
@@ -196,13 +249,21 @@ class Runtime:
         program = self._programs.get(key)
         if program is not None:
             return program
-        try:
-            program = cl.Program(self.context, source).build(options=list(opts))
-        except cl.Error as err:
-            path = save_source(source, template)
-            log = str(err)
-            raise BuildError(template=template, device=self.name, options=list(opts), log=log,
-                             source_path=path) from err
+
+        def fail(err: Exception | None, log: str, reason: str | None = None) -> BuildError:
+            return BuildError(template=template, device=self.name, options=list(opts), log=log,
+                              source_path=save_source(source, template), reason=reason)
+
+        # pyopencl's binary cache would hand back programs without their log; PoCL's own kernel
+        # cache keeps the log, so building through it stays fast and the log is always there.
+        program, log, err = _quiet_build(lambda: cl.Program(self.context, source).build(
+            options=list(opts), cache_dir=False), self.device)
+        if err is not None:
+            raise fail(err, log) from err
+        if log:
+            _log.debug("build log of %s on %s (options: %s):\n%s", template, self.name, " ".join(opts), log)
+            if os.environ.get(STRICT_ENV, "").lower() == "error" and "warning" in log.lower():
+                raise fail(None, log, f"compiler warnings (${STRICT_ENV}=error)")
         self._programs[key] = program
         return program
 
@@ -261,6 +322,48 @@ class Runtime:
 
     def finish(self) -> None:
         self.queue.finish()
+
+
+_STDERR_LOCK = threading.Lock()
+
+
+@contextmanager
+def _stderr_captured() -> Iterator[Callable[[], str]]:
+    """Redirect file descriptor 2 into a temporary file for the duration; yields a function that
+    returns what was written. PoCL's clang prints "N warnings generated." straight to fd 2."""
+    with _STDERR_LOCK, tempfile.TemporaryFile() as tmp:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lambda: (tmp.seek(0), tmp.read().decode("utf-8", "replace"))[1]
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def _quiet_build(build: Callable[[], Any], device: Any) -> tuple[Any, str, Exception | None]:
+    """Run ``build`` with the compiler's output captured: (program or None, log, error or None).
+
+    The log is the device's build log, plus whatever the compiler wrote to stderr when the log is
+    empty; pyopencl's ``CompilerWarning`` (which only says that a log exists) is not shown.
+    """
+    cl = _cl()
+    program, err = None, None
+    with _stderr_captured() as printed, warnings.catch_warnings():
+        warnings.simplefilter("ignore", cl.CompilerWarning)
+        try:
+            program = build()
+        except cl.Error as exc:
+            err = exc
+        stderr_text = printed()
+    if err is not None:
+        return None, str(err).strip() or stderr_text.strip(), err
+    try:
+        log = program.get_build_info(device, cl.program_build_info.LOG) or ""
+    except cl.Error:  # some drivers cannot report it
+        log = ""
+    return program, (log.strip() or stderr_text.strip()), None
 
 
 def save_source(source: str, template: str) -> Path:

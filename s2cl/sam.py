@@ -79,7 +79,7 @@ class SamClassifier:
             raise InputError(f"must be in [0, pi] radians, got {threshold_rad}", key="threshold_rad")
         if real_t == "float64" and not self.rt.has_fp64:
             raise InputError(f"device {self.rt.name} has no float64 support", key="real_t")
-        self.types = VecTypes(real_t, self.rt.lanes if lanes is None else lanes)
+        self.types = VecTypes(real_t, self.rt.lanes(real_t, lanes))
         self.n_refs, self.n_bands = refs.shape
         self.classes = classes.astype(np.int32)
         self.unit_refs = refs / norms[:, None]

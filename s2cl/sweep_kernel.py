@@ -24,11 +24,7 @@ class SweepKernel:
         if precision == "float64" and not self.rt.has_fp64:
             raise DeviceError(f"{self.rt.name} has no float64 support (cl_khr_fp64)")
         self.tables, self.analysis = tables, analysis
-        if lanes is None:
-            from .igrm import default_lanes
-
-            lanes = default_lanes(self.rt.lanes, precision) if analysis.kind == "igrm" else self.rt.lanes
-        self.T = VecTypes(precision, lanes)
+        self.T = VecTypes(precision, self.rt.lanes(precision, lanes))
         t = tables
         self.pitch = max(-(-t.n_pixels // self.T.lanes) * self.T.lanes, self.T.lanes)
         counts = list(t.counts)

@@ -1,10 +1,24 @@
-"""Shared fixtures: the OpenCL runtime (PoCL CPU unless PYOPENCL_CTX says otherwise)."""
+"""Shared fixtures: the OpenCL runtime (PoCL CPU unless PYOPENCL_CTX says otherwise), precisions and
+the lane widths every vectorised kernel is tested at.
+
+Kernel builds that warn fail the tests (``S2CL_BUILD_WARNINGS=error``, inherited by the CLI runs in
+subprocesses): a compiler warning on one CPU is how the AVX2 lane problem showed itself.
+"""
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
-from s2cl.runtime import Runtime, get_runtime
+from s2cl.runtime import STRICT_ENV, Runtime, get_runtime
+
+os.environ.setdefault(STRICT_ENV, "error")
+
+#: Pixels per work-item forced in the kernel tests, whatever this CPU's own width: an AVX-512
+#: machine runs the AVX2 widths (8) and the others; on an AVX2 machine 16 falls back to 8
+#: (runtime.choose_lanes), which the same tests then check.
+FORCED_LANES = (1, 4, 8, 16)
 
 
 @pytest.fixture(scope="session")
@@ -18,4 +32,10 @@ def real_t(request, rt: Runtime) -> str:
     """Both precisions; float64 is skipped on devices without cl_khr_fp64."""
     if request.param == "float64" and not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
+    return request.param
+
+
+@pytest.fixture(params=FORCED_LANES, ids=[f"lanes{n}" for n in FORCED_LANES])
+def lanes(request) -> int:
+    """A forced lane count (pixels per work-item) for the vectorised kernels."""
     return request.param

@@ -27,6 +27,8 @@ def test_help_lists_the_commands(tmp_path) -> None:
 def test_simulate_default_scene(tmp_path) -> None:
     out = run("simulate", "--quiet", "--output", "sim", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
+    assert out.stderr == ""  # no compiler output, no warnings: only the "wrote ..." line on stdout
+    assert "warning" not in out.stdout.lower()
     summary = json.loads((tmp_path / "sim" / "summary.json").read_text())
     assert summary["pixels"] == 12_000 and len(summary["bands"]) == 13
     assert summary["analysis"]["kind"] == "igrm" and 0 < summary["analysis"]["rms"] < 30
@@ -67,6 +69,9 @@ def test_sweep_count_run_report_and_refuse_mixing(tmp_path) -> None:
     assert count.returncode == 0 and "configurations: 6" in count.stdout
     first = run("optimise", str(scene), "-q", "-o", "out", cwd=tmp_path)
     assert first.returncode == 0, first.stderr
+    assert "warning" not in (first.stdout + first.stderr).lower()
+    verbose = run("-v", "devices", cwd=tmp_path)  # -v: the DEBUG log on stderr
+    assert verbose.returncode == 0 and "s2cl.runtime DEBUG: OpenCL device" in verbose.stderr
     table = pq.read_table(tmp_path / "out" / "results.parquet")
     assert table.num_rows == 6 and table.schema.metadata[b"scene"] == b"small"
     assert (tmp_path / "out" / "heatmap_B4.png").stat().st_size > 1000

@@ -39,6 +39,16 @@ def _check(out: np.ndarray, expected: np.ndarray, real_t: str) -> None:
     assert err.max() <= RTOL[real_t], f"max relative error {err.max():.3g}"
 
 
+@pytest.mark.parametrize("width", [4, 8, 16])
+def test_vector_width_matches_oracle(rt, real_t: str, width: int) -> None:
+    """Every vector-load width (the device picks one) gives the oracle's result (with the atmosphere
+    effect: below)."""
+    plan = _plan()
+    spectra = _spectra(33)
+    out = Resampler(rt, plan, real_t, vector_width=width)(spectra)
+    _check(out, ref.resample(spectra.astype(np.dtype(real_t)), plan.weights), real_t)
+
+
 @pytest.mark.parametrize("n", [1, 7, 301, 10007])
 def test_resample_matches_oracle(rt, real_t: str, n: int) -> None:
     plan = _plan()
@@ -91,12 +101,13 @@ class _Terms:
         self.spherical_albedo = rng.uniform(0.02, 0.3, n)
 
 
-def test_atmosphere_effect_matches_oracle(rt, real_t: str) -> None:
+@pytest.mark.parametrize("width", [None, 4, 8, 16])
+def test_atmosphere_effect_matches_oracle(rt, real_t: str, width: int | None) -> None:
     rng = np.random.default_rng(5)
     terms = _Terms(DEFAULT_GRID.size, rng)
     plan = _plan()
     rho = rng.uniform(0.0, 0.9, (300, DEFAULT_GRID.size))
-    out = Resampler(rt, plan, real_t, atmosphere=terms)(rho)
+    out = Resampler(rt, plan, real_t, atmosphere=terms, vector_width=width)(rho)
     cast = np.dtype(real_t).type
     toa = ref.toa_radiance(rho.astype(cast), terms.path_radiance.astype(cast), terms.ground_term.astype(cast),
                            terms.spherical_albedo.astype(cast))

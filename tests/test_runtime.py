@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import logging
+import os
+import subprocess
+import sys
+
 import pytest
 
 from s2cl import runtime
-from s2cl.errors import BuildError, DeviceError
-from s2cl.runtime import Runtime, get_runtime, list_devices, preferred_lanes
+from s2cl.errors import BuildError, DeviceError, InputError
+from s2cl.runtime import LANES_ENV, STRICT_ENV, Runtime, choose_lanes, get_runtime, list_devices
 
 
 def test_default_device_is_pocl_cpu(rt: Runtime) -> None:
@@ -68,12 +73,79 @@ def test_program_cache_keys_on_source_and_options(rt: Runtime) -> None:
 
 
 @pytest.mark.parametrize(
-    ("platform", "kind", "lanes"),
-    [("Portable Computing Language", "ALL | CPU", 8), ("NVIDIA CUDA", "ALL | GPU", 1),
-     ("Intel(R) OpenCL", "CPU", 8), ("AMD Accelerated Parallel Processing", "GPU", 1), ("Other", "ACCELERATOR", 1)],
+    ("native", "kind", "requested", "lanes", "replaced"),
+    [(16, "ALL | CPU", None, 16, False),   # PoCL, AVX-512, float32
+     (8, "ALL | CPU", None, 8, False),     # PoCL, AVX2 (or AVX-512 float64)
+     (4, "CPU", None, 4, False),           # AVX2 float64
+     (8, "ALL | CPU", 16, 8, True),        # float16 on AVX2 warns "changes the ABI": capped
+     (8, "ALL | CPU", 4, 4, False),        # narrower than native: as asked
+     (1, "ALL | GPU", None, 1, False),     # GPUs vectorise across work-items
+     (1, "GPU", 16, 16, False),            # ... and take any width on request
+     (4, "ACCELERATOR", None, 1, False)],
 )
-def test_lane_quirk(platform: str, kind: str, lanes: int) -> None:
-    assert preferred_lanes(platform, kind) == lanes
+def test_lane_choice_from_device_attributes(native, kind, requested, lanes, replaced) -> None:
+    got, why = choose_lanes(native=native, device_type=kind, requested=requested)
+    assert got == lanes
+    assert (why is not None) == replaced
+
+
+def test_lane_choice_refuses_widths_opencl_lacks() -> None:
+    with pytest.raises(InputError, match="lanes: must be one of"):
+        choose_lanes(native=8, device_type="CPU", requested=3)
+
+
+def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) -> None:
+    """An AVX2 device (native 8 floats, 4 doubles), whatever this machine is: forced 16 lanes fall back,
+    with a DEBUG record and no failure; the kernels then build at that width."""
+    if "CPU" not in rt.info.kind:
+        pytest.skip("CPU-device rule")
+    monkeypatch.setattr(Runtime, "native_lanes", lambda self, real_t="float32": 8 if real_t == "float32" else 4)
+    caplog.set_level(logging.DEBUG, logger="s2cl")
+    assert rt.lanes("float32") == 8 and rt.lanes("float64") == 4
+    assert rt.lanes("float32", 16) == 8
+    assert any("exceed this CPU device's native vector width (8)" in r.message for r in caplog.records)
+    from s2cl.igrm import IgrmFitter
+
+    assert IgrmFitter(4, lanes=16, rt=rt).types.lanes == 8
+
+
+def test_lanes_from_environment(rt: Runtime, monkeypatch) -> None:
+    monkeypatch.setenv(LANES_ENV, "4")
+    assert rt.lanes("float32") == 4
+    assert rt.lanes("float32", 1) == 1  # an explicit argument wins
+    monkeypatch.setenv(LANES_ENV, "six")
+    with pytest.raises(InputError, match=LANES_ENV):
+        rt.lanes("float32")
+
+
+WARNING_SOURCE = ("float f(float a) { if (a > 0.0f) return a; }\n"
+                  "__kernel void k(__global float *x) { x[0] = f(x[0]); }\n")
+
+
+def test_build_log_is_debug_not_terminal(tmp_path) -> None:
+    """A kernel that compiles with a warning, in a fresh process with PoCL's kernel cache off (PoCL's
+    clang then prints "1 warning generated." straight to file descriptor 2, as PoCL 3.0 does on every
+    build): nothing reaches stdout or stderr; the log is a DEBUG record of ``s2cl.runtime``."""
+    script = tmp_path / "build.py"
+    script.write_text(
+        "import logging, sys\n"
+        "logging.basicConfig(stream=sys.stdout, level=logging.DEBUG, format='%(name)s|%(message)s')\n"
+        "from s2cl.runtime import get_runtime\n"
+        f"get_runtime().build({WARNING_SOURCE!r}, template='warns.cl')\n")
+    env = {k: v for k, v in os.environ.items() if k != STRICT_ENV} | {"POCL_KERNEL_CACHE": "0"}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr == ""
+    logged = [line for line in out.stdout.splitlines() if line.startswith("s2cl.runtime|")]
+    assert any("warns.cl" in line for line in logged) and "does not return a value" in out.stdout
+
+
+def test_strict_builds_refuse_warnings(rt: Runtime, monkeypatch) -> None:
+    monkeypatch.setenv(STRICT_ENV, "error")
+    with pytest.raises(BuildError) as err:
+        rt.build(WARNING_SOURCE + "/* strict */\n", template="warns.cl")  # (PoCL's cache keeps the log)
+    assert err.value.reason and STRICT_ENV in err.value.reason
+    assert "does not return a value" in err.value.log
 
 
 def test_default_device_compiles(rt: Runtime) -> None:

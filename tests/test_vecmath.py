@@ -15,7 +15,7 @@ EXP_REL_TOL = {"float32": 3e-7, "float64": 4e-16}
 
 
 def _program(rt, real_t: str, lanes: int, degree: int | None = None):
-    T = VecTypes(real_t, lanes)
+    T = VecTypes(real_t, rt.lanes(real_t, lanes))  # a width this CPU cannot use falls back (runtime.choose_lanes)
     src = render("vecmath_check.cl.mako", T=T, **exp_template_vars(real_t, degree))
     return T, rt.build(src, template="vecmath_check.cl.mako")
 
@@ -28,12 +28,11 @@ def _run(rt, prog, name, T, out_shape, *arrays):
     return rt.fetch(out, out_shape, T.dtype)
 
 
-@pytest.mark.parametrize("lanes", [1, 8])
 def test_exp_neg_accuracy(rt, real_t, lanes):
     T, prog = _program(rt, real_t, lanes)
     emin = EXP_MIN[real_t]
     a = np.concatenate([-np.geomspace(1e-12, -emin, 200_000), -np.linspace(0, 30, 200_000), [0.0, emin]])
-    a = a.astype(T.dtype)[: (a.size // 8) * 8]
+    a = a.astype(T.dtype)[: (a.size // 16) * 16]
     out = _run(rt, prog, "check_exp_neg", T, a.shape, a)
     rel = np.abs(out / np.exp(a.astype(np.float64)) - 1.0)
     assert rel.max() <= EXP_REL_TOL[real_t], f"max rel error {rel.max():.3g}"
@@ -85,7 +84,6 @@ def _upper(a: np.ndarray) -> np.ndarray:
     return np.stack([a[:, i, j] for i, j in zip(*iu, strict=True)])
 
 
-@pytest.mark.parametrize("lanes", [1, 8])
 def test_ldl4_solve(rt, real_t, lanes):
     T, prog = _program(rt, real_t, lanes)
     n = 4096
@@ -95,7 +93,7 @@ def test_ldl4_solve(rt, real_t, lanes):
     a[9, 0, 0] = np.nan                                            # NaN: refused, finite output
     x_dev, ok_dev = rt.empty(4 * n * T.dtype.itemsize), rt.empty(4 * n)
     args = [rt.to_device(_upper(a).astype(T.dtype)), rt.to_device(b.T.copy().astype(T.dtype))]
-    rt.kernel(prog, "check_ldl4")(rt.queue, (n // lanes,), None, x_dev, ok_dev, *args, np.int32(n))
+    rt.kernel(prog, "check_ldl4")(rt.queue, (n // T.lanes,), None, x_dev, ok_dev, *args, np.int32(n))
     x = rt.fetch(x_dev, (4, n), T.dtype).T
     ok = rt.fetch(ok_dev, (n,), np.int32).astype(bool)
     assert not ok[7] and not ok[8] and not ok[9]
