@@ -7,7 +7,7 @@ Template variables
   bands         list of dict(name, start, length, offset): grid index of the first support sample,
                 number of support samples, offset of the band's weights in `weights`
   n_wavelengths row stride of `spectra` (grid size)
-  vw            wavelengths per vector load: the device's native vector width (4..16)
+  vw            wavelengths per vector load, 4, 8 or 16 (s2cl.resample.DEFAULT_VECTOR_WIDTH)
   atmosphere    bool: input is surface reflectance, converted per wavelength to TOA radiance
                 L = Lp + G rho / (1 - S rho) before weighting (arrays path_radiance, ground_term,
                 spherical_albedo on the grid)

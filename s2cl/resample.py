@@ -21,6 +21,11 @@ if TYPE_CHECKING:
 
 TEMPLATE = "resample.cl.mako"
 
+#: Wavelengths per vector load unless asked otherwise, capped at the device's native width and at
+#: least 4 (there is no vload1): 16-wide loads were 13-15 % slower than 8-wide on an AVX-512 CPU
+#: (``python -m bench.bench_lanes``, bench/results/lanes-*.json); on AVX2 8 is the native width.
+DEFAULT_VECTOR_WIDTH = 8
+
 
 class AtmosphereArrays(Protocol):
     """Per-wavelength TOA terms on the resampling grid (see :mod:`s2cl.atmosphere`):
@@ -76,8 +81,9 @@ class Resampler:
 
     :param atmosphere: per-wavelength TOA terms; when given, input spectra are surface
         reflectance and are turned into TOA radiance at each wavelength before the SRFs.
-    :param vector_width: wavelengths per vector load, 4, 8 or 16 (default: the device's native width,
-        at least 4; a width the CPU cannot use cleanly falls back, see :func:`s2cl.runtime.choose_lanes`).
+    :param vector_width: wavelengths per vector load, 4, 8 or 16 (default :data:`DEFAULT_VECTOR_WIDTH`
+        capped at the device's native width; a width the CPU cannot use cleanly falls back, see
+        :func:`s2cl.runtime.choose_lanes`).
     """
 
     def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
@@ -90,8 +96,9 @@ class Resampler:
         bands, weights = plan.packed()
         if vector_width not in (None, 4, 8, 16):
             raise InputError(f"must be 4, 8 or 16, got {vector_width!r}", key="vector_width")
-        # the device's vector width (lanes of the pixel kernels); at least 4, as vload1 does not exist
-        self.vw = max(4, rt.lanes(real_t, vector_width))
+        if vector_width is None:
+            vector_width = max(4, min(DEFAULT_VECTOR_WIDTH, rt.native_lanes(real_t)))
+        self.vw = max(4, rt.lanes(real_t, vector_width))  # a width this CPU cannot use falls back
         self.source = render(TEMPLATE, args=self.args, signature=signature, bands=bands,
                              n_wavelengths=plan.n_wavelengths, vw=self.vw, atmosphere=atmosphere is not None)
         program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))

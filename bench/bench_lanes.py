@@ -1,0 +1,146 @@
+"""Pixels per work-item: each vectorised kernel at 4, 8 and 16 lanes on this machine's device.
+
+The runtime's default is the device's native vector width (PoCL: 16 floats with AVX-512, 8 with
+AVX2; :func:`s2cl.runtime.choose_lanes`). This script measures whether that is the right choice
+here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
+resampler's vector-load width. Every width is first checked bit-identical to one pixel per
+work-item (the resampler: against its float64 oracle), then all widths are timed in interleaved
+rounds (medians). Widths above the native one are capped by the runtime and not timed.
+Writes bench/results/lanes-<machine>-<date>.json.
+
+    python -m bench.bench_lanes            # ~1 minute on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from bench.common import check, interleaved_medians, load_average, load_note, machine_info, write_result
+from s2cl.runtime import Runtime, get_runtime
+
+WIDTHS = (4, 8, 16)
+
+
+Family = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, items per run, unit, default
+
+
+def _igrm(rt: Runtime, n: int) -> Family:
+    from s2cl.igrm import IgrmFitter
+    from s2cl.reference.igrm_cases import BANDS_4, band_centres, prosail_population
+
+    wl = band_centres(BANDS_4)
+    y = prosail_population(n, BANDS_4, noise=0.003, seed=1)[0].astype(np.float32)
+    one = IgrmFitter(4, lanes=1, rt=rt).fit(y[:, :4096], wl)
+    runs = {}
+    for w in WIDTHS:
+        f = IgrmFitter(4, lanes=w, rt=rt)
+        r = f.fit(y[:, :4096], wl)
+        check(bool(np.array_equal(r.lp, one.lp) and np.array_equal(r.status, one.status)),
+              f"IGRM at {w} lanes differs from one lane")
+        runs[w] = _kernel_launcher(f, y, wl)
+    return runs, n, "fits", IgrmFitter(4, rt=rt).types.lanes
+
+
+def _kernel_launcher(fitter: Any, y: np.ndarray, wl: np.ndarray) -> Callable[[], None]:
+    """The IGRM kernel alone, inputs already on the device."""
+    rt, T = fitter.rt, fitter.types
+    n = y.shape[1] // 16 * 16
+    bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
+            rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
+
+    def launch() -> None:
+        fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
+        rt.finish()
+
+    return launch
+
+
+def _sweep(rt: Runtime) -> Family:
+    from s2cl.optimise import plan_sweep
+    from s2cl.scene import Scene
+    from s2cl.sweep_kernel import SweepKernel
+
+    job = plan_sweep(Scene.load("default"))
+    lo, hi = job.n_configs // 3, job.n_configs // 3 + 48
+    one = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=1)(lo, lo + 4)
+    runs = {}
+    for w in WIDTHS:
+        k = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=w)
+        got = k(lo, lo + 4)
+        check(bool(np.array_equal(got.index, one.index) and np.array_equal(got.status, one.status)),
+              f"sweep kernel at {w} lanes differs from one lane")
+        runs[w] = (lambda k=k: k(lo, hi))
+    default = SweepKernel(job.tables, job.analysis, runtime=rt).T.lanes
+    return runs, (hi - lo) * job.tables.n_pixels, "configuration-pixels", default
+
+
+def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
+    from s2cl.gvmi import GvmiKernel
+    from s2cl.sam import SamClassifier
+
+    rng = np.random.default_rng(3)
+    refl = rng.uniform(0.02, 0.6, (6, n)).astype(np.float32)
+    refs = rng.uniform(0.05, 0.6, (12, 6))
+    g1, s1 = GvmiKernel(lanes=1, rt=rt)(refl, 1, 2), SamClassifier(refs, lanes=1, rt=rt).classify(refl)
+    gvmi, sam = {}, {}
+    for w in WIDTHS:
+        g, s = GvmiKernel(lanes=w, rt=rt), SamClassifier(refs, lanes=w, rt=rt)
+        check(bool(np.array_equal(g(refl, 1, 2).gvmi, g1.gvmi)), f"GVMI at {w} lanes differs from one lane")
+        check(bool(np.array_equal(s.classify(refl).reference, s1.reference)), f"SAM at {w} lanes differs")
+        gvmi[w] = (lambda g=g: g(refl, 1, 2))
+        sam[w] = (lambda s=s: s.classify(refl))
+    return {"gvmi": (gvmi, n, "pixels", GvmiKernel(rt=rt).types.lanes),
+            "sam": (sam, n, "pixels", SamClassifier(refs, rt=rt).types.lanes)}
+
+
+def _resample(rt: Runtime, n: int) -> Family:
+    from s2cl.grid import DEFAULT_GRID
+    from s2cl.reference import forward as ref
+    from s2cl.resample import ResamplePlan, Resampler
+    from s2cl.sensor import Sensor
+
+    bands = Sensor.sentinel2().bands
+    plan = ResamplePlan(tuple(b.name for b in bands), tuple(b.weights(DEFAULT_GRID) for b in bands), DEFAULT_GRID.size)
+    spectra = np.random.default_rng(0).uniform(0.0, 100.0, (n, DEFAULT_GRID.size)).astype(np.float32)
+    want = ref.resample(spectra[:1000].astype(np.float64), plan.weights)
+    runs = {}
+    for w in WIDTHS:
+        r = Resampler(rt, plan, "float32", vector_width=w)
+        err = np.max(np.abs(r(spectra[:1000]) - want) / np.abs(want).max(axis=1, keepdims=True))
+        check(err < 2e-6, f"resampler at vector width {w}: max relative error {err:.3g}")
+        runs[w] = (lambda r=r: r(spectra))
+    return runs, n, "spectra", Resampler(rt, plan, "float32").vw
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+    rt = get_runtime()
+    native = rt.native_lanes("float32")
+    widths = [w for w in WIDTHS if w <= native or "CPU" not in rt.info.kind]
+    families = {"igrm": _igrm(rt, 400_000), "sweep": _sweep(rt), **_gvmi_sam(rt, 2_000_000),
+                "resample (vector-load width)": _resample(rt, 100_000)}
+    start = load_average()
+    result: dict[str, Any] = {"benchmark": "lanes", "machine": machine_info(rt), "float32_native_width": native,
+                              "families": {}}
+    for name, (runs, items, unit, default) in families.items():
+        secs = interleaved_medians([runs[w] for w in widths], repeat=args.repeat, warmup=1)
+        rates = {w: items / s for w, s in zip(widths, secs, strict=True)}
+        best = max(rates, key=rates.get)
+        result["families"][name] = {"unit": f"{unit}/s", "rate": rates, "best_width": best, "default_width": default,
+                                    "default_over_best": rates[default] / rates[best],
+                                    "ratio_16_over_8": rates[16] / rates[8] if {8, 16} <= rates.keys() else None}
+        print(f"{name:30s} " + "  ".join(f"{w:2d}: {r / 1e6:8.3f} M{unit}/s" for w, r in rates.items())
+              + f"   best {best}, default {default}", flush=True)
+    result["load_note"] = load_note(start, load_average())
+    print(result["load_note"])
+    print("wrote", write_result("lanes", result))
+
+
+if __name__ == "__main__":
+    main()
