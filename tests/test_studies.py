@@ -8,6 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from sixs_marks import sixs_test
 
 from s2cl.cli import cli, main
 from s2cl.errors import InputError
@@ -15,6 +16,15 @@ from s2cl.resources import scene_dir
 from s2cl.scene import Scene
 from s2cl.studies import STUDIES, water_vapour
 from s2cl.studies.aerosol import equal_error
+from s2cl.studies.cirrus import (
+    SPIKE_DIP,
+    despiked_terms,
+    isolated_spikes,
+    remove_spikes,
+    sixs_samples,
+    spike_dips,
+    spike_nodes,
+)
 from s2cl.studies.common import crossing, load_study
 
 
@@ -67,6 +77,114 @@ def test_cirrus_radiance_falls_with_water_vapour(results):
     darkest = variants[w30][np.argmin(bands[1.0][w30]), 0]
     assert 1355 <= darkest <= 1400
     assert bands[1.0][w30].min() < 0.05 * spectra[1.0][np.argmin(np.abs(wl - 1340))]
+
+
+# {{{ cirrus: 6S's isolated transmittance spikes
+
+
+def _smooth_transmittance() -> np.ndarray:
+    """exp(−τ) of a smooth absorption trough on the spike nodes (1357.5–1412.5 nm)."""
+    lam = spike_nodes()
+    return np.exp(-(2.0 + 3.0 * np.exp(-(((lam - 1385.0) / 15.0) ** 2))))
+
+
+def test_spike_detector_leaves_a_smooth_curve_alone():
+    t = _smooth_transmittance()
+    assert isolated_spikes(t).size == 0
+    out, passes = remove_spikes(t)
+    assert passes == []
+    np.testing.assert_array_equal(out, t)
+
+
+def test_spike_detector_finds_spikes_and_a_shoulder_but_not_a_bump():
+    t = _smooth_transmittance()
+    spiky = t.copy()
+    spiky[5] = t[5] ** 0.4                          # optical depth cut to 40 %: a spike
+    spiky[12] = t[12] ** 0.8                        # cut to 80 %: a local maximum, but only a bump
+    spiky[18], spiky[19] = t[18] ** 0.2, t[19] ** 0.5   # a spike with a shoulder
+    dips = spike_dips(spiky)
+    assert 0.1 < dips[12 - 1] < SPIKE_DIP           # the bump is a peak, below the threshold
+    np.testing.assert_array_equal(isolated_spikes(spiky), [5, 18])
+    out, passes = remove_spikes(spiky)
+    assert passes == [[5, 18], [19]]                # the shoulder becomes a spike once 18 is gone
+    assert out[12] == spiky[12]
+    # replaced by the neighbours' geometric mean: back on the smooth curve within its curvature
+    np.testing.assert_allclose(np.log(out[5]), np.log(t[5]), rtol=0.02)
+    assert np.all(out <= spiky)
+    assert isolated_spikes(out).size == 0
+
+
+def test_sixs_samples_invert_the_linear_interpolation():
+    nodes = spike_nodes()
+    truth = np.random.default_rng(1).uniform(1e-3, 0.5, nodes.size)
+    wl = np.arange(1340.0, 1431.0)
+    samples, residual = sixs_samples(wl, np.interp(wl, nodes, truth), nodes)
+    np.testing.assert_allclose(samples, truth, rtol=1e-9)
+    assert residual < 1e-12
+    coarse = np.arange(1340.0, 1431.0, 5.0)
+    with pytest.raises(InputError, match="does not resolve"):
+        sixs_samples(coarse, np.interp(coarse, nodes, truth), nodes)
+
+
+def test_despiked_terms_split_rayleigh_from_what_water_absorbs():
+    setup = load_study(Scene.load("study-cirrus"))
+    state = setup.truth(water_vapour=1.0)
+    terms, rayleigh = setup.terms(state), setup.terms(state.replace(aot550=0.0))
+    nodes = spike_nodes()
+    samples, residual = sixs_samples(terms.wavelength_nm, terms.t_water, nodes)
+    assert residual < 1e-6                          # a LUT node: the 6S samples come back exactly
+    same = despiked_terms(terms, rayleigh, nodes, samples)
+    np.testing.assert_allclose(same.toa_radiance(0.3), terms.toa_radiance(0.3), rtol=1e-5)
+    dark = despiked_terms(terms, rayleigh, nodes, np.full(nodes.size, 1e-12))
+    inside = (terms.wavelength_nm >= nodes[0]) & (terms.wavelength_nm <= nodes[-1])
+    # all water absorbed: only the Rayleigh path (6S: water above the aerosol) is left
+    np.testing.assert_allclose(dark.toa_radiance(0.3)[inside], rayleigh.path_radiance[inside], rtol=1e-6)
+    assert np.all(dark.toa_radiance(0.3)[inside] < terms.toa_radiance(0.3)[inside])
+    np.testing.assert_allclose(dark.toa_radiance(0.3)[~inside], terms.toa_radiance(0.3)[~inside], rtol=1e-13)
+
+
+def test_cirrus_sign_turns_only_when_all_spikes_go(results):
+    d = results["cirrus"]["data"]
+    c = d["change_pct"]
+    for wv in ("0.4", "1.0"):
+        spikes = d["spikes"]["per_water_vapour"][wv]
+        assert spikes["removed_nm"] == [1385, 1390, 1397.5, 1400]
+        # the threshold is not borderline: a clear margin to the dips removed and to those left
+        assert spikes["largest_dip_left"] < SPIKE_DIP - 0.03 < SPIKE_DIP + 0.05 < min(spikes["dip_at_removal"].values())
+        assert c["eq1"]["as_6s"][wv] > 10            # 6S as it is: 1380/30 brighter than 1375/30
+        assert 0 < c["eq1"]["single_removed"][wv] < c["eq1"]["as_6s"][wv]   # 1397.5 nm alone: still brighter
+        assert c["eq1"]["spikes_removed"][wv] < 0     # every isolated spike gone: darker, as in the paper
+        assert c["gaussian"]["spikes_removed"][wv] < -10
+        # the Gaussian's figure comes from its short-wave wing (the bright 1340 nm shoulder)
+        wing, core, long_wing = d["change_pct_by_range"]["gaussian"]["spikes_removed"][wv]
+        assert wing + core + long_wing == pytest.approx(c["gaussian"]["spikes_removed"][wv], abs=0.05)
+        assert wing < 0.8 * c["gaussian"]["spikes_removed"][wv]
+    # the sign needs both the 1390 and the 1397.5 nm spike gone, not the one at 1385 nm
+    all_but = d["change_pct_per_spike"]["eq1"]["all_but"]
+    assert min(all_but["1390"].values()) > 0 and min(all_but["1397.5"].values()) > 0
+    assert max(all_but["1385"].values()) < 0
+
+
+@sixs_test
+def test_spikes_are_6s_own_samples():
+    """The LUT's recovered 2.5 nm samples are 6S's printed H2O transmittances, spikes included."""
+    from s2cl.sixs import SixSInput, run_many
+    from s2cl.sixs_profiles import get_profile
+
+    setup = load_study(Scene.load("study-cirrus"))
+    terms = setup.terms(setup.truth(water_vapour=1.0))
+    nodes = spike_nodes()
+    lut, _ = sixs_samples(terms.wavelength_nm, terms.t_water, nodes)
+    prof = get_profile("midlatitude_summer")
+    runs = run_many([SixSInput(wavelength_um=nm / 1000.0, water_scale=1.0 / prof.water_column,
+                               ozone_scale=330.0 / prof.ozone_column, aerosol="none") for nm in nodes])
+    direct = np.array([o.gas["water"] for o in runs])
+    np.testing.assert_allclose(lut, direct, atol=2e-5)     # 6S prints 5 decimals
+    _, passes = remove_spikes(direct)
+    assert sorted(float(nodes[k]) for p in passes for k in p) == [1385, 1390, 1397.5, 1400]
+
+
+# }}}
 
 
 def test_ozone_error_sign_flips_and_b3_largest(results):
