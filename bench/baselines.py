@@ -106,14 +106,14 @@ def sam(ctx: Context) -> dict[str, Any]:
 
     from bench.bench_sam import numpy_sam
     from bench.bench_sam import scene as sam_scene
-    from s2cl.reference import sam as ref
+    from s2cl.reference import stages as ref
     from s2cl.sam import SamClassifier
 
     n = 100_000 if ctx.quick else 1_000_000
     refs, _, pix = sam_scene(n, 13, 20)
     clf = SamClassifier(refs)
     k = 20_000  # the validated slice
-    best, angle, _ = ref.classify(pix[:, :k], refs)
+    best, angle, _ = ref.sam_classify(pix[:, :k], refs)
     got = clf.classify(pix[:, :k])
     agree = float(np.mean(got.reference == best))
     check(agree > 0.999 and float(np.max(np.abs(got.angle - angle))) < 1e-3, "SAM disagrees with the float64 oracle")

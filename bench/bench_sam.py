@@ -15,7 +15,7 @@ import argparse
 import numpy as np
 
 from bench.common import check, machine_info, median_time, write_json
-from s2cl.reference import sam as ref
+from s2cl.reference import stages as ref
 from s2cl.sam import SamClassifier
 
 CASES = ((2, 20), (6, 20), (13, 20))  # (bands, references): B11+B12 as in the paper, red edge, full MSI
@@ -42,7 +42,7 @@ def run(n: int, n_bands: int, n_refs: int) -> dict:
     refs, _, pix = scene(n, n_bands, n_refs)
     sam = SamClassifier(refs)
     part = slice(0, 20000)  # validated against the float64 oracle before timing
-    best, angle, _ = ref.classify(pix[:, part], refs)
+    best, angle, _ = ref.sam_classify(pix[:, part], refs)
     got = sam.classify(pix[:, part])
     agree = float(np.mean(got.reference == best))
     max_dangle = float(np.max(np.abs(got.angle - angle)))

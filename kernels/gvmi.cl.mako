@@ -5,10 +5,9 @@ gvmi.cl.mako: Global Vegetation Moisture Index (Segl et al. 2012, eq. 3), T.lane
 Template variables
   T        s2cl.vectypes.VecTypes (precision, lanes)
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid
-Exports (for fused kernels)
-  T.V s2_gvmi_<T.suffix>(T.V nir, T.V swir, T.M *status)
-      status 0 valid, 3 invalid input (NaN, inf, |rho| > max_abs, or a denominator below 1e-6,
-      i.e. NIR + SWIR <= -0.12); the index is 0 for invalid lanes.
+The index and its validity rule: s2_gvmi_<T.suffix> of common/stages.mako (the sweep kernel runs
+the same function): status S2_OK, or S2_INVALID with index 0 for NaN/inf, |rho| > max_abs, or an
+offset reflectance (NIR + 0.1, SWIR + 0.02) that is not positive.
 Kernel arguments (outputs first; SoA, pixel index fastest)
   gvmi    out [pitch] real    the index, in [-1, 1] for non-negative reflectance
   status  out [pitch] uchar
@@ -17,23 +16,11 @@ Kernel arguments (outputs first; SoA, pixel index fastest)
   pitch   int                 elements per band row; a multiple of T.lanes
 Global size: pitch / T.lanes.
 </%doc>
+<%namespace name="st" file="common/stages.mako"/>
 % if T.double:
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 % endif
-#ifndef S2_GVMI_${T.suffix.upper()}
-#define S2_GVMI_${T.suffix.upper()}
-static inline ${T.V} s2_gvmi_${T.suffix}(const ${T.V} nir, const ${T.V} swir, ${T.M} *status)
-{
-    const ${T.V} a = nir + ${T.lit(0.1)};
-    const ${T.V} b = swir + ${T.lit(0.02)};
-    const ${T.V} den = a + b;
-    /* NaN and +-inf fail the range comparisons */
-    const ${T.M} ok = (nir <= ${T.vlit(max_abs)}) & (nir >= ${T.vlit(-max_abs)})
-                    & (swir <= ${T.vlit(max_abs)}) & (swir >= ${T.vlit(-max_abs)}) & (den > ${T.vlit(1e-6)});
-    *status = ok ? ((${T.M})(0)) : ((${T.M})(3));
-    return ok ? (a - b) / den : ${T.vlit(0.0)};
-}
-#endif
+${st.gvmi(T, max_abs)}
 
 __kernel void gvmi(
     __global ${T.R} *restrict gvmi,

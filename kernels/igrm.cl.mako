@@ -12,8 +12,9 @@ Template variables
   iter_t "uchar" when c.max_iter <= 255, else "ushort"
 Defines: none (everything scene-fixed is a rendered literal).
 Arguments (outputs first; all arrays structure-of-arrays, pixel index fastest)
-  params      out [6][pitch] real   rmax, rmin, l0 [nm], s [nm], lp [nm], rms residual
-  status      out [pitch] uchar     0 converged, 1 iteration limit, 2 degenerate, 3 invalid input
+  params      out [7][pitch] real   rmax, rmin, l0 [nm], s [nm], lp [nm], rms residual, log10 condition
+  status      out [pitch] uchar     common/s2_status.clh (S2_OK converged, S2_ITERATION_LIMIT,
+                                    S2_DEGENERATE, S2_INVALID, S2_STALLED)
   iterations  out [pitch] iter_t    LM trial steps
   bounds      out [pitch] uchar     active-bound bits (see common/igrm_lm.mako)
   refl        in  [n_bands][pitch] real  band reflectance
@@ -68,10 +69,10 @@ __kernel void igrm_fit(
     wl[${i}] = wavelength[${i}];
     y[${i}] = ${ptr("refl", i, True)};
 % endfor
-    ${T.V} out[6];
+    ${T.V} out[7];
     ${T.M} st, it, bd;
     s2_igrm_fit_igrm(y, wl, out, &st, &it, &bd);
-% for k in range(6):
+% for k in range(7):
     ${ptr("params", k, False)} = out[${k}];
 % endfor
     ${store_int("status", "uchar", "st")}

@@ -1,70 +1,30 @@
 <%doc>
 sam.cl.mako: Spectral Angle Mapper, T.lanes pixels per work-item: the reference with the smallest
-spectral angle to the pixel, optionally only if that angle is within a threshold.
-
+spectral angle to the pixel, if that angle is within the threshold.
+The classification and its status: s2_sam_<T.suffix>_<n_bands>_<n_refs> of common/stages.mako (the
+sweep kernel runs the same function); this kernel adds the angle in radians for the output.
 Template variables
   T        s2cl.vectypes.VecTypes (precision, lanes)
   n_bands  number of bands (unrolled)
   n_refs   number of reference spectra
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid
-Exports (for fused kernels)
-  void s2_sam_<T.suffix>(const T.V *p, __global const T.R *refs, T.R cos_min,
-                         T.M *best, T.V *angle, T.M *status)
-      p [n_bands] pixel lanes; refs [n_refs][n_bands] references scaled to unit length.
-      best: index of the reference with the largest cosine (the first one on ties: identical
-      references never split a class at random), -1 unless status is 0.
-      angle: that angle in radians, [0, pi]; 0 unless status is 0 or 1.
-      status: 0 classified, 1 unclassified (angle > threshold, i.e. cos < cos_min),
-              2 zero vector (|p|^2 <= 1e-30: no direction), 3 invalid input (NaN, inf, |rho| > max_abs).
-Why cosines: argmin angle = argmax p.r/|r| with unit references, so the hot loop is multiply-adds;
-the square root and acos run once per pixel, for the winner only.
 Kernel arguments (outputs first; SoA, pixel index fastest)
-  best     out [pitch] int    reference index or -1
-  angle    out [pitch] real   radians
-  status   out [pitch] uchar
+  best     out [pitch] int    reference index (the first on ties), -1 unless status is S2_OK
+  angle    out [pitch] real   radians in [0, pi] (S2_OK and S2_UNCLASSIFIED), else 0
+  status   out [pitch] uchar  common/s2_status.clh: S2_OK, S2_UNCLASSIFIED, S2_DEGENERATE (zero
+                              vector), S2_INVALID
   refl     in  [n_bands][pitch] real
   refs     in  [n_refs][n_bands] real  unit-length references
   cos_min  real               cos(threshold); -2 for no threshold
   pitch    int                elements per band row; a multiple of T.lanes
-Global size: pitch / T.lanes.
+Global size: pitch / T.lanes. Why cosines: argmin angle = argmax p.r with unit references, so the hot
+loop is multiply-adds; the square root and acos run once per pixel, for the winner only.
 </%doc>
+<%namespace name="st" file="common/stages.mako"/>
 % if T.double:
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 % endif
-#ifndef S2_SAM_${T.suffix.upper()}_${n_bands}_${n_refs}
-#define S2_SAM_${T.suffix.upper()}_${n_bands}_${n_refs}
-static inline void s2_sam_${T.suffix}(const ${T.V} *p, __global const ${T.R} *refs, const ${T.R} cos_min,
-                                      ${T.M} *best, ${T.V} *angle, ${T.M} *status)
-{
-    const ${T.V} zero = ${T.vlit(0.0)};
-    ${T.M} valid = ((${T.M})(0)) == ((${T.M})(0));
-    ${T.V} norm2 = zero;
-% for i in range(n_bands):
-    valid = valid & (p[${i}] <= ${T.vlit(max_abs)}) & (p[${i}] >= ${T.vlit(-max_abs)});
-    norm2 += p[${i}] * p[${i}];
-% endfor
-    ${T.V} top = ${T.vlit(-3.0e38 if not T.double else -1.0e300)};
-    ${T.M} arg = (${T.M})(0);
-    for (int k = 0; k < ${n_refs}; ++k) {
-        __global const ${T.R} *r = refs + k * ${n_bands};
-        ${T.V} dot = zero;
-% for i in range(n_bands):
-        dot += p[${i}] * r[${i}];
-% endfor
-        const ${T.M} better = dot > top;
-        top = better ? dot : top;
-        arg = better ? ((${T.M})(k)) : arg;
-    }
-    const ${T.M} nonzero = norm2 > ${T.vlit(1e-30)};
-    const ${T.V} safe2 = (valid & nonzero) ? norm2 : ${T.vlit(1.0)};
-    ${T.V} c = (valid & nonzero) ? top / sqrt(safe2) : ${T.vlit(1.0)};
-    c = c > ${T.vlit(1.0)} ? ${T.vlit(1.0)} : (c < ${T.vlit(-1.0)} ? ${T.vlit(-1.0)} : c);
-    const ${T.M} inside = c >= cos_min;
-    *status = !valid ? ((${T.M})(3)) : (!nonzero ? ((${T.M})(2)) : (inside ? ((${T.M})(0)) : ((${T.M})(1))));
-    *best = (valid & nonzero & inside) ? arg : ((${T.M})(-1));
-    *angle = (valid & nonzero) ? acos(c) : zero;
-}
-#endif
+${st.sam(T, n_bands, n_refs, max_abs)}
 
 __kernel void sam_classify(
     __global int *restrict best,
@@ -76,6 +36,9 @@ __kernel void sam_classify(
     const int pitch)
 {
     const int gid = get_global_id(0);
+    ${T.R} ref[${n_refs * n_bands}];
+    for (int k = 0; k < ${n_refs * n_bands}; ++k)
+        ref[k] = refs[k];
     ${T.V} p[${n_bands}];
 % for i in range(n_bands):
   % if T.lanes == 1:
@@ -85,8 +48,14 @@ __kernel void sam_classify(
   % endif
 % endfor
     ${T.M} b, st;
-    ${T.V} a;
-    s2_sam_${T.suffix}(p, refs, cos_min, &b, &a, &st);
+    ${T.V} dot, norm2;
+    s2_sam_${T.suffix}_${n_bands}_${n_refs}(p, ref, cos_min, &b, &dot, &norm2, &st);
+    const ${T.M} directed = (st == ((${T.M})(S2_OK))) | (st == ((${T.M})(S2_UNCLASSIFIED)));
+    ${T.V} c = directed ? dot / sqrt(directed ? norm2 : ${T.vlit(1.0)}) : ${T.vlit(1.0)};
+    c = c > ${T.vlit(1.0)} ? ${T.vlit(1.0)} : (c < ${T.vlit(-1.0)} ? ${T.vlit(-1.0)} : c);
+    const ${T.V} a = directed ? acos(c) : ${T.vlit(0.0)};
+    const ${T.M} ok = st == ((${T.M})(S2_OK));
+    b = ok ? b : ((${T.M})(-1));
 % if T.lanes == 1:
     best[gid] = b;
     angle[gid] = a;

@@ -11,12 +11,14 @@ Template variables
              so a band's noise does not depend on which other bands share the kernel
   noise, quantise, calibrate, correct   bools: which stages exist. A stage that is off has no code
              and no arguments in the compiled kernel.
+  T          s2cl.vectypes.VecTypes(real_t, 1): the scalar types of the shared stage functions
+             (common/stages.mako: quantise, calibrate, correct, the same code the sweep kernel runs)
 Defines
   S2_DOUBLE  float64 build
 Arguments (in order; see s2cl/sense.py)
   (noise)     noisy       [n_bands x n_pixels] real_t  radiance with noise
   (quantise)  dn          [n_bands x n_pixels] ushort  digital numbers
-  (quantise)  clipped     [2 x n_bands]        uint    counts below Lmin / above Lmax (atomic adds)
+  (quantise)  flags       [n_bands x n_pixels] uchar   S2_FLAG_LOW / _HIGH / _NODATA (common/s2_status.clh)
   (calibrate) calibrated  [n_bands x n_pixels] real_t  radiance from DN
   (correct)   reflectance [n_bands x n_pixels] real_t  band reflectance (see s2cl/correction.py)
               radiance    [n_bands x n_pixels] real_t  noise-free band radiance (input)
@@ -31,12 +33,19 @@ Arguments (in order; see s2cl/sense.py)
               n_pixels     uint
 Units: radiance W m-2 sr-1 um-1 throughout.
 </%doc>
+<%namespace name="st" file="common/stages.mako"/>
 #include "common/s2_real.clh"
 % if noise:
 #include "common/s2_random.clh"
 % endif
 % if quantise:
-#include "common/s2_quantise.clh"
+${st.quantise(T)}
+% endif
+% if calibrate:
+${st.calibrate(T)}
+% endif
+% if correct:
+${st.correct(T)}
 % endif
 
 __kernel void sense_bands(
@@ -60,23 +69,17 @@ __kernel void sense_bands(
         noisy[at] = L;
   % endif
   % if quantise:
-        const uint q = s2_quantise(L, lmin[${k}], scale[${k}], maxdn);
+        ${T.M} flag;
+        const real_t q = s2_quantise_${T.suffix}(L, lmin[${k}], lmax[${k}], scale[${k}], (real_t)maxdn, &flag);
         dn[at] = (ushort)q;
-        if (!(L >= lmin[${k}]))
-            atomic_inc(&clipped[${k}]);
-        else if (L > lmax[${k}])
-            atomic_inc(&clipped[${n_bands + k}]);
+        flags[at] = (uchar)flag;
   % endif
   % if calibrate:
-        L = s2_calibrate(q, lmin[${k}], gain[${k}]);
+        L = s2_calibrate_${T.suffix}(q, flag, lmin[${k}], gain[${k}]);
         calibrated[at] = L;
   % endif
   % if correct:
-        {   /* y = (L - Lp) / G; rho = y / (1 + S y), denominator clamped to stay finite */
-            const real_t y = (L - band_lp[${k}]) / band_g[${k}];
-            const real_t d = S2_R(1.0) + band_s[${k}] * y;
-            reflectance[at] = y / (d > S2_R(1e-6) ? d : S2_R(1e-6));
-        }
+        reflectance[at] = s2_correct_${T.suffix}(L, band_lp[${k}], band_g[${k}], band_s[${k}]);
   % endif
     }
 % endfor

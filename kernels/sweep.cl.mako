@@ -1,10 +1,12 @@
 <%doc>
-sweep.cl.mako: one band configuration × T.lanes pixels per work-item, fused end to end:
+sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end to end:
   gather noise-free band radiance and sigma of the configuration's variants (tables of
-  s2cl/sweep_tables.py) -> + sigma z (common random numbers: z depends on pixel and band slot only)
-  -> quantise (ties round up) -> calibrate -> band-effective atmospheric correction -> analysis
-  (IGRM fit -> inflection wavelength lp; GVMI; SAM class) -> one index and one status per pixel.
-The spectral integral is not here: it ran once per (variant, spectrum) on the host.
+  s2cl/sweep_tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
+  -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
+  GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
+Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
+gets the same verdict on both paths (tests/test_one_rule.py). The spectral integral is not here: it
+ran once per (variant, spectrum) on the host.
 
 Template variables
   T          s2cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
@@ -16,12 +18,15 @@ Template variables
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
   lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
   noise, quantise            bools
-  kind       "igrm" | "gvmi" | "sam";  nir, swir (gvmi slots); n_classes, cos2_min (sam;
-             cos2_min < 0: no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
+  kind       "igrm" | "gvmi" | "sam";  nir, swir (gvmi slots); n_classes, cos_min (sam; below -1:
+             no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
+  max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
 Arguments
   index     out [n_configs][pitch] real   igrm: lp (nm); gvmi: GVMI; sam: class (n_classes: none)
-  status    out [n_configs][pitch] uchar  see s2cl/analysis.py
-  bounds    out [n_configs][pitch] uchar  igrm active-bound bits (0 otherwise)
+  status    out [n_configs][pitch] uchar  common/s2_status.clh
+  extra     out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako);
+  extra2    out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 255 = >= 12.75
+                                          decades or singular (0 for the other analyses)
   radiance  in  [rows][n_spectra] real    W m-2 sr-1 um-1
   sigma     in  [rows][n_spectra] real    noise standard deviation, same units
   z         in  [n_slots][pitch] real     standard normal deviates
@@ -29,15 +34,16 @@ Arguments
   refs      in  [variants][n_classes] real  (sam) class reference reflectances
   config_start uint, n_configs uint
 Global size: (pitch / T.lanes, n_configs).
-No builtin math in the hot path (shared/notes/pocl-performance.md): rounding by the 1.5*2^23
-(or 1.5*2^52) trick, vector ternaries instead of select/fmin/fmax.
+IGRM: the bands of a configuration are sorted by centre before the fit (a stable sorting network on
+the scalar centres), as the direct API (s2cl.igrm.IgrmFitter) requires increasing wavelengths.
+No builtin math in the hot path (shared/notes/pocl-performance.md).
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>
 <%namespace name="lm" file="common/igrm_lm.mako"/>
+<%namespace name="st" file="common/stages.mako"/>
 <%
     V, R, L = T.V, T.R, T.lanes
     lanes = "0123456789abcdef"[:L]
-    magic = T.lit(6755399441055744.0 if T.double else 12582912.0)
     def gather(table, row):
         if L == 1:
             return f"{table}[{row} + sp0]"
@@ -66,23 +72,22 @@ ${vm.ldl4_solve(T, c.pivot_rel)}
 ${lm.igrm_fit(T, c, "sweep", T1)}
 % endif
 
-/* Radiance -> DN -> radiance, DN = floor(x) + (frac(x) >= 0.5) clipped to [0, maxdn]; rint by the
-   magic constant, then ties (rounded to even) moved up. Exact for 0 <= x < 2^22. */
-static inline ${V} s2_requantise(const ${V} L, const ${R} lmin, const ${R} scale, const ${R} gain,
-                                  const ${R} maxdn)
-{
-    const ${V} x = (L - lmin) * scale;
-    ${V} r = (x + ${magic}) - ${magic};
-    r = (x - r == ${T.lit(0.5)}) ? r + ${T.lit(1.0)} : r;
-    r = r > maxdn ? (${V})(maxdn) : r;
-    r = x > ${T.lit(0.0)} ? r : (${V})(${T.lit(0.0)});
-    return lmin + r * gain;
-}
+% if quantise:
+${st.quantise(T)}
+${st.calibrate(T)}
+% endif
+${st.correct(T)}
+% if kind == "gvmi":
+${st.gvmi(T, max_abs)}
+% elif kind == "sam":
+${st.sam(T, n_slots, n_classes, max_abs)}
+% endif
 
 __kernel void sweep_configs(
     __global ${R} *restrict index,
     __global uchar *restrict status,
-    __global uchar *restrict bounds,
+    __global uchar *restrict extra,
+    __global uchar *restrict extra2,
     __global const ${R} *restrict radiance,
     __global const ${R} *restrict sigma,
     __global const ${R} *restrict z,
@@ -115,71 +120,72 @@ __kernel void sweep_configs(
         L = L + ${gather("sigma", "row")} * ${vload(f"(z + {k}u * {pitch}u + p0)")};
   % endif
   % if quantise:
-        L = s2_requantise(L, ${T.lit(lmin[k])}, ${T.lit(maxdn / (lmax[k] - lmin[k]))},
-                          ${T.lit((lmax[k] - lmin[k]) / maxdn)}, ${T.lit(float(maxdn))});
+        {
+            ${T.M} flag;
+            const ${V} dn = s2_quantise_${T.suffix}(L, ${T.lit(lmin[k])}, ${T.lit(lmax[k])},
+                                                    ${T.lit(maxdn / (lmax[k] - lmin[k]))}, ${T.lit(float(maxdn))}, &flag);
+            L = s2_calibrate_${T.suffix}(dn, flag, ${T.lit(lmin[k])}, ${T.lit((lmax[k] - lmin[k]) / maxdn)});
+        }
   % endif
-        const ${V} y = (L - lp[var]) / g[var];
-        const ${V} d = ${T.lit(1.0)} + s[var] * y;
-        rho[${k}] = y / (d > ${T.lit(1e-6)} ? d : (${V})(${T.lit(1e-6)}));
+        rho[${k}] = s2_correct_${T.suffix}(L, lp[var], g[var], s[var]);
         x[${k}] = centre[var];
     }
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
 % if kind == "gvmi":
-    const ${V} num = (rho[${nir}] + ${T.lit(0.1)}) - (rho[${swir}] + ${T.lit(0.02)});
-    const ${V} den = (rho[${nir}] + ${T.lit(0.1)}) + (rho[${swir}] + ${T.lit(0.02)});
-    const ${T.M} ok = den > ${T.lit(0.0)};
-    ${vstore(f"ok ? num / den : ({V})({T.lit(0.0)})", "(index + at)")}
+    ${T.M} st;
+    ${vstore(f"s2_gvmi_{T.suffix}(rho[{nir}], rho[{swir}], &st)", "(index + at)")}
   % for l in range(L):
-    status[at + ${l}] = ${lane("ok", l)} ? 0 : 3;
-    bounds[at + ${l}] = 0;
+    status[at + ${l}] = (uchar)${lane("st", l)};
+    extra[at + ${l}] = 0;
+    extra2[at + ${l}] = 0;
   % endfor
 % elif kind == "sam":
-    ${V} norm2 = ${T.vlit(0.0)};
-  % for k in range(n_slots):
-    norm2 = norm2 + rho[${k}] * rho[${k}];
-  % endfor
-    ${V} best_score = (${V})(${T.lit(-3.0)});
-    ${V} best_class = (${V})(${T.lit(float(n_classes))});
+    /* the configuration's class references, scaled to unit length (the same for every lane) */
+    ${R} ref[${n_classes * n_slots}];
   % for j in range(n_classes):
-    {   /* class ${j}: compare sign(cos) cos^2 (monotone in the angle) without sqrt */
-        ${V} dot = ${T.vlit(0.0)};
-        ${R} ref2 = ${T.lit(0.0)};
+    {
+        ${R} n2 = ${T.lit(0.0)};
     % for k in range(n_slots):
-        {
-            const uint var = ${var0[k]}u + (cfg / ${strides[k]}u) % ${counts[k]}u;
-            const ${R} r = refs[var * ${n_classes}u + ${j}u];
-            dot = dot + rho[${k}] * r;
-            ref2 = ref2 + r * r;
-        }
+        ref[${j * n_slots + k}] = refs[(${var0[k]}u + (cfg / ${strides[k]}u) % ${counts[k]}u) * ${n_classes}u + ${j}u];
+        n2 += ref[${j * n_slots + k}] * ref[${j * n_slots + k}];
     % endfor
-        const ${V} denom = norm2 * ref2;
-        const ${V} cos2 = denom > ${T.lit(0.0)} ? dot * dot / denom : (${V})(${T.lit(0.0)});
-        const ${V} score = dot >= ${T.lit(0.0)} ? cos2 : -cos2;
-        const ${T.M} better = score > best_score;
-        best_class = better ? (${V})(${T.lit(float(j))}) : best_class;
-        best_score = better ? score : best_score;
+        const ${R} inv = n2 > ${T.lit(0.0)} ? ${T.lit(1.0)} / sqrt(n2) : ${T.lit(0.0)};
+    % for k in range(n_slots):
+        ref[${j * n_slots + k}] *= inv;
+    % endfor
     }
   % endfor
-    const ${T.M} valid = norm2 > ${T.lit(0.0)};
-  % if cos2_min >= 0:
-    const ${T.M} close = best_score >= ${T.lit(cos2_min)};
-  % else:
-    const ${T.M} close = valid;
-  % endif
-    ${vstore(f"(valid & close) ? best_class : ({V})({T.lit(float(n_classes))})", "(index + at)")}
+    ${T.M} best, st;
+    ${V} dot, norm2;
+    s2_sam_${T.suffix}_${n_slots}_${n_classes}(rho, ref, ${T.lit(cos_min)}, &best, &dot, &norm2, &st);
+    const ${T.M} ok = st == ((${T.M})(S2_OK));
+    ${vstore(f"ok ? {T.convert(T.R) if L > 1 else '(' + R + ')'}(best) : ({V})({T.lit(float(n_classes))})", "(index + at)")}
   % for l in range(L):
-    status[at + ${l}] = !${lane("valid", l)} ? 3 : (${lane("close", l)} ? 0 : 2);
-    bounds[at + ${l}] = 0;
+    status[at + ${l}] = (uchar)${lane("st", l)};
+    extra[at + ${l}] = 0;
+    extra2[at + ${l}] = 0;
   % endfor
 % else:
-    ${V} out[6];
+    /* sort the slots by band centre (stable; the centres are the same for every lane) */
+  % for i in range(n_slots):
+    % for j in range(n_slots - 1 - i):
+    if (x[${j}] > x[${j + 1}]) {
+        const ${R} tx = x[${j}]; x[${j}] = x[${j + 1}]; x[${j + 1}] = tx;
+        const ${V} tr = rho[${j}]; rho[${j}] = rho[${j + 1}]; rho[${j + 1}] = tr;
+    }
+    % endfor
+  % endfor
+    ${V} out[7];
     ${T.M} st, it, bd;
     s2_igrm_fit_sweep(rho, x, out, &st, &it, &bd);
     ${vstore("out[4]", "(index + at)")}
+    /* condition code: round(20 log10 cond), at most 240 (the estimate's cap of 12 decades) */
+    const ${V} code = out[6] * ${T.lit(20.0)} + ${T.lit(0.5)};
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    bounds[at + ${l}] = (uchar)${lane("bd", l)};
+    extra[at + ${l}] = (uchar)${lane("bd", l)};
+    extra2[at + ${l}] = (uchar)${lane("code", l)};
   % endfor
 % endif
 }

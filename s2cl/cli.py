@@ -109,6 +109,10 @@ def simulate(scene: str, output: Path | None, device: str | None, quiet: bool) -
 
     sc = Scene.load(scene)
     out = output or sc.output_dir
+    if sc.spec.analysis is not None and sc.spec.surface.cube is None:
+        from .simulate_analysis import analysis_design
+
+        analysis_design(sc)  # a design the retrieval cannot fit is refused before any work
     if sc.spec.surface.cube is not None:
         from .cube import simulate_cube
 
@@ -307,7 +311,16 @@ def sweep_count(scene: str) -> None:
     for r in rows:
         table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
     _console().print(table)
-    click.echo(f"configurations: {sweep_space(sc).size:,}")
+    space = sweep_space(sc)
+    click.echo(f"configurations: {space.size:,}")
+    if sc.spec.analysis is not None:
+        from .analysis import AnalysisSettings
+        from .optimise import underdetermined_count
+
+        bad = underdetermined_count(space, AnalysisSettings.from_scene(sc, space.bands))
+        fate = "kept, flagged" if sc.spec.sweep.underdetermined == "keep" else "left out of the ranking"
+        click.echo("underdetermined (the analysis cannot fit them): "
+                   + (f"{bad:,} ({fate})" if bad is not None else "not counted (too many distinct centres)"))
 
 
 def _sweep_options(f: Callable) -> Callable:
@@ -331,7 +344,7 @@ def _sweep_options(f: Callable) -> Callable:
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
                backend: str, chunk: int | None, device: str | None, quiet: bool) -> None:
     from .optimise import plan_sweep, reference_row
-    from .report import load, summarise
+    from .report import load, rankable, summarise
     from .scene import Scene
     from .sweep import run_sweep
 
@@ -356,7 +369,7 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     df, meta = load(results)
     summary = summarise(df, meta, reference_row(sc, job, device))
     summary["seconds"] = time.perf_counter() - t0
-    plots = _report(df, summary, out, summary["bands"])
+    plots = _report(rankable(df, meta), summary, out, summary["bands"])
     click.echo(f"wrote {results}" + "".join(f", {p}" for p in plots))
 
 
@@ -439,6 +452,7 @@ def _print_sweep(summary: dict[str, Any]) -> None:
         table.add_column(col, justify="right")
     if metric == "rms":
         table.add_column("bound_fraction", justify="right")
+        table.add_column("converged", justify="right")
     rows = [("reference", summary["reference"])] if "reference" in summary else []
     rows += [(f"#{i + 1}", e) for i, e in enumerate(summary["top"][:5])]
     for label, e in rows:
@@ -447,8 +461,15 @@ def _print_sweep(summary: dict[str, Any]) -> None:
                   f"{e['failed_fraction']:.2%}"]
         if metric == "rms":
             cells.append(f"{e['bound_fraction']:.2%}")
+            cells.append(f"{e['converged_fraction']:.2%}" if "converged_fraction" in e else "")
         table.add_row(label, *cells)
     _console().print(table)
+    u = summary.get("underdetermined", {})
+    if u.get("count"):
+        which = ", ".join(f"{k} ({v:,})" for k, v in u.get("coincident_centres", {}).items())
+        fate = "kept in the ranking, flagged" if u.get("ranking") == "keep" else "left out of the ranking"
+        click.echo(f"{u['count']:,} configurations are underdetermined (the analysis cannot fit them"
+                   + (f"; bands on one centre: {which}" if which else "") + f"): {fate}")
     if "reference" in summary:
         click.echo(f"reference = the sensor's own bands; {summary['reference']['configurations_better']:,} "
                    "configurations do better")
@@ -472,7 +493,7 @@ def sweep_run(**kwargs: Any) -> None:
 @click.option("--band", help="band of the heatmap (default: every band that moves)")
 def sweep_report(results: Path, band: str | None) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
-    from .report import bands_of, load, read_summary, summarise
+    from .report import bands_of, load, rankable, read_summary, summarise
 
     df, meta = load(results)
     folder = results if results.is_dir() else results.parent
@@ -488,7 +509,7 @@ def sweep_report(results: Path, band: str | None) -> None:
     summary = summarise(df, meta, reference)
     if "seconds" in kept:
         summary["seconds"] = kept["seconds"]
-    for p in _report(df, summary, folder, [band] if band else bands_of(df)):
+    for p in _report(rankable(df, meta), summary, folder, [band] if band else bands_of(df)):
         click.echo(f"wrote {p}")
 
 

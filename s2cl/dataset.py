@@ -79,15 +79,20 @@ def library_dataset(sim: LibrarySimulation, layout: str = "rows") -> xr.Dataset:
     }
     for name, units, long_name in (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
                                    ("dn", "1", "digital numbers"),
+                                   ("flags", "1", "radiometric pixel flags"),
                                    ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
                                    ("reflectance", "1", "band surface reflectance after atmospheric correction")):
         arr = getattr(sim, name)
         if arr is None:
             continue
         pixels = arr.reshape(arr.shape[0], -1)[:, flat]
-        fill = 0 if name == "dn" else np.nan
+        fill = 0 if name in ("dn", "flags") else np.nan
         pixels = np.where(valid[None], pixels, np.asarray(fill, dtype=pixels.dtype))
-        data[name] = (("band", "y", "x"), pixels, {"units": units, "long_name": long_name})
+        attrs = {"units": units, "long_name": long_name}
+        if name == "flags":  # CF flag attributes (s2cl.status.PixelFlag)
+            attrs = {"long_name": long_name, "flag_masks": np.array([1, 2, 4], np.uint8),
+                     "flag_meanings": "below_lmin above_lmax_saturated no_data_nan_radiance"}
+        data[name] = (("band", "y", "x"), pixels, attrs)
     if sim.clipped is not None:
         data["clipped"] = (("limit", "band"), sim.clipped, {"long_name": "pixels below Lmin / above Lmax"})
         coords["limit"] = ["below_lmin", "above_lmax"]

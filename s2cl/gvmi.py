@@ -1,9 +1,10 @@
 """Global Vegetation Moisture Index on the device (Segl et al. 2012, eq. 3).
 
 ``GVMI = ((NIR + 0.1) - (SWIR + 0.02)) / ((NIR + 0.1) + (SWIR + 0.02))`` per pixel, from band
-reflectances ``(n_bands, n_pixels)``. Pixels with NaN/inf, |rho| > ``max_abs`` or a vanishing
-denominator get status 3 (:attr:`s2cl.igrm.FitStatus.INVALID_INPUT`) and index 0, so that
-:func:`s2cl.quantify.score_retrieval` excludes and counts them.
+reflectances ``(n_bands, n_pixels)``. Pixels with NaN/inf, |rho| > ``max_abs``, or an offset
+reflectance (NIR + 0.1, SWIR + 0.02) that is not positive get :attr:`s2cl.status.Status.INVALID` and
+index 0 (so the index lies in (-1, 1) whenever it is valid); the rule is the one the sweep kernel
+runs (``kernels/common/stages.mako``).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 from .bufferpool import BufferPool
 from .errors import InputError
 from .runtime import Runtime, get_runtime
+from .status import MAX_ABS_REFLECTANCE
 from .templates import render
 from .vectypes import VecTypes, pad_pixels
 
@@ -35,7 +37,7 @@ class GvmiKernel:
     :param max_abs: |reflectance| above which a pixel is invalid.
     """
 
-    def __init__(self, *, real_t: str = "float32", lanes: int | None = None, max_abs: float = 10.0,
+    def __init__(self, *, real_t: str = "float32", lanes: int | None = None, max_abs: float = MAX_ABS_REFLECTANCE,
                  rt: Runtime | None = None):
         self.rt = rt or get_runtime()
         if real_t == "float64" and not self.rt.has_fp64:

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from .analysis import AnalysisSettings
+from .design import check_design, count_underdetermined
 from .errors import InputError
 from .library import SpectralLibrary
 from .scene import Scene
@@ -62,11 +63,29 @@ def plan_sweep(scene: Scene, *, backend: str = "opencl", chunk: int | None = Non
     _check(scene)
     space = sweep_space(scene)
     analysis = AnalysisSettings.from_scene(scene, space.bands)
+    check_fittable(scene, space, analysis)
     tables = _tables(scene, space, analysis)
     chunk = chunk or scene.spec.sweep.chunk or auto_chunk(tables)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
     return SweepJob(tables, analysis, chunk=chunk, backend=backend, precision=scene.spec.output.precision,
-                    scene_name=scene.name, scene_text=text)
+                    scene_name=scene.name, scene_text=text, underdetermined=scene.spec.sweep.underdetermined)
+
+
+def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
+    """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.design`), counted without
+    enumerating them; None when there are too many distinct centres to count."""
+    return count_underdetermined(analysis.kind, space.per_band, nir_slot=analysis.nir_slot,
+                                 swir_slot=analysis.swir_slot)
+
+
+def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
+    """Refuse, before any work, a sweep in which no configuration can be fitted (one line naming the
+    reason, e.g. a fixed design with two IGRM bands on one centre)."""
+    bad = underdetermined_count(space, analysis)
+    if bad is not None and bad == space.size:
+        first = space.shapes(0, 1)[0]
+        check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
+                     nir_slot=analysis.nir_slot, swir_slot=analysis.swir_slot)
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:

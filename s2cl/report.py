@@ -41,24 +41,54 @@ def shapes(row: Any, bands: list[str]) -> dict[str, list[float]]:
     return {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands}
 
 
+def rankable(df: Any, meta: dict[str, str]) -> Any:
+    """The configurations a ranking may use: without the designs the analysis cannot fit
+    (``underdetermined``, :mod:`s2cl.design`) unless the sweep keeps them (``sweep.underdetermined``).
+    Every ranking, heatmap and paper comparison goes through this one function."""
+    if "underdetermined" not in df.columns or meta.get("underdetermined", "exclude") == "keep":
+        return df
+    return df[~df["underdetermined"].to_numpy(dtype=bool)]
+
+
+def underdetermined_summary(df: Any, meta: dict[str, str]) -> dict[str, Any]:
+    """How many designs were flagged, what the ranking did with them, and which bands coincided."""
+    flags = df["underdetermined"].to_numpy(dtype=bool) if "underdetermined" in df.columns else np.zeros(len(df), bool)
+    out: dict[str, Any] = {"count": int(flags.sum()), "ranking": meta.get("underdetermined", "exclude")}
+    bands = bands_of(df)
+    pairs: dict[str, int] = {}
+    for i, a in enumerate(bands):
+        for b in bands[i + 1:]:
+            same = flags & (np.abs(df[f"{a}_centre_nm"].to_numpy() - df[f"{b}_centre_nm"].to_numpy()) < 1e-6)
+            if same.any():
+                pairs[f"{a}={b}"] = int(same.sum())
+    out["coincident_centres"] = pairs
+    return out
+
+
 def summarise(df: Any, meta: dict[str, str], reference: dict[str, Any] | None = None, top: int = 10
               ) -> dict[str, Any]:
-    """Best configurations and the reference, with every robustness column."""
+    """Best configurations and the reference, with every robustness and fit-accounting column; ranks only
+    :func:`rankable` configurations."""
     metric = metric_of(list(df.columns))
     bands = bands_of(df)
-    ranked = df.sort_values([metric, "config"], na_position="last")
+    pool = rankable(df, meta)
+    ranked = pool.sort_values([metric, "config"], na_position="last")
     keep = [c for c in df.columns if not c.endswith(("_centre_nm", "_width_nm"))]
 
     def entry(row: Any) -> dict[str, Any]:
         return {"bands": shapes(row, bands), **{k: _plain(row[k]) for k in keep}}
 
-    out: dict[str, Any] = {"scene": meta.get("scene", ""), "configurations": len(df), "metric": metric,
-                           "bands": bands, "best": entry(ranked.iloc[0]),
-                           "top": [entry(r) for _, r in ranked.head(top).iterrows()]}
+    out: dict[str, Any] = {"scene": meta.get("scene", ""), "configurations": len(df), "ranked": len(pool),
+                           "metric": metric, "bands": bands, "underdetermined": underdetermined_summary(df, meta)}
+    if "regress" in meta:
+        out["regress"] = json.loads(meta["regress"])
+    if len(ranked):
+        out["best"] = entry(ranked.iloc[0])
+    out["top"] = [entry(r) for _, r in ranked.head(top).iterrows()]
     if reference is not None:
         out["reference"] = {"bands": {b: [reference[f"{b}_centre_nm"], reference[f"{b}_width_nm"]] for b in bands},
                             **{k: _plain(reference[k]) for k in keep if k in reference}}
-        better = np.sum(df[metric].to_numpy() < reference[metric])
+        better = np.sum(pool[metric].to_numpy() < reference[metric])
         out["reference"]["configurations_better"] = int(better)
     return out
 
@@ -190,7 +220,7 @@ def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, 
     hit = _match(df, bands, row["best"])
     if len(hit):
         r = hit.iloc[0]
-        rank = int(np.sum(df[metric].to_numpy() < r[metric])) + 1
+        rank = int(np.sum(df[metric].to_numpy() < r[metric])) + 1  # df: the rankable configurations
         out["paper_best_in_s2cl"] = {k: _plain(r[k]) for k in (metric, "robust_rms", "bound_fraction",
                                                               "failed_fraction") if k in r.index}
         out["paper_best_in_s2cl"]["rank"] = rank

@@ -6,8 +6,10 @@ angle exceeds it stay unclassified. Several references may share a class (e.g. e
 mineral of a library as its own reference). The paper scores a band design by the mean
 omission error of the confusion matrix (Segl et al. 2012, section 4.2.2).
 
-Hard cases: a pixel with |p| = 0 has no direction (status 2, unclassified); NaN/inf pixels are
-invalid (status 3); a zero reference is refused with :class:`InputError`; identical references
+Hard cases: a pixel with |p| = 0 has no direction (ZERO_VECTOR, unclassified); NaN/inf pixels are
+invalid (INVALID_INPUT); statuses are the shared codes of :mod:`s2cl.status`, the rule is the
+sweep kernel's (``kernels/common/stages.mako``); a zero reference is refused with :class:`InputError`;
+identical references
 are allowed (a band design can make two minerals indistinguishable) and the first one wins
 every tie, so results are deterministic and the confusion matrix shows the confusion.
 """
@@ -22,17 +24,18 @@ import numpy as np
 from .bufferpool import BufferPool
 from .errors import InputError
 from .runtime import Runtime, get_runtime
+from .status import MAX_ABS_REFLECTANCE, Status
 from .templates import render
 from .vectypes import VecTypes, pad_pixels
 
 
 class SamStatus(enum.IntEnum):
-    """Per-pixel outcome (``status``, uint8)."""
+    """Per-pixel outcome (``status``, uint8): the shared codes of :class:`s2cl.status.Status`."""
 
-    CLASSIFIED = 0
-    UNCLASSIFIED = 1  #: best angle above the threshold
-    ZERO_VECTOR = 2  #: |pixel| = 0: no spectral direction
-    INVALID_INPUT = 3  #: NaN, inf or |rho| > max_abs
+    CLASSIFIED = Status.OK
+    UNCLASSIFIED = Status.UNCLASSIFIED  #: best angle above the threshold
+    ZERO_VECTOR = Status.DEGENERATE  #: |pixel| = 0: no spectral direction
+    INVALID_INPUT = Status.INVALID  #: NaN, inf or |rho| > max_abs
 
 
 @dataclass
@@ -61,7 +64,7 @@ class SamClassifier:
 
     def __init__(self, references: np.ndarray, reference_classes: np.ndarray | None = None, *,
                  threshold_rad: float | None = None, real_t: str = "float32", lanes: int | None = None,
-                 max_abs: float = 10.0, rt: Runtime | None = None):
+                 max_abs: float = MAX_ABS_REFLECTANCE, rt: Runtime | None = None):
         self.rt = rt or get_runtime()
         refs = np.asarray(references, dtype=np.float64)
         if refs.ndim != 2 or refs.shape[0] < 1 or refs.shape[1] < 1:
@@ -159,5 +162,6 @@ def score_classification(true_class: np.ndarray, result: SamResult, n_classes: i
         mean_omission=float(omission[present].mean()) if present.any() else 0.0,
         overall_accuracy=float(np.trace(cm[:, :n_classes]) / n) if n else 0.0,
         frac_unclassified=float(cm[:, -1].sum() / n) if n else 0.0,
-        frac_invalid=float(np.mean(result.status >= SamStatus.ZERO_VECTOR)) if n else 0.0,
+        frac_invalid=float(np.mean(np.isin(result.status, (SamStatus.ZERO_VECTOR, SamStatus.INVALID_INPUT))))
+        if n else 0.0,
     )

@@ -121,6 +121,9 @@ class SweepSpec(_Section):
     step_nm: float = Field(5.0, gt=0, le=100)
     ranges: dict[str, RangeSpec] = Field(default_factory=dict)
     chunk: int | None = Field(None, ge=1, le=1_000_000, description="configurations per chunk (default: auto)")
+    underdetermined: Literal["exclude", "keep"] = Field(
+        "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, s2cl.design): "
+        "left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
 
 
 class AnalysisSpec(_Section):
@@ -133,6 +136,10 @@ class AnalysisSpec(_Section):
     classes: list[str] | None = Field(None, description="sam: library groups to tell apart (default: all)")
     angle_threshold_deg: float | None = Field(None, gt=0, le=90, description="sam: larger angles are unclassified")
     igrm: dict[str, Any] = Field(default_factory=dict, description="IGRM fit settings (see s2cl.igrm)")
+    regress: list[Literal["converged", "stalled", "iteration_limit"]] = Field(
+        ["converged", "stalled", "iteration_limit"], min_length=1,
+        description="IGRM fit statuses whose lp enters the regression (degenerate and invalid fits never do; "
+        "the summary counts the pixels left out)")
 
 
 class SpatialSpec(_Section):

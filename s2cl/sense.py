@@ -12,7 +12,9 @@ from .errors import DeviceError, InputError
 from .kernel_args import Arg, bind, signature
 from .runtime import Runtime
 from .sensor import Band
+from .status import PixelFlag
 from .templates import render
+from .vectypes import VecTypes
 
 TEMPLATE = "sense.cl.mako"
 MAX_PIXELS = 2**32 - 1
@@ -70,7 +72,8 @@ class Radiometry:
 class SenseResult:
     """Outputs of the radiometric stage; arrays are ``(n_bands, n_pixels)``, None when the stage is off.
 
-    :param clipped: ``(2, n_bands)`` counts of pixels below Lmin / above Lmax (quantise only).
+    :param clipped: ``(2, n_bands)`` counts of pixels below Lmin (NaN included) / above Lmax (quantise only).
+    :param flags: ``(n_bands, n_pixels)`` uint8 :class:`s2cl.status.PixelFlag` bits (quantise only).
     """
 
     noisy: np.ndarray | None
@@ -78,6 +81,15 @@ class SenseResult:
     calibrated: np.ndarray | None
     clipped: np.ndarray | None
     reflectance: np.ndarray | None = None
+    flags: np.ndarray | None = None
+
+
+def clipped_counts(flags: np.ndarray) -> np.ndarray:
+    """``(2, n_bands)`` counts below Lmin (NaN radiance included) and above Lmax from pixel flags
+    ``(n_bands, n_pixels)``."""
+    low = (flags & (PixelFlag.LOW | PixelFlag.NODATA)) != 0
+    high = (flags & PixelFlag.HIGH) != 0
+    return np.stack([low.sum(axis=1), high.sum(axis=1)]).astype(np.int64)
 
 
 def _args(effects: EffectSet) -> list[Arg]:
@@ -85,7 +97,7 @@ def _args(effects: EffectSet) -> list[Arg]:
     if effects.noise:
         args.append(Arg("noisy", "out", "real_t"))
     if effects.quantise:
-        args += [Arg("dn", "out", "ushort"), Arg("clipped", "inout", "uint")]
+        args += [Arg("dn", "out", "ushort"), Arg("flags", "out", "uchar")]
     if effects.calibrate:
         args.append(Arg("calibrated", "out", "real_t"))
     if effects.correct:
@@ -126,7 +138,7 @@ class Sensing:
         if effects.correct and (correction is None or correction.n_bands != radiometry.n_bands):
             raise InputError("the correct effect needs band-effective atmospheric terms for every band")
         self.source = render(TEMPLATE, args=self.args, signature=signature, n_bands=radiometry.n_bands,
-                             band_ids=list(radiometry.band_ids), noise=effects.noise,
+                             band_ids=list(radiometry.band_ids), noise=effects.noise, T=VecTypes(real_t, 1),
                              quantise=effects.quantise, calibrate=effects.calibrate, correct=effects.correct)
         program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))
         self.kernel = rt.kernel(program, "sense_bands")
@@ -158,13 +170,16 @@ class Sensing:
             noisy=np.empty((nb, n), self.dtype) if e.noise else None,
             dn=np.empty((nb, n), np.uint16) if e.quantise else None,
             calibrated=np.empty((nb, n), self.dtype) if e.calibrate else None,
-            clipped=np.zeros((2, nb), np.int64) if e.quantise else None,
+            clipped=None,
             reflectance=np.empty((nb, n), self.dtype) if e.correct else None,
+            flags=np.empty((nb, n), np.uint8) if e.quantise else None,
         )
         chunk = chunk_pixels or max(1, (64 * 2**20) // (nb * 8))
         for lo in range(0, n, chunk):
             hi = min(n, lo + chunk)
             self._chunk(radiance[:, lo:hi], lo, hi, result, seed, frame, pixel_offset, local_size)
+        if result.flags is not None:
+            result.clipped = clipped_counts(result.flags)
         return result
 
     def _chunk(self, radiance, lo, hi, result, seed, frame, pixel_offset, local_size) -> None:
@@ -178,7 +193,7 @@ class Sensing:
             values.update(seed=seed, frame=frame)
         if self.effects.quantise:
             outs["dn"] = rt.empty(nb * m * 2)
-            outs["clipped"] = rt.zeros(2 * nb * 4)
+            outs["flags"] = rt.empty(nb * m)
             values["maxdn"] = self.radiometry.maxdn
         if self.effects.calibrate:
             outs["calibrated"] = rt.empty(nb * m * item)
@@ -192,7 +207,7 @@ class Sensing:
             result.noisy[:, lo:hi] = rt.fetch(outs["noisy"], (nb, m), self.dtype)
         if "dn" in outs:
             result.dn[:, lo:hi] = rt.fetch(outs["dn"], (nb, m), np.uint16)
-            result.clipped += rt.fetch(outs["clipped"], (2, nb), np.uint32)
+            result.flags[:, lo:hi] = rt.fetch(outs["flags"], (nb, m), np.uint8)
         for name in ("calibrated", "reflectance"):
             if name in outs:
                 getattr(result, name)[:, lo:hi] = rt.fetch(outs[name], (nb, m), self.dtype)

@@ -18,9 +18,10 @@ from .library import SpectralLibrary
 from .resample import AtmosphereArrays, ResamplePlan, Resampler
 from .runtime import Runtime, get_runtime
 from .scene import Scene
-from .sense import Radiometry, SenseResult, Sensing
+from .sense import Radiometry, SenseResult, Sensing, clipped_counts
 from .sensor import Sensor
 from .srf import point_weights
+from .status import PixelFlag
 
 Progress = Callable[[int], None]
 
@@ -45,6 +46,8 @@ class LibrarySimulation:
     calibrated: np.ndarray | None = None
     reflectance: np.ndarray | None = None
     clipped: np.ndarray | None = None
+    #: per band and pixel, :class:`s2cl.status.PixelFlag` bits (below Lmin, saturated, no data)
+    flags: np.ndarray | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
 
@@ -77,6 +80,8 @@ class LibrarySimulation:
             if self.clipped is not None:
                 row["clipped_low_pct"] = 100.0 * float(self.clipped[0, k]) / self.n_pixels
                 row["clipped_high_pct"] = 100.0 * float(self.clipped[1, k]) / self.n_pixels
+            if self.flags is not None:
+                row["nodata_pct"] = 100.0 * float(np.count_nonzero(self.flags[k] & PixelFlag.NODATA)) / self.n_pixels
             if self.calibrated is not None:
                 err = self.calibrated[k].astype(np.float64) - L[:, None]
                 row["rms_error_vs_noise_free"] = float(np.sqrt(np.mean(err**2)))
@@ -161,20 +166,20 @@ class Simulator:
         result.dn = np.empty((nb, ns, c), np.uint16) if e.quantise else None
         result.calibrated = np.empty((nb, ns, c), dtype) if e.calibrate else None
         result.reflectance = np.empty((nb, ns, c), dtype) if e.correct else None
-        result.clipped = np.zeros((2, nb), np.int64) if e.quantise else None
+        result.flags = np.empty((nb, ns, c), np.uint8) if e.quantise else None
         per_chunk = max(1, (1 << 20) // c)
         for lo in range(0, ns, per_chunk):
             hi = min(ns, lo + per_chunk)
             expanded = np.repeat(result.band_radiance[:, lo:hi], c, axis=1)
             out = self.sensing(expanded, seed=seed, frame=frame, pixel_offset=lo * c)
-            for name in ("noisy", "dn", "calibrated", "reflectance"):
+            for name in ("noisy", "dn", "calibrated", "reflectance", "flags"):
                 part = getattr(out, name)
                 if part is not None:
                     getattr(result, name)[:, lo:hi] = part.reshape(nb, hi - lo, c)
-            if out.clipped is not None:
-                result.clipped += out.clipped
             if progress:
                 progress((hi - lo) * c)
+        if result.flags is not None:
+            result.clipped = clipped_counts(result.flags.reshape(nb, -1))
 
 
 def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,

@@ -3,13 +3,15 @@ GVMI or SAM on the corrected band reflectances, scored with the same metrics as 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .analysis import AnalysisSettings
+from .design import check_design
 from .errors import InputError
-from .metrics import classification_metrics, regression_metrics
+from .metrics import classification_metrics, condition_code, regression_metrics
 from .scene import Scene
 from .simulate import LibrarySimulation
 
@@ -29,55 +31,90 @@ def analysis_bands(scene: Scene) -> list[str]:
     return list(scene.sensor.band_names)
 
 
-def analyse(scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
-    """Metrics of the scene's [analysis] on ``sim`` (needs the correct effect)."""
+def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
+    """The bands and settings of the scene's [analysis], refused in one line (file and key) when the
+    retrieval cannot fit that design (:mod:`s2cl.design`, the rule sweeps apply): call it before work."""
+    bands = analysis_bands(scene)
+    settings = AnalysisSettings.from_scene(scene, bands)
+    shapes = [scene.sensor.band(b) for b in bands]
+    check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
+                 source=scene.source, key="analysis.bands", nir_slot=settings.nir_slot, swir_slot=settings.swir_slot)
+    return bands, settings
+
+
+@dataclass
+class PixelResults:
+    """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
+    (:class:`s2cl.reference.sweep.RawChunk`): ``index`` (λp nm, GVMI, or SAM class with
+    ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
+    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
+    the simulated pixels analysed (SAM: those of the chosen classes)."""
+
+    settings: AnalysisSettings
+    bands: list[str]
+    index: np.ndarray
+    status: np.ndarray
+    bounds: np.ndarray
+    condition: np.ndarray | None
+    target: np.ndarray
+    pixels: np.ndarray
+    classes: list[str] | None = None
+
+
+def pixel_results(scene: Scene, sim: LibrarySimulation) -> PixelResults:
+    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, in the scene's precision,
+    with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
     if sim.reflectance is None:
         raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
                          source=scene.source, key="effects.correct")
-    bands = analysis_bands(scene)
+    bands, settings = analysis_design(scene)
+    real_t = scene.spec.output.precision
     rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
-    settings = AnalysisSettings.from_scene(scene, bands)
     refl = sim.reflectance[rows].reshape(len(rows), -1)
     lib = sim.library
-    out: dict[str, Any] = {"kind": settings.kind, "bands": bands}
     if settings.kind == "sam":
-        classes = scene.spec.analysis.classes or sorted(set(lib.groups))
-        keep = np.isin(np.array(lib.groups), classes)
-        truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
-        pixels = np.repeat(keep, sim.copies)
-        refs = _class_references(scene, lib, bands, classes)
         from .sam import SamClassifier
 
+        classes = scene.spec.analysis.classes or sorted(set(lib.groups))
+        pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
+        truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
         threshold = settings.angle_threshold_deg
-        result = SamClassifier(refs, threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(
-            refl[:, pixels])
-        m = classification_metrics(np.maximum(result.label, 0)[None], _sam_status(result)[None],
-                                   truth[pixels], len(classes))
-        out.update(classes=classes, confusion=m.pop("confusion")[0].tolist())
+        r = SamClassifier(_class_references(scene, lib, bands, classes), real_t=real_t,
+                          threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(refl[:, pixels])
+        index = np.where(r.label >= 0, r.label, len(classes)).astype(np.float64)
+        return PixelResults(settings, bands, index, r.status, np.zeros_like(r.status), None, truth[pixels], pixels,
+                            classes)
+    target = np.repeat(np.asarray(lib.params[settings.parameter], dtype=np.float64), sim.copies)
+    everything = np.ones(refl.shape[1], dtype=bool)
+    if settings.kind == "igrm":
+        from .igrm import IgrmFitter, IgrmSettings
+
+        centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
+        order = np.argsort(centres, kind="stable")
+        fit = IgrmFitter(len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
+                         real_t=real_t)
+        r = fit.fit(refl[order], centres[order])
+        return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
+                            everything)
+    from .gvmi import GvmiKernel
+
+    g = GvmiKernel(real_t=real_t)(refl, settings.nir_slot, settings.swir_slot)
+    return PixelResults(settings, bands, g.gvmi, g.status, np.zeros_like(g.status), None, target, everything)
+
+
+def analyse(scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
+    """Metrics of the scene's [analysis] on ``sim``: the same columns a sweep row has."""
+    r = pixel_results(scene, sim)
+    out: dict[str, Any] = {"kind": r.settings.kind, "bands": r.bands}
+    if r.settings.kind == "sam":
+        m = classification_metrics(r.index.astype(np.int64)[None], r.status[None], r.target, len(r.classes))
+        out.update(classes=r.classes, confusion=m.pop("confusion")[0].tolist())
     else:
-        target = np.repeat(np.asarray(lib.params[settings.parameter], dtype=np.float64), sim.copies)
-        if settings.kind == "igrm":
-            from .igrm import IgrmFitter, IgrmSettings
-
-            centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
-            order = np.argsort(centres, kind="stable")
-            fit = IgrmFitter(len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source))
-            r = fit.fit(refl[order], centres[order])
-            index, status, bounds = r.lp, r.status, r.bounds
-        else:
-            from .gvmi import GvmiKernel
-
-            g = GvmiKernel()(refl, settings.nir_slot, settings.swir_slot)
-            index, status, bounds = g.gvmi, g.status, np.zeros_like(g.status)
-        m = regression_metrics(index[None], status[None], bounds[None], target)
-        out["parameter"] = settings.parameter
+        m = regression_metrics(r.index[None], r.status[None], r.bounds[None], r.target, regress=r.settings.regress,
+                               condition=None if r.condition is None else r.condition[None])
+        out["parameter"] = r.settings.parameter
     out.update({k: np.asarray(v)[0].item() for k, v in m.items()})
     return out
-
-
-def _sam_status(result: Any) -> np.ndarray:
-    """SAM statuses in the shared codes (0 classified, 2 unclassified, 3 invalid)."""
-    return np.where(result.label >= 0, 0, np.where(result.status >= 2, 3, 2)).astype(np.uint8)
 
 
 def _class_references(scene: Scene, lib: Any, bands: list[str], classes: list[str]) -> np.ndarray:

@@ -29,12 +29,15 @@ import numpy as np
 
 from . import __version__
 from .analysis import AnalysisSettings
+from .design import underdetermined
 from .errors import DependencyError, InputError
 from .metrics import classification_metrics, regression_metrics
 from .output import atomic_path, write_json
 from .reference.sweep import RawChunk
+from .status import REGRESS_NAMES
 from .sweep_tables import SweepTables
 
+REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
 MANIFEST = "manifest.json"
 RESULTS = "results.parquet"
 CHUNKS = "chunks"
@@ -52,6 +55,8 @@ class SweepJob:
     precision: str = "float32"
     scene_name: str = ""
     scene_text: str = ""
+    #: ranking policy for designs the analysis cannot fit ("exclude" or "keep"; sweep.underdetermined)
+    underdetermined: str = "exclude"
 
     @property
     def n_configs(self) -> int:
@@ -105,15 +110,20 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
     from .reference.sweep import variant_indices
 
     idx = variant_indices(t, start, stop)
+    centres = np.stack([t.centre[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
+    widths = np.stack([t.width[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
     for k, b in enumerate(t.bands):
-        rows[f"{b}_centre_nm"] = t.centre[k][idx[:, k]]
-        rows[f"{b}_width_nm"] = t.width[k][idx[:, k]]
-    if job.analysis.kind == "sam":
+        rows[f"{b}_centre_nm"] = centres[:, k]
+        rows[f"{b}_width_nm"] = widths[:, k]
+    a = job.analysis
+    rows["underdetermined"] = underdetermined(a.kind, centres, widths, nir_slot=a.nir_slot, swir_slot=a.swir_slot)
+    if a.kind == "sam":
         m = classification_metrics(raw.index.astype(np.int64), raw.status, t.target.astype(np.int64),
                                    len(t.class_names))
         m.pop("confusion")
     else:
-        m = regression_metrics(raw.index, raw.status, raw.bounds, t.target)
+        m = regression_metrics(raw.index, raw.status, raw.bounds, t.target, regress=a.regress,
+                               condition=raw.condition if a.kind == "igrm" else None)
     for k, v in m.items():
         rows[k] = np.asarray(v)
     return rows
@@ -195,7 +205,9 @@ def merge_results(job: SweepJob, out: Path) -> Path:
     table = pa.concat_tables(tables)
     meta = {b"s2cl_version": __version__.encode(), b"scene": job.scene_name.encode(),
             b"scene_toml": job.scene_text.encode(), b"fingerprint": job.fingerprint().encode(),
-            b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode()}
+            b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode(),
+            b"underdetermined": job.underdetermined.encode(),
+            b"regress": json.dumps([REGRESS_LABELS[c] for c in job.analysis.regress]).encode()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
     path = out / RESULTS
     with atomic_path(path) as tmp:

@@ -8,6 +8,7 @@ from .analysis import AnalysisSettings
 from .errors import DeviceError, InputError
 from .reference.sweep import RawChunk
 from .runtime import Runtime, get_runtime
+from .status import MAX_ABS_REFLECTANCE
 from .sweep_tables import SweepTables
 from .templates import render
 from .vectypes import VecTypes
@@ -34,15 +35,17 @@ class SweepKernel:
                          row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
                          noise=t.noise, quantise=t.quantise, kind=analysis.kind, nir=analysis.nir_slot,
-                         swir=analysis.swir_slot, n_classes=len(t.class_names), cos2_min=self._cos2_min())
+                         swir=analysis.swir_slot, n_classes=len(t.class_names), cos_min=self._cos_min(),
+                         max_abs=MAX_ABS_REFLECTANCE)
         variables.update(self._igrm_variables(precision))
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
 
-    def _cos2_min(self) -> float:
+    def _cos_min(self) -> float:
+        """cos of the SAM angle threshold; -2 (below -1) for none."""
         a = self.analysis.angle_threshold_deg
-        return -1.0 if a is None else float(np.cos(np.deg2rad(a)) ** 2)
+        return -2.0 if a is None else float(np.cos(np.deg2rad(a)))
 
     def _igrm_variables(self, precision: str) -> dict:
         if self.analysis.kind != "igrm":
@@ -77,13 +80,14 @@ class SweepKernel:
             raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
         rt, dtype, pitch = self.rt, self.T.dtype, self.pitch
         index_d = rt.empty(n * pitch * dtype.itemsize)
-        status_d, bounds_d = rt.empty(n * pitch), rt.empty(n * pitch)
+        status_d, bounds_d, cond_d = rt.empty(n * pitch), rt.empty(n * pitch), rt.empty(n * pitch)
         b = self.buffers
-        self.kernel(rt.queue, (pitch // self.T.lanes, n), None, index_d, status_d, bounds_d, b["radiance"],
+        self.kernel(rt.queue, (pitch // self.T.lanes, n), None, index_d, status_d, bounds_d, cond_d, b["radiance"],
                     b["sigma"], b["z"], b["centre"], b["lp"], b["g"], b["s"], b["refs"], np.uint32(start),
                     np.uint32(n))
         m = self.tables.n_pixels
         index = rt.fetch(index_d, (n, pitch), dtype)[:, :m].astype(np.float64)
         status = rt.fetch(status_d, (n, pitch), np.uint8)[:, :m]
         bounds = rt.fetch(bounds_d, (n, pitch), np.uint8)[:, :m]
-        return RawChunk(start, stop, index, status, bounds)
+        condition = rt.fetch(cond_d, (n, pitch), np.uint8)[:, :m]
+        return RawChunk(start, stop, index, status, bounds, condition)

@@ -10,7 +10,8 @@ spectrum, here, in float64; every configuration is then a gather from these tabl
 - ``lp, g, s[k][v]``: band-effective correction terms of the atmosphere the correction assumes;
 - ``z[k, p]``: the standard normal deviate of pixel ``p`` in slot ``k``, the same for every
   configuration (common random numbers: configurations differ by their bands, not by their
-  luck). ``z`` is the sensor-noise stream of s2cl's Philox generator keyed by (seed, pixel, slot).
+  luck). ``z`` is the sensor-noise stream of s2cl's Philox generator keyed by (seed, pixel, the
+  slot's band index in the sensor): the deviate ``s2cl simulate`` adds to that band.
 """
 
 from __future__ import annotations
@@ -179,8 +180,11 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
     copies = scene.spec.surface.copies
     n_pixels = library.size * copies
     e = scene.spec.effects
-    z = sensor_noise(e.seed, np.arange(n_pixels), list(range(space.counts.__len__())), e.frame)
     bands = [scene.sensor.band(r.band) for r in space.ranges]
+    # keyed by each band's index in the sensor, as `s2cl simulate` keys it: pixel p of band B gets the
+    # same deviate on both paths (and in every configuration: common random numbers)
+    band_ids = [scene.sensor.band_names.index(b.name) for b in bands]
+    z = sensor_noise(e.seed, np.arange(n_pixels), band_ids, e.frame)
     return SweepTables(
         bands=tuple(r.band for r in space.ranges), counts=tuple(space.counts),
         centre=tuple(per_slot["centre"]), width=tuple(per_slot["width"]),

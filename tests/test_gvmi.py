@@ -7,7 +7,7 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.gvmi import GvmiKernel, gvmi
-from s2cl.reference import gvmi as ref
+from s2cl.reference import stages as ref
 
 
 @pytest.mark.parametrize("n", [1, 13, 10007])
@@ -27,14 +27,21 @@ def test_gvmi_paper_range_for_dense_vegetation(rt):
     assert 0.2 < out.gvmi[0] < out.gvmi[1] < 0.8
 
 
-def test_gvmi_hard_cases(rt):
+def test_gvmi_hard_cases(rt, real_t):
+    """NaN/inf, |rho| > 10 and a non-positive offset term (NIR + 0.1 or SWIR + 0.02) are INVALID; the
+    last two pixels are the "GVMI of 199" case (denominator 1e-4, SWIR + 0.02 < 0) and a valid one
+    whose SWIR is slightly negative: kernel and numpy twin agree on every pixel."""
     refl = np.array([
-        [0.4, np.nan, 0.4, np.inf, -0.07, 0.0, 4000.0, 0.4],
-        [0.2, 0.2, np.nan, 0.2, -0.05, 0.0, 0.2, 0.2],
+        [0.4, np.nan, 0.4, np.inf, -0.07, 0.0, 4000.0, 0.4, 0.01 - 0.1, 0.3],
+        [0.2, 0.2, np.nan, 0.2, -0.05, 0.0, 0.2, 0.2, -0.0099 - 0.02, -0.01],
     ])
-    out = gvmi(refl, nir=0, swir=1)
+    out = gvmi(refl, nir=0, swir=1, real_t=real_t)
     assert np.all(np.isfinite(out.gvmi))
-    np.testing.assert_array_equal(out.status, [0, 3, 3, 3, 3, 0, 3, 0])
+    np.testing.assert_array_equal(out.status, [0, 3, 3, 3, 3, 0, 3, 0, 3, 0])
+    expect, status = ref.gvmi(refl[0], refl[1])
+    np.testing.assert_array_equal(out.status, status)
+    np.testing.assert_allclose(out.gvmi, expect, atol=1e-6)
+    assert np.all(np.abs(out.gvmi) < 1.0)
     assert np.all(out.gvmi[out.status == 3] == 0.0)
     assert out.gvmi[0] == out.gvmi[7]  # neighbours unaffected
     np.testing.assert_allclose(out.gvmi[5], 0.08 / 0.12, rtol=1e-6)

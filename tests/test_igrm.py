@@ -123,7 +123,13 @@ def test_fast_variant_matches_plain_builtin_variant(rt):
     y, _ = synthetic(20000, WL6, noise=0.003, seed=2)
     fast = IgrmFitter(6, lanes=8, exp="poly").fit(y, WL6)
     plain = IgrmFitter(6, lanes=1, exp="builtin").fit(y, WL6)
-    assert np.mean(fast.status == plain.status) >= 0.998
+    assert np.mean(fast.fitted() == plain.fitted()) >= 0.998
+    # statuses differ only at the CONVERGED/STALLED threshold (lp_tol_nm = 1e-3 nm), where two float32
+    # exp implementations round the Gauss-Newton step differently
+    differ = fast.status != plain.status
+    assert np.mean(differ) <= 0.005
+    assert set(np.unique(np.concatenate([fast.status[differ], plain.status[differ]]))) <= {0, 4}
+    assert np.all(np.abs(fast.lp - plain.lp)[differ] <= 0.01)
     d = np.abs(fast.lp - plain.lp)
     assert np.quantile(d, 0.99) <= 0.01 and np.mean(d <= 0.05) >= 0.998
 

@@ -5,8 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.analysis import DEGENERATE, INVALID, OK, gvmi, sam_classify
 from s2cl.metrics import classification_metrics, regression_metrics
+from s2cl.reference import stages
+from s2cl.status import Status
+
+DEGENERATE, INVALID, OK = Status.DEGENERATE, Status.INVALID, Status.OK
 
 
 def test_regression_matches_polyfit() -> None:
@@ -84,18 +87,21 @@ def test_confusion_and_omission() -> None:
     assert m["unclassified_fraction"][1] == pytest.approx(1 / 6)
 
 
-def test_gvmi_and_sam_hard_cases() -> None:
-    index, status = gvmi(np.array([0.4, np.nan, -0.2]), np.array([0.2, 0.1, -0.1]))
-    assert index[0] == pytest.approx((0.5 - 0.22) / (0.5 + 0.22)) and status.tolist() == [OK, INVALID, INVALID]
+def test_gvmi_and_sam_twins_hard_cases() -> None:
+    """The numpy twins' rules (the kernels' rules, kernels/common/stages.mako)."""
+    index, status = stages.gvmi(np.array([0.4, np.nan, -0.2, 0.01 - 0.1]), np.array([0.2, 0.1, -0.1, -0.0099 - 0.02]))
+    assert index[0] == pytest.approx((0.5 - 0.22) / (0.5 + 0.22))
+    assert status.tolist() == [Status.OK, Status.INVALID, Status.INVALID, Status.INVALID]  # last: "GVMI 199"
     refs = np.array([[1.0, 0.0], [0.0, 1.0]])
-    cls, angle, status = sam_classify(np.array([[2.0, 0.1], [0.0, 0.0], [np.nan, 1.0], [1.0, 1.0]]), refs)
-    assert cls.tolist()[:3] == [0, 2, 2] and status.tolist()[:3] == [OK, INVALID, INVALID]
+    cls, angle, status = stages.sam_classify(np.array([[2.0, 0.1], [0.0, 0.0], [np.nan, 1.0], [1.0, 1.0]]).T, refs)
+    assert cls.tolist()[:3] == [0, -1, -1]
+    assert status.tolist()[:3] == [Status.OK, Status.DEGENERATE, Status.INVALID]
     assert np.all(np.isfinite(angle))
     same = np.array([[1.0, 1.0], [1.0, 1.0]])  # identical references: first wins, deterministically
-    cls, _, status = sam_classify(np.array([[0.3, 0.2]]), same)
-    assert cls.tolist() == [0] and status.tolist() == [OK]
-    cls, _, status = sam_classify(np.array([[1.0, 0.0]]), refs[::-1] * np.array([[1.0], [0.0]]), 10.0)
-    assert status.tolist() == [DEGENERATE] and cls.tolist() == [2]
+    cls, _, status = stages.sam_classify(np.array([[0.3, 0.2]]).T, same)
+    assert cls.tolist() == [0] and status.tolist() == [Status.OK]
+    cls, _, status = stages.sam_classify(np.array([[1.0, 1.0]]).T, refs, np.deg2rad(10.0))  # 45 degrees
+    assert status.tolist() == [Status.UNCLASSIFIED] and cls.tolist() == [-1]
 
 
 def test_batched_metrics_agree_with_single_population_fit() -> None:

@@ -9,6 +9,7 @@ from s2cl.effects import EffectSet
 from s2cl.errors import InputError
 from s2cl.reference import forward as ref
 from s2cl.sense import Radiometry, Sensing
+from s2cl.status import PixelFlag
 
 QC = EffectSet(noise=False, quantise=True, calibrate=True)
 
@@ -55,12 +56,15 @@ def test_clipping_counts_and_saturation(rt) -> None:
     assert np.allclose(out.calibrated[0], 1.0 + out.dn[0] * (10 / 15))
 
 
-def test_nan_radiance_gives_dn_zero_and_counts_low(rt) -> None:
+def test_nan_radiance_is_flagged_no_data_never_a_silent_lmin(rt, real_t: str) -> None:
+    """NaN radiance: DN 0 with the NODATA flag and a NaN calibrated radiance (so a retrieval reports
+    it INVALID); +-inf saturate / clip low like any radiance beyond the range."""
     r = _radiometry(1.0, 11.0)
-    out = Sensing(rt, r, QC)(np.array([[np.nan, 5.0, np.inf, -np.inf]]))
+    out = Sensing(rt, r, QC, real_t)(np.array([[np.nan, 5.0, np.inf, -np.inf]]))
     assert out.dn[0].tolist() == [0, 1638, 4095, 0]  # (5 - 1) * 4095 / 10 = 1638
-    assert out.clipped.tolist() == [[2], [1]]
-    assert np.all(np.isfinite(out.calibrated))
+    assert out.flags[0].tolist() == [PixelFlag.NODATA, 0, PixelFlag.HIGH, PixelFlag.LOW]
+    assert out.clipped.tolist() == [[2], [1]]  # below Lmin counts NaN too
+    assert np.isnan(out.calibrated[0, 0]) and np.all(np.isfinite(out.calibrated[0, 1:]))
 
 
 @pytest.mark.parametrize("bits", [1, 8, 12, 16])

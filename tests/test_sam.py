@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.reference import sam as ref
+from s2cl.reference import stages as ref
 from s2cl.sam import SamClassifier, SamStatus, confusion_matrix, score_classification
 
 
@@ -24,7 +24,7 @@ def _scene(n: int, seed: int = 0):
 def test_sam_matches_oracle(rt, real_t, lanes):
     refs, _, pix = _scene(5003)
     out = SamClassifier(refs, real_t=real_t, lanes=lanes).classify(pix)
-    best, angle, status = ref.classify(pix, refs)
+    best, angle, status = ref.sam_classify(pix, refs)
     ang_all = np.sort(ref.spectral_angles(pix, refs), axis=0)
     clear = (ang_all[1] - ang_all[0]) > 1e-5  # not a near-tie
     np.testing.assert_array_equal(out.reference[clear], best[clear])

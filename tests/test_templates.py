@@ -17,9 +17,10 @@ from s2cl.sense import Radiometry, Sensing
 from s2cl.sensor import Sensor
 from s2cl.simulate import Simulator
 from s2cl.templates import render
+from s2cl.vectypes import VecTypes
 
 NOISE_MARKERS = ("s2_normal4", "s2_random.clh", "noise_a", "seed")
-QUANTISE_MARKERS = ("s2_quantise", "s2_quantise.clh", "maxdn", "dn[")
+QUANTISE_MARKERS = ("s2_quantise", "S2_QUANTISE_", "maxdn", "dn[", "flags[")
 CALIBRATE_MARKERS = ("s2_calibrate", "gain[")
 
 
@@ -34,13 +35,13 @@ def test_kernel_dir_is_independent_of_cwd(tmp_path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert (kernel_dir() / "sense.cl.mako").is_file()
     assert "sense_bands" in render("sense.cl.mako", args=[], signature=lambda a: "", n_bands=1, band_ids=[0],
-                                   noise=False, quantise=False, calibrate=False, correct=False)
+                                   noise=False, quantise=False, calibrate=False, correct=False, T=VecTypes())
 
 
 def test_missing_template_variable_is_an_error() -> None:
     with pytest.raises(RenderError) as err:
         render("sense.cl.mako", args=[], signature=lambda a: "", n_bands=1, noise=False, quantise=False,
-               calibrate=False, correct=False)
+               calibrate=False, correct=False, T=VecTypes())
     assert "band_ids" in str(err.value)
 
 

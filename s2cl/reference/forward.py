@@ -6,6 +6,8 @@ import numpy as np
 
 from ..sense import Radiometry
 from ..srf import BandWeights
+from ..status import PixelFlag
+from . import stages
 from .philox import sensor_noise
 
 
@@ -31,16 +33,11 @@ def add_noise(radiance: np.ndarray, r: Radiometry, seed: int, pixel_offset: int 
 
 
 def quantise(radiance: np.ndarray, r: Radiometry) -> tuple[np.ndarray, np.ndarray]:
-    """DN (uint16) with ties rounding up, and clipped counts ``(2, n_bands)`` (below Lmin, above Lmax)."""
-    L = np.asarray(radiance, dtype=np.float64)
-    x = (L - r.lmin[:, None]) * r.scale[:, None]
-    f = np.floor(np.where(np.isfinite(x), x, 0.0))
-    q = np.where(x - f >= 0.5, f + 1.0, f)
-    q = np.where(x > 0, q, 0.0)
-    dn = np.clip(q, 0, r.maxdn).astype(np.uint16)
-    low = ~(L >= r.lmin[:, None])
-    high = L > r.lmax[:, None]
-    return dn, np.stack([low.sum(axis=1), high.sum(axis=1)])
+    """DN (uint16) with ties rounding up, and clipped counts ``(2, n_bands)`` (below Lmin or NaN, above Lmax)."""
+    dn, flags = stages.quantise(radiance, r.lmin[:, None], r.lmax[:, None], r.maxdn)
+    low = (flags & (PixelFlag.LOW | PixelFlag.NODATA)) != 0
+    high = (flags & PixelFlag.HIGH) != 0
+    return dn.astype(np.uint16), np.stack([low.sum(axis=1), high.sum(axis=1)])
 
 
 def calibrate(dn: np.ndarray, r: Radiometry) -> np.ndarray:

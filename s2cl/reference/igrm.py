@@ -177,7 +177,30 @@ def fit_numpy_lm(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSet
     parts = [_lm_chunk(np.ascontiguousarray(refl[:, i:i + chunk], dtype=dtype), x, c) for i in range(0, n, chunk)]
     if not parts:
         parts = [_lm_chunk(np.zeros((nb, 0), dtype=dtype), x, c)]
-    return IgrmResult(*(np.concatenate([p[k] for p in parts]) for k in range(9)))
+    return IgrmResult(*(np.concatenate([p[k] for p in parts]) for k in range(10)))
+
+
+
+
+def log10_condition(a) -> np.ndarray:
+    """0.5 log10(1 / min d'_i) of the column-scaled J^T W J (upper triangle ``a``, 10 rows), capped
+    at 12: the kernel's condition estimate (``kernels/common/igrm_lm.mako``), same operation order."""
+    a00, a01, a02, a03, a11, a12, a13, a22, a23, a33 = a
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d0 = a00
+        l10, l20, l30 = a01 / d0, a02 / d0, a03 / d0
+        d1 = a11 - l10 * a01
+        t21, t31 = a12 - l20 * a01, a13 - l30 * a01
+        l21, l31 = t21 / d1, t31 / d1
+        d2 = a22 - l20 * a02 - l21 * t21
+        t32 = a23 - l30 * a02 - l31 * t21
+        d3 = a33 - l30 * a03 - l31 * t31 - (t32 / d2) * t32
+        m = d1 / a11
+        m = np.where(d2 / a22 < m, d2 / a22, m)  # NaN fails the comparison, as in the kernel
+        m = np.where(d3 / a33 < m, d3 / a33, m)
+        ok = (m > 1e-24) & (d0 > 0)
+        v = -0.5 * np.log10(np.where(ok, m, 1.0))
+    return np.where(ok, np.minimum(v, 12.0), 12.0)
 
 
 def _lm_chunk(y: np.ndarray, x: np.ndarray, c: KernelConfig):
@@ -191,8 +214,8 @@ def _lm_chunk(y: np.ndarray, x: np.ndarray, c: KernelConfig):
     *start, depth = initial_guess(y, x, c)
     flat = depth <= dt(c.depth_min)
     state = np.vstack([np.stack(start).astype(y.dtype), _evaluate(y, x, start, c)])
-    out = state[[0, 1, 2, 3, 5]].copy()  # p and RSS of every pixel
-    conv = np.zeros(n, dtype=bool)
+    out = state.copy()  # every pixel's state: p, cost, RSS, J^T W J, J^T W r
+    stopped = np.zeros(n, dtype=bool)
     iters = np.zeros(n, dtype=np.int64)
     live = np.flatnonzero(valid & ~flat)
     state, yl = state[:, live], y[:, live]
@@ -212,26 +235,40 @@ def _lm_chunk(y: np.ndarray, x: np.ndarray, c: KernelConfig):
         q[2] = np.clip(q[2], lo[2], hi[2])
         q[3] = np.clip(q[3], lo[3], hi[3])
         e = _evaluate(yl, x, q, c)
-        fn, an, bn = e[0], e[2:12], e[12:16]
+        fn = e[0]
         acc = ok & (fn < f)
         small = np.all(np.abs(q - p) <= dt(c.xtol) * (np.abs(p) + dt(0.1)), axis=0)
-        gf = fn * dt(c.gtol**2)
-        gsmall = np.ones(live.size, dtype=bool)
-        for j, diag in enumerate((0, 4, 7, 9)):
-            gsmall &= _active(q[j], bn[j], lo[j], hi[j]) | (bn[j] ** 2 <= gf * an[diag])
         fsmall = (f - fn) <= dt(c.ftol) * f
-        stop = (acc & ((fn <= dt(c.f_abs)) | gsmall | (fsmall & small))) | (~acc & ok & small)
+        tiny = (acc & fsmall & small) | (~acc & ok & small)
         state = np.where(acc, np.vstack([q, e]), state)
         lam = np.maximum(np.where(acc, lam * dt(c.lam_down), lam * dt(c.lam_up)), dt(c.lam_min))
         iters[live] += 1
-        done = stop | (lam > dt(c.lam_max))
+        # stopping rules at the point kept (kernels/common/igrm_lm.mako, step 4)
+        p, f, a, b = state[:4], state[4], state[6:16], state[16:20]
+        gf = f * dt(c.gtol**2)
+        gsmall = np.ones(live.size, dtype=bool)
+        for j, diag in enumerate((0, 4, 7, 9)):
+            gsmall &= _active(p[j], b[j], lo[j], hi[j]) | (b[j] ** 2 <= gf * a[diag])
+        done = (f <= dt(c.f_abs)) | gsmall | tiny | (lam > dt(c.lam_max))
         if done.any():
-            conv[live[done]] = True
-            out[:, live[done]] = state[[0, 1, 2, 3, 5]][:, done]
+            stopped[live[done]] = True
+            out[:, live[done]] = state[:, done]
             keep = ~done
             live, yl, lam, state = live[keep], yl[:, keep], lam[keep], state[:, keep]
-    out[:, live] = state[[0, 1, 2, 3, 5]]
-    return _finish(out[:4], out[4], conv, iters, valid, flat, c, y.dtype)
+    out[:, live] = state
+    conv = (out[4] <= dt(c.f_abs)) | _gauss_newton_near(out, lo, hi, c, dt)
+    return _finish(out[:4], out[5], conv, iters, valid, flat, c, y.dtype, stalled=stopped & ~conv, a=out[6:16])
+
+
+def _gauss_newton_near(state: np.ndarray, lo, hi, c: KernelConfig, dt) -> np.ndarray:
+    """Per pixel: does the undamped Gauss-Newton step from the state's point (free parameters) move
+    lp by at most lp_tol (the kernel's verdict CONVERGED, ``kernels/common/igrm_lm.mako``)?"""
+    p, b = state[:4], state[16:20]
+    act = [_active(p[j], b[j], lo[j], hi[j]) for j in range(4)]
+    m = _reduced_system(state[6:16], b, act, dt(1.0), dt(0.0), dt)
+    dg, ok = ldl4_solve(m[:10], m[10:], dt(c.pivot_rel))
+    dlp = dg[2] + dg[3]
+    return ok & (dlp <= dt(c.lp_tol)) & (dlp >= -dt(c.lp_tol))
 
 
 def _active(pj, bj, lo, hi):
@@ -254,13 +291,17 @@ def _reduced_system(a, b, act, damp, dfl, dt):
     ]
 
 
-def _finish(p, rss, conv, iters, valid, flat, c: KernelConfig, dtype, bound_tol: float = 0.0):
+def _finish(p, rss, conv, iters, valid, flat, c: KernelConfig, dtype, bound_tol: float = 0.0, *,
+            stalled=None, a=None):
     dt = np.dtype(dtype).type
     shallow = p[1] <= dt(c.depth_min)
     tol = dt(bound_tol)
+    stalled = np.zeros_like(conv) if stalled is None else stalled
     status = np.where(~valid, FitStatus.INVALID_INPUT,
                       np.where(flat | shallow, FitStatus.DEGENERATE,
-                               np.where(conv, FitStatus.CONVERGED, FitStatus.ITERATION_LIMIT))).astype(np.uint8)
+                               np.where(conv, FitStatus.CONVERGED,
+                                        np.where(stalled, FitStatus.STALLED, FitStatus.ITERATION_LIMIT)))
+                      ).astype(np.uint8)
     bounds = ((p[2] <= dt(c.lo_l) + tol) * 1 | (p[2] >= dt(c.hi_l) - tol) * 2 | (p[3] <= dt(c.lo_s) + tol) * 4
               | (p[3] >= dt(c.hi_s) - tol) * 8 | (p[1] <= tol) * 16 | (p[0] <= dt(c.rmin_lo) + tol) * 32)
     bounds = np.where(valid, bounds, 0).astype(np.uint8)
@@ -269,7 +310,8 @@ def _finish(p, rss, conv, iters, valid, flat, c: KernelConfig, dtype, bound_tol:
     out = [p[0] + p[1], p[0], l0, s, l0 + s, np.sqrt(rss / dt(c.n_bands))]
     out = [np.where(valid, v, dt(0.0)).astype(dtype) for v in out]
     it_dtype = np.uint8 if c.max_iter <= 255 else np.uint16
-    return (*out, status, iters.astype(it_dtype), bounds)
+    cond = None if a is None else np.where(valid, log10_condition(a), 0.0).astype(dtype)
+    return (*out, status, iters.astype(it_dtype), bounds, cond)
 
 
 # -- scipy oracle ---------------------------------------------------------------------------------

@@ -3,7 +3,7 @@
 
 Per configuration and pixel: gather noise-free band radiance and σ → add σ·z → quantise (ties
 up) → calibrate → band-effective correction (a calibration error is folded into its terms) → the
-analysis.
+analysis, through the stage twins of :mod:`s2cl.reference.stages` (the kernel's rules).
 """
 
 from __future__ import annotations
@@ -12,17 +12,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis import AnalysisSettings, gvmi, sam_classify
-from ..correction import MIN_DENOMINATOR
+from ..analysis import AnalysisSettings
+from ..metrics import condition_code
+from ..status import Status
 from ..sweep_tables import SweepTables
+from . import stages
 
 
 @dataclass
 class RawChunk:
     """Per (configuration, pixel) results of configurations ``start … stop-1``.
 
-    ``index``: λp (nm) for igrm, GVMI for gvmi, class index for sam (float64); ``status`` and
-    ``bounds`` (IGRM active-bound bits) are uint8; all ``(n_configs, n_pixels)``.
+    ``index``: λp (nm) for igrm, GVMI for gvmi, class index for sam (float64); ``status``
+    (:class:`s2cl.status.Status`), ``bounds`` (IGRM active-bound bits) and ``condition`` (IGRM:
+    round(20 log10 of the fit's condition estimate), 240 = capped) are uint8; all ``(n_configs, n_pixels)``.
     """
 
     start: int
@@ -30,6 +33,7 @@ class RawChunk:
     index: np.ndarray
     status: np.ndarray
     bounds: np.ndarray
+    condition: np.ndarray | None = None
 
 
 def variant_indices(t: SweepTables, start: int, stop: int) -> np.ndarray:
@@ -39,15 +43,6 @@ def variant_indices(t: SweepTables, start: int, stop: int) -> np.ndarray:
     for k in range(t.n_slots - 1, -1, -1):
         flat, out[:, k] = np.divmod(flat, t.counts[k])
     return out
-
-
-def quantise(L: np.ndarray, lmin: float, lmax: float, maxdn: int) -> np.ndarray:
-    """DN (as float64) with s2cl's rule: ties round up, clipped into [0, maxdn], NaN → 0."""
-    x = (L - lmin) * (maxdn / (lmax - lmin))
-    safe = np.where(np.isfinite(x), x, 0.0)
-    f = np.floor(safe)
-    q = np.where(safe - f >= 0.5, f + 1.0, f)
-    return np.clip(np.where(x > 0, q, 0.0), 0, maxdn)
 
 
 def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.ndarray], np.ndarray]:
@@ -61,10 +56,9 @@ def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.nda
         if t.noise:
             L = L + t.sigma[k][v][:, spectrum] * t.z[k][None, :]
         if t.quantise:
-            gain = (t.lmax[k] - t.lmin[k]) / t.maxdn
-            L = t.lmin[k] + quantise(L, t.lmin[k], t.lmax[k], t.maxdn) * gain
-        y = (L - t.lp[k][v][:, None]) / t.g[k][v][:, None]
-        rhos.append(y / np.maximum(1.0 + t.s[k][v][:, None] * y, MIN_DENOMINATOR))
+            dn, flags = stages.quantise(L, t.lmin[k], t.lmax[k], t.maxdn)
+            L = stages.calibrate(dn, flags, t.lmin[k], (t.lmax[k] - t.lmin[k]) / t.maxdn)
+        rhos.append(stages.correct(L, t.lp[k][v][:, None], t.g[k][v][:, None], t.s[k][v][:, None]))
         centres[:, k] = t.centre[k][v]
     return rhos, centres
 
@@ -74,32 +68,41 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
     rhos, centres = band_reflectance(t, start, stop)
     shape = rhos[0].shape
     bounds = np.zeros(shape, np.uint8)
+    condition = np.zeros(shape, np.uint8)
     if a.kind == "gvmi":
-        index, status = gvmi(rhos[a.nir_slot], rhos[a.swir_slot])
+        index, status = stages.gvmi(rhos[a.nir_slot], rhos[a.swir_slot])
     elif a.kind == "sam":
         idx = variant_indices(t, start, stop)
         refs = np.stack([t.references[k][idx[:, k]] for k in range(t.n_slots)], axis=-1)  # (n_cfg, n_cls, n_slots)
+        norms = np.sqrt((refs * refs).sum(-1, keepdims=True))
+        unit = refs * np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 0.0)
         pixels = np.stack(rhos, axis=-1)  # (n_cfg, n_px, n_slots)
-        cls, _, status = sam_classify(pixels, refs[:, None, :, :], a.angle_threshold_deg)
-        index = cls.astype(np.float64)
+        theta = a.angle_threshold_deg
+        best, _, _, status = stages.sam(pixels, unit[:, None, :, :], -2.0 if theta is None else
+                                        float(np.cos(np.deg2rad(theta))))
+        index = np.where(status == Status.OK, best, len(t.class_names)).astype(np.float64)
     else:
-        index, status, bounds = igrm_per_configuration(np.stack(rhos), centres, dict(a.igrm))
-    return RawChunk(start, stop, index, status, bounds)
+        index, status, bounds, condition = igrm_per_configuration(np.stack(rhos), centres, dict(a.igrm))
+    return RawChunk(start, stop, index, status, bounds, condition)
 
 
-def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict,
-                           dtype: type = np.float64) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict, dtype: type = np.float64
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """IGRM fits of ``rhos`` ``(n_slots, n_configs, n_pixels)`` with each configuration's band
     centres ``(n_configs, n_slots)``: the kernel's LM in vectorised numpy, one configuration at a
-    time. Returns λp (nm), status and bound bits, each ``(n_configs, n_pixels)``."""
+    time, the bands sorted by centre (stable) as the kernel sorts them. Returns λp (nm), status,
+    bound bits and condition codes, each ``(n_configs, n_pixels)``."""
     from ..igrm import IgrmSettings
     from .igrm import fit_numpy_lm
 
     s = IgrmSettings.from_mapping(settings)
     n_cfg, n_px = rhos.shape[1:]
-    index, status, bounds = np.empty((n_cfg, n_px)), np.empty((n_cfg, n_px), np.uint8), np.empty((n_cfg, n_px),
-                                                                                                   np.uint8)
+    index, status = np.empty((n_cfg, n_px)), np.empty((n_cfg, n_px), np.uint8)
+    bounds, condition = np.empty((n_cfg, n_px), np.uint8), np.empty((n_cfg, n_px), np.uint8)
     for i in range(n_cfg):
-        r = fit_numpy_lm(rhos[:, i, :], centres[i], s, dtype=dtype)
+        order = np.argsort(centres[i], kind="stable")
+        r = fit_numpy_lm(rhos[order, i, :], centres[i][order], s, dtype=dtype)
         index[i], status[i], bounds[i] = r.lp, r.status, r.bounds
-    return index, status, bounds
+        condition[i] = condition_code(r.log10_condition)
+    return index, status, bounds, condition
+
