@@ -15,6 +15,7 @@ import numpy as np
 
 from .errors import InputError
 from .igrm import BoundFlag, FitStatus, IgrmResult
+from .status import FITTED
 
 
 class RegressionStatus(enum.IntEnum):
@@ -159,8 +160,8 @@ def score_retrieval(index: np.ndarray, target: np.ndarray, *, status: np.ndarray
                     bounds: np.ndarray | None = None, degree: int = 2, trim: float = 0.01) -> RetrievalScore:
     """Regress ``target`` on ``index`` and score it (see :class:`RetrievalScore`).
 
-    :param status: per-pixel :class:`~s2cl.igrm.FitStatus` (or any uint8 status where 0 is
-        success and 2/3 mean no usable index); pixels with status 2 or 3 are excluded.
+    :param status: per-pixel :class:`s2cl.status.Status` (converged, stalled and iteration-limit fits
+        have an index; degenerate, invalid and unclassified ones are excluded).
     :param bounds: per-pixel :class:`~s2cl.igrm.BoundFlag` bits.
     :param trim: fraction of largest residuals left out of ``trimmed_rms``.
     """
@@ -173,7 +174,7 @@ def score_retrieval(index: np.ndarray, target: np.ndarray, *, status: np.ndarray
     bd = np.zeros(n, dtype=np.uint8) if bounds is None else np.asarray(bounds).ravel()
     if st.size != n or bd.size != n or y.size != n:
         raise InputError(f"index, target, status and bounds must have the same length ({n})", key="status")
-    fitted = (st == FitStatus.CONVERGED) | (st == FitStatus.ITERATION_LIMIT)
+    fitted = np.isin(st, FITTED)
     use = fitted & np.isfinite(x) & np.isfinite(y)
     fit = fit_polynomial(x, y, degree=degree, mask=use)
     err = fit.predict(x[use]) - y[use]
