@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError
+from .errors import OutputError
 
 
 def _umask() -> int:
@@ -33,17 +33,25 @@ def atomic_path(path: str | Path):
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as err:
-        raise InputError(f"cannot create output folder ({err})", source=target.parent) from err
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        raise OutputError(f"cannot write here ({_reason(err)})", path=target) from err
     os.close(fd)
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
         os.replace(tmp, target)
+    except OSError as err:  # a full disk, a folder removed under us: one line, no temp file left
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"cannot write ({_reason(err)})", path=target) from err
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _reason(err: OSError) -> str:
+    """The system's short reason for ``err`` (libraries such as h5py pack whole reports into theirs)."""
+    return os.strerror(err.errno) if err.errno else type(err).__name__
 
 
 def write_atomic(path: str | Path, writer: Callable[[Path], Any]) -> Path:

@@ -13,7 +13,7 @@ import numpy as np
 from . import __version__
 from .correction import BandAtmosphere
 from .effects import EffectSet
-from .errors import InputError
+from .errors import InputError, token
 from .library import SpectralLibrary
 from .resample import AtmosphereArrays, ResamplePlan, Resampler
 from .runtime import Runtime, get_runtime
@@ -203,10 +203,10 @@ def scene_library(scene: Scene) -> SpectralLibrary:
     spec = scene.spec.surface.library
     assert spec is not None
     name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
-    lib = load_library(name, scene.grid, source=scene.source)
     want = scene.spec.surface.quantity
+    lib = load_library(name, scene.grid, source=scene.source, key="surface.library", quantity=want)
     if lib.quantity != want:
-        raise InputError(f"library {spec!r} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
+        raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
                          source=scene.source, key="surface.quantity")
     return lib
 
