@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 
 #: Longest piece of a file's content an error message may quote (characters).
-TOKEN_LENGTH = 24
+TOKEN_LENGTH = 20
 
 
 def token(value: object, limit: int = TOKEN_LENGTH) -> str:

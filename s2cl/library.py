@@ -312,8 +312,8 @@ def load_csv_library(
     elif first == "wavelength":
         unit = wavelength_unit
     else:
-        raise InputError("first column must be named wavelength_nm, wavelength_um or wavelength, "
-                         f"got {token(header[0])}", source=source)
+        raise InputError("first column must be named wavelength_nm, wavelength_um or wavelength (is this a "
+                         "spectral library?)", source=source)
     names = [h.strip() for h in header[1:]]
     if not names:
         raise InputError("holds a wavelength column but no spectrum column", source=source)

@@ -29,8 +29,8 @@ def test_simulate_default_scene(tmp_path) -> None:
     assert out.returncode == 0, out.stderr
     assert out.stderr == ""  # no compiler output, no warnings: only the "wrote ..." line on stdout
     assert "warning" not in out.stdout.lower()
-    summary = json.loads((tmp_path / "sim" / "summary.json").read_text())
-    assert summary["pixels"] == 12_000 and len(summary["bands"]) == 13
+    summary = json.loads((tmp_path / "sim" / "simulation.json").read_text())
+    assert summary["pixels"] == 12_000 and len(summary["bands"]) == 13 and summary["warnings"] == []
     assert summary["analysis"]["kind"] == "igrm" and 0 < summary["analysis"]["rms"] < 30
     ds = xr.open_dataset(tmp_path / "sim" / "simulation.nc", engine="h5netcdf")
     assert ds["dn"].shape == (13, 120, 100) and ds["reflectance"].shape == (13, 120, 100)
