@@ -27,7 +27,7 @@ MAX_MEMORY_ENV = "S2CL_MAX_MEMORY"
 BASELINE_BYTES = 350e6
 #: per pixel and band of a simulate chunk: float32 radiance in, noisy/calibrated/reflectance out
 #: (float32), DN (uint16), their device buffers and the NetCDF write staging
-SIMULATE_BYTES_PER_PIXEL_BAND = 48
+SIMULATE_BYTES_PER_PIXEL_BAND = 56
 #: per pixel of the analysis in ``s2cl simulate``: the fit's outputs and device buffers and the float64
 #: work arrays of the metrics (regression residuals, medians) ...
 ANALYSIS_BYTES_PER_PIXEL = 96
@@ -71,7 +71,7 @@ class Budget:
         text = max_memory or os.environ.get(MAX_MEMORY_ENV) or None
         key = "--max-memory" if max_memory else MAX_MEMORY_ENV
         limit = parse_size(text, key=key) if text else DEFAULT_MAX_MEMORY
-        why = f"{key} {text}" if text else "the default limit (--max-memory)"
+        why = f"{key} {text}" if text else "the default limit; --max-memory raises it"
         free = int(0.9 * available_memory())
         if free < limit:
             return cls(free, f"90 % of the memory available now ({gb(available_memory())})")

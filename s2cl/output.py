@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -71,8 +72,39 @@ def write_text(path: str | Path, text: str) -> Path:
 
 
 def write_netcdf(path: str | Path, dataset: Any) -> Path:
-    """An xarray Dataset as NetCDF-4 (h5netcdf engine), written atomically."""
-    return write_atomic(path, lambda p: dataset.to_netcdf(p, engine="h5netcdf"))
+    """An xarray Dataset as NetCDF-4 (h5netcdf engine), written atomically. The disk must hold it
+    before writing starts: HDF5 can crash the process when the disk fills during a write."""
+    require_free(path, 1.02 * dataset.nbytes + 2e6)
+    with atomic_path(path) as tmp, hdf5_errors(path):
+        dataset.to_netcdf(tmp, engine="h5netcdf")
+    return Path(path)
+
+
+def require_free(path: str | Path, nbytes: float) -> None:
+    """:class:`OutputError` when the filesystem that will hold ``path`` has less than ``nbytes`` free."""
+    import shutil
+
+    folder = Path(os.path.abspath(path)).parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    free = shutil.disk_usage(folder).free
+    if nbytes > free:
+        raise OutputError(f"needs about {nbytes / 1e6:,.0f} MB of disk, {free / 1e6:,.0f} MB are free", path=path)
+
+
+@contextmanager
+def hdf5_errors(path: str | Path):
+    """Turn HDF5's write failures (h5py raises RuntimeError or OSError carrying a whole report) into a
+    one-line :class:`OutputError`."""
+    try:
+        yield
+    except (OSError, RuntimeError) as err:
+        if isinstance(err, OSError) and err.errno:
+            reason = os.strerror(err.errno)
+        else:
+            code = re.search(r"errno = (\d+)", str(err))
+            reason = os.strerror(int(code.group(1))) if code else f"HDF5 {type(err).__name__}"
+        raise OutputError(f"cannot write ({reason})", path=path) from None
 
 
 def _jsonable(value: Any) -> Any:

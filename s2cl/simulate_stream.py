@@ -32,7 +32,7 @@ from .budget import (
     require_disk,
 )
 from .dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset
-from .output import atomic_path
+from .output import atomic_path, hdf5_errors
 from .simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
 from .validate import Checked
 
@@ -127,7 +127,7 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     picked = _AnalysisBands(checked, lib.size * s.surface.copies)
     if progress:
         progress(0)
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, hdf5_errors(path):
         clipped = np.zeros((2, scene.sensor.size), np.int64) if scene.effects.quantise else None
         header_dataset(scene.sensor, lib, band_radiance, s.surface.copies, s.surface.layout, attrs,
                        clipped).to_netcdf(tmp, engine="h5netcdf")

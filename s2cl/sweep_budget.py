@@ -8,7 +8,7 @@ over all slots, ``G`` grid wavelengths, ``C`` configurations per chunk):
 - the common random numbers ``z`` (float64 on the host, float32 on the device) and the target:
   ``(12 · S + 16) · P``, plus the Philox work arrays of one slot while they are drawn (``160 · P``);
 - per configuration-pixel of a chunk: the metrics' float64 work arrays
-  (:data:`s2cl.sweep.HOST_BYTES_PER_EVALUATION`) and the kernel's outputs (``12``).
+  (:data:`s2cl.sweep.HOST_BYTES_PER_EVALUATION`) and the kernel's outputs with their host copies (``28``).
 
 The largest part decides the key an error names: ``surface.copies`` (pixels), ``sweep.step_nm``
 (variants) or ``sweep.chunk`` / ``--chunk``.
@@ -23,7 +23,7 @@ from .budget import BASELINE_BYTES, Budget, gb, largest_fitting, require_disk
 from .sweep import HOST_BYTES_PER_EVALUATION, results_disk_bytes
 from .validate import Checked
 
-KERNEL_BYTES_PER_EVALUATION = 12
+KERNEL_BYTES_PER_EVALUATION = 28
 PHILOX_BYTES_PER_PIXEL = 160
 PER_PIXEL_SLOT = 12
 PER_PIXEL = 16
