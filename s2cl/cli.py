@@ -374,12 +374,15 @@ def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
     from .budget import Budget, gb
     from .caveats import report
     from .optimise import count_table
+    from .outdir import check_output_dir
     from .scene import Scene
     from .sweep_budget import sweep_resources
     from .validate import check_sweep
 
     sc = Scene.load(scene)
     checked = check_sweep(sc)
+    out, where = _output_dir(sc, None)
+    check_output_dir(out, where=where)  # as optimise would (nothing is created)
     report(checked.caveats)
     assert checked.space is not None
     if quiet:

@@ -59,6 +59,7 @@ def check_sweep(scene: Scene) -> Checked:
     check_sweep_sections(scene)
     library, space = _surface(scene), _space(scene)
     assert space is not None
+    _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
     analysis = _analysis(scene, space.bands, library)
     _atmosphere(scene)
     return Checked(scene, library, space, analysis, list(space.bands), _caveats(scene, space, space.bands))
