@@ -45,7 +45,7 @@ class BandRange:
         return cls(band, centre_nm - width_nm / 2, centre_nm + width_nm / 2, width_nm, width_nm, step_nm=0.0)
 
     def validate(self, source: str | None = None) -> None:
-        key = f"sweep.{self.band}"
+        key = f"sweep.ranges.{self.band}"
         values = (self.left_nm, self.right_nm, self.min_width_nm, self.max_width_nm, self.step_nm)
         if not all(math.isfinite(v) for v in values):
             raise InputError("all range values must be finite", source=source, key=key)
@@ -61,8 +61,8 @@ class BandRange:
         n_widths = 1 if self.is_fixed else math.floor((self.max_width_nm - self.min_width_nm) / self.step_nm + EPS) + 1
         if n_widths > MAX_WIDTHS:
             raise InputError(f"a {self.step_nm:g} nm step gives {n_widths:,} widths between {self.min_width_nm:g} and "
-                             f"{self.max_width_nm:g} nm (at most {MAX_WIDTHS:,}); use a coarser sweep.step_nm",
-                             source=source, key=key)
+                             f"{self.max_width_nm:g} nm for band {self.band} (at most {MAX_WIDTHS:,})",
+                             source=source, key="sweep.step_nm")
         if not self.count():
             raise InputError(
                 f"admits no variant: no width in {self.min_width_nm:g}–{self.max_width_nm:g} nm on the "
@@ -134,7 +134,7 @@ class BandGrid:
     widths: tuple[float, ...]
 
     def validate(self, source: str | None = None) -> None:
-        key = f"sweep.{self.band}"
+        key = f"sweep.ranges.{self.band}"
         values = self.centres + self.widths
         if not self.centres or not self.widths:
             raise InputError("needs at least one centre and one width", source=source, key=key)
