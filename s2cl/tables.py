@@ -41,6 +41,10 @@ def read_csv_rows(path: str | Path, *, min_rows: int = 1, what: str = "file",
         rows = list(csv.reader([ln for _, ln in lines], delimiter=delimiter))
     except csv.Error as err:
         raise InputError(f"not a readable CSV file ({err})", source=p) from None
+    if len(rows) != len(lines):  # a quote opened and not closed joins lines into one field
+        raise InputError("holds a quoted field that is not closed", source=p)
+    if not rows[0]:
+        raise InputError("the header row is empty", source=p)
     header = [h.strip() for h in rows[0]]
     return header, [(n, row) for (n, _), row in zip(lines[1:], rows[1:], strict=True)]
 
