@@ -1,7 +1,7 @@
 """Resource estimates: the memory and disk a run will need, computed from the scene before anything
 is allocated or written, against what the run may use.
 
-A run may use at most ``--max-memory`` (or ``$S2CL_MAX_MEMORY``; default 4 GiB) and never more
+A run may use at most ``--max-memory`` (or ``$S2CL_MAX_MEMORY``; default 4 GB) and never more
 than 90 % of the memory available now (``psutil``). An estimate above that is a one-line
 :class:`~s2cl.errors.ResourceError` naming the scene key to lower and the largest value that fits.
 The byte counts per item below are what the arrays of each stage hold (float32 images, uint16 DN,
@@ -18,10 +18,9 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import InputError, ResourceError
+from .errors import InputError, ResourceError, token
 
-GIB = 2**30
-DEFAULT_MAX_MEMORY = 4 * GIB
+DEFAULT_MAX_MEMORY = 4_000_000_000
 MAX_MEMORY_ENV = "S2CL_MAX_MEMORY"
 #: what every run holds before its own arrays: Python, numpy, pyopencl + PoCL, the LUT (bytes)
 BASELINE_BYTES = 350e6
@@ -40,11 +39,12 @@ _SIZE = re.compile(r"^\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(i?b?)\s*$", re.IGNORECASE
 
 
 def parse_size(text: str, *, key: str = "--max-memory") -> int:
-    """Bytes from ``'4G'``, ``'512M'``, ``'1.5GiB'`` or a plain number of bytes (powers of 1024)."""
+    """Bytes from ``'4G'`` / ``'4GB'`` (10⁹), ``'1.5GiB'`` (2³⁰), ``'512M'`` or a plain number of bytes."""
     m = _SIZE.match(str(text))
     if not m:
-        raise InputError(f"must be a size such as 4G, 512M or 1.5GiB, got {text!r}", key=key)
-    value = float(m.group(1)) * 1024 ** "_kmgt".index((m.group(2) or "_").lower())
+        raise InputError(f"must be a size such as 4G, 512M or 1.5GiB, got {token(text)}", key=key)
+    base = 1024 if "i" in m.group(3).lower() else 1000
+    value = float(m.group(1)) * base ** "_kmgt".index((m.group(2) or "_").lower())
     if not 0 < value < 2**62:
         raise InputError(f"must be > 0, got {text!r}", key=key)
     return int(value)
@@ -66,7 +66,7 @@ class Budget:
 
     @classmethod
     def of(cls, max_memory: str | None = None) -> Budget:
-        """From ``--max-memory`` (else ``$S2CL_MAX_MEMORY``, else 4 GiB), capped at 90 % of the
+        """From ``--max-memory`` (else ``$S2CL_MAX_MEMORY``, else 4 GB), capped at 90 % of the
         memory available now."""
         text = max_memory or os.environ.get(MAX_MEMORY_ENV) or None
         key = "--max-memory" if max_memory else MAX_MEMORY_ENV

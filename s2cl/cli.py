@@ -90,8 +90,8 @@ def _console(stderr: bool = False) -> Any:
 
 
 QUIET_HELP = "no progress bar, tables or notes: only results and the files written (warnings still show)"
-MAX_MEMORY_HELP = ("memory the run may use, e.g. 8G or 512M (default: $S2CL_MAX_MEMORY, else 4G; never more than "
-                   "90 % of the memory available); a run that needs more is refused before it starts")
+MAX_MEMORY_HELP = ("memory the run may use, e.g. 8G, 512M or 16GiB (default: $S2CL_MAX_MEMORY, else 4G; never more "
+                   "than 90 % of the memory available); a run that needs more is refused before it starts")
 
 
 def _quiet_option(f: Callable) -> Callable:

@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 import pytest
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "default.toml"
+DATA = Path(__file__).resolve().parent / "data"
 
 SMALL = """
 [scene]
@@ -50,14 +51,14 @@ def run(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.
 
 
 def peak_rss_mb(*args: str, cwd: Path) -> tuple[subprocess.CompletedProcess, float]:
-    """Run the CLI in a fresh child of a fresh Python and return its peak resident set (MB)."""
-    probe = ("import resource, subprocess, sys; p = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
-             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024); "
-             "print(p.returncode); sys.stderr.write(p.stderr)")
+    """Run the CLI in a fresh child of a fresh Python: its outcome and its peak resident set (MB)."""
+    probe = ("import json, resource, subprocess, sys; p = subprocess.run(sys.argv[1:], capture_output=True, "
+             "text=True); print(json.dumps([resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, "
+             "p.returncode, p.stdout, p.stderr]))")
     out = subprocess.run([sys.executable, "-c", probe, sys.executable, "-m", "s2cl", *args], cwd=cwd,
-                         capture_output=True, text=True, timeout=600)
-    mb, rc = out.stdout.split()[-2:]
-    return subprocess.CompletedProcess(args, int(rc), "", out.stderr), float(mb)
+                         capture_output=True, text=True, timeout=600, check=True)
+    mb, rc, stdout, stderr = json.loads(out.stdout)
+    return subprocess.CompletedProcess(args, rc, stdout, stderr), mb
 
 
 def one_line_error(out: subprocess.CompletedProcess, *parts: str) -> str:
@@ -279,15 +280,26 @@ def test_the_documented_maximum_copies_is_refused_quickly_in_one_line(tmp_path) 
     one_line_error(out, "--max-memory", "4G")
 
 
+@pytest.mark.slow
+def test_the_documented_maximum_copies_streams_in_bounded_memory(tmp_path) -> None:
+    """10^6 copies × 2 spectra × 13 bands (380 MB of NetCDF): written chunk by chunk, peak about 1 GB."""
+    out, mb = peak_rss_mb("simulate", "-q", str(DATA / "max_copies.toml"), "-o", "out", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert mb < 2000, mb
+    record = json.loads((tmp_path / "out" / "simulation.json").read_text())
+    assert record["pixels"] == 2_000_000 and len(record["bands"]) == 13
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out" / "simulation.nc", engine="h5netcdf") as ds:
+        assert ds["dn"].shape == (13, 2, 1_000_000)
+        assert int(ds["dn"][3, 1, -1]) > 0 and int(ds["pixel_spectrum"][1, -1]) == 1
+
+
 def test_counting_never_enumerates_variants(tmp_path) -> None:
-    ranges = "".join(f"{b} = {{ left = {lo}, right = {lo + 150}, min_width = 10, max_width = 150 }}\n"
-                     for b, lo in (("B4", 600), ("B5", 650), ("B6", 700), ("B7", 750)))
-    text = SMALL[: SMALL.index("B4 = {")] + ranges
-    path = scene(tmp_path, text, **{'bands = ["B4", "B5", "B6", "B7"]': 'bands = ["B4", "B5", "B6", "B7"]\n'
-                                                                           "step_nm = 0.01"})
-    out, mb = peak_rss_mb("sweep", "count", "-q", str(path), cwd=tmp_path)
+    out, mb = peak_rss_mb("sweep", "count", "-q", str(DATA / "fine_step.toml"), cwd=tmp_path)
     assert mb < 1000
-    line = one_line_error(out, "s.toml: sweep.step_nm:", "band variants")
+    assert out.stdout == "92289537813761446563441568056001\n"  # -q: the count only
+    line = one_line_error(out, "fine_step.toml: sweep.step_nm:", "392,056,004 band variants")
     assert "GB of memory" in line
     out = run("sweep", "count", "-q", str(scene(tmp_path)), cwd=tmp_path)
     assert out.returncode == 0 and out.stdout.strip() == "6"
@@ -340,6 +352,14 @@ def test_errors_name_the_scene_file_and_the_full_key(tmp_path, command: str, rep
     path = scene(tmp_path, **replace)
     one_line_error(run(*command.split(), str(path), "-q", cwd=tmp_path), f"s.toml: {key}:")
     assert files_under(tmp_path) == {"s.toml"}  # validated before anything was created
+
+
+def test_study_keys_name_the_scene_file(tmp_path) -> None:
+    text = (DEFAULT_SCENE.parent / "study-water-vapour.toml").read_text()
+    path = scene(tmp_path, text, **{"water_vapour = [1.0, 2.0] }": "water_vapour = [-1.0] }"})
+    one_line_error(run("study", str(path), "--quick", "-q", "-o", "out", cwd=tmp_path),
+                   "s.toml: study.water_vapour:")
+    assert not (tmp_path / "out").exists()
 
 
 def test_device_names_are_strict_and_devices_survives_a_bogus_pyopencl_ctx(tmp_path) -> None:
