@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -372,10 +373,11 @@ def load_envi_library(
 
         raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
     try:
+        meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+        _check_envi_size(meta, data, hdr)
         lib = envi.open(str(hdr), str(data))
     except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
-    meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
     if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
     centers = lib.bands.centers
@@ -402,6 +404,32 @@ def load_envi_library(
         w_nm, spectra = w_nm[good], spectra[:, good]
     names = [str(n).strip() for n in lib.names]
     return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
+
+
+#: bytes per value of the ENVI data types a spectral library may use (real numbers only)
+ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
+#: largest ENVI library read (bytes of data): a library is held in memory as float64 several times
+MAX_ENVI_BYTES = 256 * 2**20
+
+
+def _check_envi_size(meta: dict, data: Path, hdr: Path) -> None:
+    """The data file holds what the header declares (samples × lines × bands values of its data type, after
+    the header offset); checked before SPy allocates anything, so a header cannot ask for petabytes."""
+    try:
+        dims = [int(str(meta[k]).strip()) for k in ("samples", "lines", "bands")]
+        item = ENVI_ITEM_BYTES[str(meta["data type"]).strip()]
+        offset = int(str(meta.get("header offset", "0")).strip() or 0)
+    except (KeyError, ValueError) as err:
+        raise InputError("header lacks valid samples, lines, bands, data type or header offset", source=hdr) from err
+    if min(dims) < 1 or offset < 0:
+        raise InputError(f"samples, lines and bands must be >= 1 and the offset >= 0, got {dims} and {offset}",
+                         source=hdr)
+    need = offset + math.prod(dims) * item
+    have = data.stat().st_size
+    if need > have:
+        raise InputError(f"the header declares {need:,} bytes of data, {data.name} holds {have:,}", source=hdr)
+    if need > MAX_ENVI_BYTES:
+        raise InputError(f"the header declares {need:,} bytes of data (at most {MAX_ENVI_BYTES:,})", source=hdr)
 
 
 def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:

@@ -23,8 +23,9 @@ import numpy as np
 from .errors import InputError
 
 EPS = 1e-9
-#: most widths one band may take (a finer step is refused before anything is enumerated)
+#: most widths, and centres per width, one band may take (a finer step is refused before anything is counted)
 MAX_WIDTHS = 1_000_000
+MAX_CENTRES = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -58,11 +59,13 @@ class BandRange:
             raise InputError(f"right ({self.right_nm}) must be > left ({self.left_nm})", source=source, key=key)
         if self.step_nm < 0:
             raise InputError(f"step must be >= 0 nm, got {self.step_nm}", source=source, key=key)
-        n_widths = 1 if self.is_fixed else math.floor((self.max_width_nm - self.min_width_nm) / self.step_nm + EPS) + 1
-        if n_widths > MAX_WIDTHS:
-            raise InputError(f"a {self.step_nm:g} nm step gives {n_widths:,} widths between {self.min_width_nm:g} and "
-                             f"{self.max_width_nm:g} nm for band {self.band} (at most {MAX_WIDTHS:,})",
-                             source=source, key="sweep.step_nm")
+        if not self.is_fixed:
+            widths = (self.max_width_nm - self.min_width_nm) / self.step_nm + 1
+            centres = (self.right_nm - self.left_nm) / self.step_nm + 1
+            if widths > MAX_WIDTHS or centres > MAX_CENTRES:
+                raise InputError(f"a {self.step_nm:g} nm step gives {widths:,.0f} widths and {centres:,.0f} centres "
+                                 f"for band {self.band} (at most {MAX_WIDTHS:,} and {MAX_CENTRES:,})",
+                                 source=source, key="sweep.step_nm")
         if not self.count():
             raise InputError(
                 f"admits no variant: no width in {self.min_width_nm:g}–{self.max_width_nm:g} nm on the "
