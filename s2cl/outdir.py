@@ -45,14 +45,15 @@ def check_output_dir(path: str | Path, *, where: str = "") -> Path:
     base = _existing_ancestor(out)
     if not base.is_dir():
         raise OutputError(f"cannot be created: {base} is not a folder{hint}", path=out)
-    try:
-        fs = os.statvfs(base)
-    except OSError as err:
-        raise OutputError(f"cannot be checked ({os.strerror(err.errno or 0)}){hint}", path=out) from err
-    if fs.f_blocks == 0:
-        raise OutputError(f"is on a virtual filesystem (such as /proc) that holds no files{hint}", path=out)
-    if fs.f_flag & os.ST_RDONLY:
-        raise OutputError(f"is on a read-only filesystem{hint}", path=out)
+    if hasattr(os, "statvfs"):  # POSIX: what kind of filesystem the folder would be on
+        try:
+            fs = os.statvfs(base)
+        except OSError as err:
+            raise OutputError(f"cannot be checked ({os.strerror(err.errno or 0)}){hint}", path=out) from err
+        if fs.f_blocks == 0:
+            raise OutputError(f"is on a virtual filesystem (such as /proc) that holds no files{hint}", path=out)
+        if fs.f_flag & os.ST_RDONLY:
+            raise OutputError(f"is on a read-only filesystem{hint}", path=out)
     for folder in (base, out / "chunks"):
         if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
             raise OutputError(f"{folder} is not writable{hint}", path=out)

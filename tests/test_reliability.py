@@ -18,31 +18,12 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from sweep_fixtures import SMALL_SWEEP_TOML
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "default.toml"
 DATA = Path(__file__).resolve().parent / "data"
 
-SMALL = """
-[scene]
-name = "small"
-[surface]
-library = "builtin:lib1"
-quantity = "reflectance"
-copies = 2
-[effects]
-atmosphere = true
-correct = true
-[analysis]
-kind = "igrm"
-parameter = "cab"
-[sweep]
-bands = ["B4", "B5", "B6", "B7"]
-[sweep.ranges]
-B4 = { centres = [665, 675, 685], widths = [20, 30] }
-B5 = { centre = 705, width = 15 }
-B6 = { centre = 740, width = 15 }
-B7 = { centre = 783, width = 20 }
-"""
+SMALL = SMALL_SWEEP_TOML.format(copies=2)
 
 
 def run(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
