@@ -137,6 +137,7 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     check_output_dir(out, where=where)
     budget = Budget.of(max_memory)
     if sc.spec.surface.cube is not None:
+        _require_cube_memory(sc, budget)
         _simulate_cube(sc, out, device, quiet)
         return
     simulate_memory(checked, budget)
@@ -161,6 +162,23 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
 
 
 SIMULATION_JSON = "simulation.json"
+
+
+#: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
+#: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
+CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
+
+
+def _require_cube_memory(sc: Any, budget: Any) -> None:
+    """Refuse a cube that would not fit in memory (it is loaded whole), from its metadata."""
+    from .budget import BASELINE_BYTES
+    from .cube import cube_size
+
+    pixels, wavelengths = cube_size(sc.resolve(sc.spec.surface.cube))
+    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size
+                 + CUBE_BYTES_PER_BAND * sc.sensor.size)
+    budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
+                   "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
 
 
 def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:

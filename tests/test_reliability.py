@@ -261,6 +261,21 @@ def test_the_documented_maximum_copies_is_refused_quickly_in_one_line(tmp_path) 
     one_line_error(out, "--max-memory", "4G")
 
 
+def test_a_cube_too_large_for_memory_is_refused_before_loading(tmp_path) -> None:
+    import h5netcdf
+    import numpy as np
+
+    with h5netcdf.File(tmp_path / "big.nc", "w") as f:  # declared 4000 × 4000 × 211, stored as fill values
+        f.dimensions = {"y": 4000, "x": 4000, "wavelength": 211}
+        f.create_variable("wavelength", ("wavelength",), float, data=np.linspace(400, 2500, 211))
+        f.create_variable("reflectance", ("y", "x", "wavelength"), np.float32, chunks=(100, 100, 211))
+    text = ('[scene]\nname = "cube"\n[surface]\ncube = "big.nc"\ngsd_m = 10\nquantity = "reflectance"\n'
+            "[effects]\natmosphere = true\n")
+    out, mb = peak_rss_mb("simulate", "-q", str(scene(tmp_path, text)), "-o", "out", cwd=tmp_path)
+    one_line_error(out, "s.toml: surface.cube:", "16,000,000 pixels × 211 wavelengths", "crop the cube")
+    assert mb < 1000 and not (tmp_path / "out").exists()
+
+
 @pytest.mark.slow
 def test_the_documented_maximum_copies_streams_in_bounded_memory(tmp_path) -> None:
     """10^6 copies × 2 spectra × 13 bands (380 MB of NetCDF): written chunk by chunk, peak about 1 GB."""
