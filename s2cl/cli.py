@@ -89,6 +89,7 @@ def _console(stderr: bool = False) -> Any:
     return console
 
 
+SIMULATION_JSON = "simulation.json"
 QUIET_HELP = "no progress bar, tables or notes: only results and the files written (warnings still show)"
 MAX_MEMORY_HELP = ("memory the run may use, e.g. 8G, 512M or 16GiB (default: $S2CL_MAX_MEMORY, else 4G; never more "
                    "than 90 % of the memory available); a run that needs more is refused before it starts")
@@ -159,9 +160,6 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
         if result.analysis:
             _print_analysis(result.analysis)
     click.echo(f"wrote {out / 'simulation.nc'} and {out / SIMULATION_JSON}")
-
-
-SIMULATION_JSON = "simulation.json"
 
 
 #: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
