@@ -89,59 +89,107 @@ def _console(stderr: bool = False) -> Any:
     return console
 
 
+SIMULATION_JSON = "simulation.json"
+QUIET_HELP = "no progress bar, tables or notes: only results and the files written (warnings still show)"
+MAX_MEMORY_HELP = ("memory the run may use, e.g. 8G, 512M or 16GiB (default: $S2CL_MAX_MEMORY, else 4G; never more "
+                   "than 90 % of the memory available); a run that needs more is refused before it starts")
+
+
+def _quiet_option(f: Callable) -> Callable:
+    return click.option("--quiet", "-q", is_flag=True, help=QUIET_HELP)(f)
+
+
+def _output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
+    """The output folder of a scene's run and how it was chosen (for error messages)."""
+    if output is not None:
+        return output, "--output"
+    if sc.spec.output.directory:
+        return sc.output_dir, f"output.directory in {sc.source}"
+    return sc.output_dir, f"scene.name in {sc.source}"
+
+
 @cli.command()
 @click.argument("scene", default="default")
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
               help="output folder (default: the scene's output.directory, else s2cl-out/<scene name>)")
 @click.option("--device", "-d", help=DEVICE_HELP)
-@click.option("--quiet", "-q", is_flag=True, help="no progress bar and no table")
-def simulate(scene: str, output: Path | None, device: str | None, quiet: bool) -> None:
+@click.option("--max-memory", help=MAX_MEMORY_HELP)
+@_quiet_option
+def simulate(scene: str, output: Path | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
     """Simulate SCENE (a .toml file or a built-in scene name; default: `default`).
 
     Writes OUTPUT/simulation.nc (per-band images: noise-free radiance, noisy radiance, DN,
-    calibrated radiance; band metadata as attributes) and OUTPUT/summary.json, and prints a
-    per-band summary (radiance, SNR measured against the model, clipping, calibration error).
+    calibrated radiance; band metadata as attributes) and OUTPUT/simulation.json (per-band summary,
+    the scene's analysis, warnings), and prints the summary (radiance, SNR measured against the
+    model, clipping, calibration error). Its files never replace a sweep's (results.parquet,
+    summary.json). Memory stays bounded whatever surface.copies: images are written chunk by chunk.
     """
-    from .output import write_json, write_netcdf
+    from .budget import Budget
+    from .caveats import report
+    from .outdir import check_output_dir, claim
+    from .output import write_json
     from .scene import Scene
-    from .simulate import scene_library
-    from .simulate import simulate as run
+    from .simulate_stream import require_netcdf_disk, simulate_memory, simulate_to_netcdf
+    from .validate import check_simulate
 
     sc = Scene.load(scene)
-    out = output or sc.output_dir
-    if sc.spec.analysis is not None and sc.spec.surface.cube is None:
-        from .simulate_analysis import analysis_design
-
-        analysis_design(sc)  # a design the retrieval cannot fit is refused before any work
+    out, where = _output_dir(sc, output)
+    checked = check_simulate(sc)
+    check_output_dir(out, where=where)
+    budget = Budget.of(max_memory)
     if sc.spec.surface.cube is not None:
-        from .cube import simulate_cube
-
-        with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
-            ds = simulate_cube(sc, runtime=_runtime(device), progress=lambda n: advance(1))
-        write_netcdf(out / "simulation.nc", ds)
-        click.echo(f"wrote {out / 'simulation.nc'}")
+        _require_cube_memory(sc, budget)
+        _simulate_cube(sc, out, device, quiet)
         return
-    library = scene_library(sc)
-    total = library.size * sc.spec.surface.copies
+    simulate_memory(checked, budget)
+    require_netcdf_disk(checked, out)
+    _runtime(device)  # a device that does not exist is refused before the folder is made
+    warnings = report(checked.caveats)
+    total = checked.library.size * sc.spec.surface.copies
     t0 = time.perf_counter()
-    with progress_bar(total, f"{sc.name}: {library.size} spectra × {sc.spec.surface.copies}", not quiet) as adv:
-        result = run(sc, device=device, progress=adv, library=library)
-    seconds = time.perf_counter() - t0
-    rows = result.summary()
-    analysis = None
-    if sc.spec.analysis is not None and result.reflectance is not None:
-        from .simulate_analysis import analyse
-
-        analysis = analyse(sc, result)
-    write_netcdf(out / "simulation.nc", result.to_dataset(sc.spec.surface.layout))
-    write_json(out / "summary.json", {"scene": sc.name, "attrs": result.attrs, "pixels": total,
-                                      "seconds": seconds, "stage_seconds": result.seconds, "bands": rows,
-                                      "analysis": analysis})
+    with claim(out):
+        label = f"{sc.name}: {checked.library.size} spectra × {sc.spec.surface.copies}"
+        with progress_bar(total, label, not quiet) as adv:
+            result = simulate_to_netcdf(checked, out / "simulation.nc", device=device, progress=adv)
+        seconds = time.perf_counter() - t0
+        write_json(out / SIMULATION_JSON, {"scene": sc.name, "attrs": result.attrs, "pixels": total,
+                                           "seconds": seconds, "stage_seconds": result.seconds,
+                                           "bands": result.rows, "analysis": result.analysis, "warnings": warnings})
     if not quiet:
-        _print_summary(rows, result.attrs, total, seconds)
-        if analysis:
-            _print_analysis(analysis)
-    click.echo(f"wrote {out / 'simulation.nc'} and {out / 'summary.json'}")
+        _print_summary(result.rows, result.attrs, total, seconds)
+        if result.analysis:
+            _print_analysis(result.analysis)
+    click.echo(f"wrote {out / 'simulation.nc'} and {out / SIMULATION_JSON}")
+
+
+#: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
+#: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
+CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
+
+
+def _require_cube_memory(sc: Any, budget: Any) -> None:
+    """Refuse a cube that would not fit in memory (it is loaded whole), from its metadata."""
+    from .budget import BASELINE_BYTES
+    from .cube import cube_size
+
+    pixels, wavelengths = cube_size(sc.resolve(sc.spec.surface.cube))
+    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size
+                 + CUBE_BYTES_PER_BAND * sc.sensor.size)
+    budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
+                   "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
+
+
+def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:
+    from .cube import simulate_cube
+    from .outdir import claim
+    from .output import write_netcdf
+
+    rt = _runtime(device)
+    with claim(out):
+        with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
+            ds = simulate_cube(sc, runtime=rt, progress=lambda n: advance(1))
+        write_netcdf(out / "simulation.nc", ds)
+    click.echo(f"wrote {out / 'simulation.nc'}")
 
 
 def _print_summary(rows: list[dict[str, Any]], attrs: dict[str, Any], pixels: int, seconds: float) -> None:
@@ -179,36 +227,57 @@ def _runtime(device: str | None) -> Any:
 
 
 @cli.command()
-def scenes() -> None:
-    """List the built-in scenes."""
-    import tomllib
-
-    from .scene import builtin_scenes
+@_quiet_option
+def scenes(quiet: bool) -> None:
+    """List the built-in scenes (-q: names only)."""
+    from .scene import builtin_scenes, read_toml
 
     for name, path in builtin_scenes().items():
-        meta = tomllib.loads(path.read_text(encoding="utf-8")).get("scene", {})
-        click.echo(f"{name:24s} {meta.get('description', '')}")
+        meta = {} if quiet else read_toml(path).get("scene", {})
+        click.echo(name if quiet else f"{name:24s} {meta.get('description', '')}")
 
 
 @cli.command()
-def libraries() -> None:
-    """List the built-in spectral libraries (use as surface.library = "builtin:NAME")."""
+@_quiet_option
+def libraries(quiet: bool) -> None:
+    """List the built-in spectral libraries (use as surface.library = "builtin:NAME"; -q: names only)."""
     from .libraries import available_libraries
 
     for name, description in available_libraries().items():
-        click.echo(f"builtin:{name:18s} {description}")
-    click.echo("or a file: .csv (wavelength_nm column + one column per spectrum) or an ENVI .sli/.hdr library")
+        click.echo(f"builtin:{name}" if quiet else f"builtin:{name:18s} {description}")
+    if not quiet:
+        click.echo("or a file: .csv (wavelength_nm column + one column per spectrum) or an ENVI .sli/.hdr library")
 
 
 @cli.command()
-def devices() -> None:
-    """List the OpenCL devices (use with --device or $PYOPENCL_CTX)."""
-    from .runtime import get_runtime, list_devices
+@_quiet_option
+def devices(quiet: bool) -> None:
+    """List the OpenCL devices (use with --device or $PYOPENCL_CTX; -q: PLATFORM:DEVICE of the default).
+
+    Works whatever $PYOPENCL_CTX holds: a value that matches no device is reported, and the default
+    without it is marked.
+    """
+    import os
+
+    from .errors import DeviceError, token
+    from .logs import LOGGER
+    from .runtime import Runtime, get_runtime, list_devices
 
     infos = list_devices()
     if not infos:
         get_runtime()  # raises the error with the install hint
-    default = get_runtime()
+    try:
+        default = get_runtime()
+    except DeviceError:
+        env = os.environ.get("PYOPENCL_CTX")
+        if not env:
+            raise
+        LOGGER.warning("$PYOPENCL_CTX=%s matches no device: unset it, or set it to a PLATFORM:DEVICE index "
+                       "listed here", token(env))
+        default = Runtime(None)
+    if quiet:
+        click.echo(default.info.spec)
+        return
     for info in infos:
         mark = "*" if info == default.info else " "
         click.echo(f"{mark} {info}")
@@ -220,7 +289,8 @@ def devices() -> None:
 @click.option("--library", "-l", "libraries", multiple=True,
               help="builtin:NAME or a .csv/.sli library file (repeatable; default: builtin:flat, "
                    "builtin:lib1, builtin:lib2, builtin:minerals)")
-def residuals(libraries: tuple[str, ...]) -> None:
+@_quiet_option
+def residuals(libraries: tuple[str, ...], quiet: bool) -> None:
     """Band-averaging residual of the atmospheric correction, without noise (paper standard atmosphere).
 
     Reflectance -> TOA radiance per wavelength -> SRF resampling -> band-effective correction, against
@@ -231,6 +301,10 @@ def residuals(libraries: tuple[str, ...]) -> None:
     from .correction_residuals import DEFAULT_LIBRARIES, band_averaging_residuals
 
     results = band_averaging_residuals(libraries or DEFAULT_LIBRARIES)
+    if quiet:  # plain lines: library, then band=residual (reflectance)
+        for r in results:
+            click.echo(" ".join([r.library, *(f"{b}={v:.3g}" for b, v in zip(r.bands, r.max_abs(), strict=True))]))
+        return
     table = Table(title="band-averaging residual: max |corrected - true| band reflectance (x 1e-4)")
     table.add_column("library")
     for band in results[0].bands:
@@ -243,7 +317,8 @@ def residuals(libraries: tuple[str, ...]) -> None:
 @cli.command()
 @click.option("--file", "sensor_file", type=click.Path(dir_okay=False, path_type=Path),
               help="sensor CSV (default: the built-in Sentinel-2 MRD table)")
-def sensor(sensor_file: Path | None) -> None:
+@_quiet_option
+def sensor(sensor_file: Path | None, quiet: bool) -> None:
     """Show the sensor table: bands, radiometry, and the fitted shot-noise model.
 
     The model is sigma^2 = a + b*L (a, b in radiance units) fitted to the table's SNR points;
@@ -254,6 +329,10 @@ def sensor(sensor_file: Path | None) -> None:
     from .sensor import Sensor
 
     s = Sensor.from_csv(sensor_file) if sensor_file else Sensor.sentinel2()
+    if quiet:  # plain lines: band, centre nm, FWHM nm
+        for b in s.bands:
+            click.echo(f"{b.name} {b.centre_nm:g} {b.fwhm_nm:g}")
+        return
     table = Table(title=f"{s.name}, {s.bits} bits (radiance in W m-2 sr-1 um-1)")
     for title in ("band", "centre nm", "FWHM nm", "GSD m", "Lmin", "Lref", "Lmax", "SNR table", "SNR model",
                   "a", "b"):
@@ -276,11 +355,17 @@ def sensor(sensor_file: Path | None) -> None:
               help="measured response to compare with (from Py6S; `pip install \"s2cl[sixs]\"`)")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="PNG to write (default: srf_<BAND>.png)")
-def srf(band: str, platform: str, plot_path: Path | None) -> None:
+@_quiet_option
+def srf(band: str, platform: str, plot_path: Path | None, quiet: bool) -> None:
     """Plot the model SRF (paper eq. 1) of BAND against the measured Sentinel-2 response (Fig. 2)."""
+    from .outdir import check_output_dir
     from .plots import plot_srf
+    from .sensor import Sensor
 
-    path = plot_srf(band, None if platform == "none" else platform, plot_path or Path(f"srf_{band}.png"))
+    Sensor.sentinel2().band(band)  # an unknown band is refused before anything is written
+    path = plot_path or Path(f"srf_{band}.png")
+    check_output_dir(path.parent, where="--plot")
+    path = plot_srf(band, None if platform == "none" else platform, path)
     click.echo(f"wrote {path}")
 
 
@@ -295,32 +380,47 @@ def sweep() -> None:
 
 @sweep.command("count")
 @click.argument("scene", default="default")
-def sweep_count(scene: str) -> None:
-    """Print the variants of each band and the number of configurations of SCENE."""
+@click.option("--max-memory", help=MAX_MEMORY_HELP)
+@_quiet_option
+def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
+    """Print the variants of each band, the number of configurations of SCENE and the memory the sweep
+    would take. Checks the scene exactly as `s2cl optimise` does (counts are computed, not enumerated)."""
     from rich.table import Table
 
+    from .budget import Budget, gb
+    from .caveats import report
     from .optimise import count_table
+    from .outdir import check_output_dir
     from .scene import Scene
-    from .sweep_tables import sweep_space
+    from .sweep_budget import sweep_resources
+    from .validate import check_sweep
 
     sc = Scene.load(scene)
-    rows = count_table(sc)
-    table = Table(title=f"{sc.name}: band variants")
-    for title in ("band", "variants", "centres nm", "widths nm"):
-        table.add_column(title, justify="right")
-    for r in rows:
-        table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
-    _console().print(table)
-    space = sweep_space(sc)
-    click.echo(f"configurations: {space.size:,}")
-    if sc.spec.analysis is not None:
-        from .analysis import AnalysisSettings
+    checked = check_sweep(sc)
+    out, where = _output_dir(sc, None)
+    check_output_dir(out, where=where)  # as optimise would (nothing is created)
+    report(checked.caveats)
+    assert checked.space is not None
+    if quiet:
+        click.echo(f"{checked.space.size}")
+    else:
+        table = Table(title=f"{sc.name}: band variants")
+        for title in ("band", "variants", "centres nm", "widths nm"):
+            table.add_column(title, justify="right")
+        for r in count_table(sc):
+            table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
+        _console().print(table)
+        click.echo(f"configurations: {checked.space.size:,}")
+    plan = sweep_resources(checked, budget=Budget.of(max_memory))
+    if not quiet:
+        click.echo(f"memory: about {gb(plan.memory_bytes)} in chunks of {plan.chunk:,} configurations")
+    if not quiet and checked.analysis is not None:
         from .optimise import underdetermined_count
 
-        bad = underdetermined_count(space, AnalysisSettings.from_scene(sc, space.bands))
+        bad = underdetermined_count(checked.space, checked.analysis)
         fate = "kept, flagged" if sc.spec.sweep.underdetermined == "keep" else "left out of the ranking"
         click.echo("underdetermined (the analysis cannot fit them): "
-                   + (f"{bad:,} ({fate})" if bad is not None else "not counted (too many distinct centres)"))
+                   + (f"{bad:,} ({fate})" if bad is not None else "not counted (too many variants)"))
 
 
 def _sweep_options(f: Callable) -> Callable:
@@ -334,7 +434,8 @@ def _sweep_options(f: Callable) -> Callable:
                      help="numpy: the float64 reference evaluation (slow)"),
         click.option("--chunk", type=click.IntRange(1), help="configurations per chunk (default: auto)"),
         click.option("--device", "-d", help=DEVICE_HELP),
-        click.option("--quiet", "-q", is_flag=True, help="no progress bar"),
+        click.option("--max-memory", help=MAX_MEMORY_HELP),
+        click.option("--quiet", "-q", is_flag=True, help="no progress bar and no notes (the ranking still prints)"),
     ]
     for option in reversed(options):
         f = option(f)
@@ -342,33 +443,55 @@ def _sweep_options(f: Callable) -> Callable:
 
 
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
-               backend: str, chunk: int | None, device: str | None, quiet: bool) -> None:
-    from .optimise import plan_sweep, reference_row
-    from .report import load, rankable, summarise
+               backend: str, chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
+    """Check everything (scene, output folder, memory, disk, device), then run in the claimed folder."""
+    from .budget import Budget
+    from .caveats import report
+    from .optimise import plan_sweep
+    from .outdir import check_output_dir, claim
     from .scene import Scene
-    from .sweep import run_sweep
+    from .sweep_budget import require_sweep_disk, sweep_resources
+    from .validate import check_sweep
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
     sc = Scene.load(scene)
-    out = output or sc.output_dir
+    out, where = _output_dir(sc, output)
+    checked = check_sweep(sc)
+    check_output_dir(out, where=where)
+    budget = Budget.of(max_memory)
+    plan = sweep_resources(checked, chunk=chunk, budget=budget)
+    require_sweep_disk(checked, out)
+    if backend == "opencl":
+        _runtime(device)
+    warnings = report(checked.caveats)
     t0 = time.perf_counter()
-    job = plan_sweep(sc, backend=backend, chunk=chunk)
-    click.echo(f"{sc.name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
-               f"({job.tables.n_spectra} spectra × {job.tables.copies} copies), chunks of {job.chunk}")
-    state: dict[str, Any] = {}
+    with claim(out):
+        job = plan_sweep(sc, backend=backend, chunk=plan.chunk, checked=checked, budget=budget)
+        _sweep_into(sc, job, out, dict(workers=workers, scheduler=scheduler, overwrite=overwrite, device=device),
+                    quiet, warnings, t0)
+
+
+def _sweep_into(sc: Any, job: Any, out: Path, run_options: dict[str, Any], quiet: bool, warnings: list[str],
+                t0: float) -> None:
+    from .optimise import reference_row
+    from .report import load, rankable, summarise
+    from .sweep import run_sweep
+
+    if not quiet:
+        click.echo(f"{sc.name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
+                   f"({job.tables.n_spectra} spectra × {job.tables.copies} copies), chunks of {job.chunk}")
     with progress_bar(job.n_configs, "sweep", not quiet, unit="configs", per_item=job.tables.n_pixels) as advance:
         def on_start(todo: int, done: int) -> None:
-            state["todo"] = todo
             if done:
                 click.echo(f"resuming: {done:,} configurations already done, {todo:,} to go")
                 advance(0)
 
-        results = run_sweep(job, out, workers=workers, scheduler=scheduler, overwrite=overwrite, device=device,
-                            progress=advance, on_start=on_start)
+        results = run_sweep(job, out, progress=advance, on_start=on_start, **run_options)
     df, meta = load(results)
-    summary = summarise(df, meta, reference_row(sc, job, device))
+    summary = summarise(df, meta, reference_row(sc, job, run_options["device"]))
     summary["seconds"] = time.perf_counter() - t0
+    summary["warnings"] = warnings
     plots = _report(rankable(df, meta), summary, out, summary["bands"])
     click.echo(f"wrote {results}" + "".join(f", {p}" for p in plots))
 
@@ -491,26 +614,28 @@ def sweep_run(**kwargs: Any) -> None:
 @sweep.command("report")
 @click.argument("results", type=click.Path(exists=True, path_type=Path))
 @click.option("--band", help="band of the heatmap (default: every band that moves)")
-def sweep_report(results: Path, band: str | None) -> None:
+@click.option("--quiet", "-q", is_flag=True, help="no list of the files written (the ranking still prints)")
+def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
-    from .report import bands_of, load, rankable, read_summary, summarise
+    from .outdir import check_output_dir, claim
+    from .report import bands_of, check_band, load, rankable, read_summary, reference_of, summarise
 
     df, meta = load(results)
     folder = results if results.is_dir() else results.parent
-    previous = folder / "summary.json"
-    # the reference row (the sensor's own bands) and run time come from the run, not from the table
-    kept = read_summary(previous) if previous.exists() else {}
-    reference = None
-    if "reference" in kept:  # back to the row form summarise takes
-        ref = kept["reference"]
-        reference = {k: v for k, v in ref.items() if k not in ("bands", "configurations_better")}
-        for b, (c, w) in ref["bands"].items():
-            reference |= {f"{b}_centre_nm": c, f"{b}_width_nm": w}
-    summary = summarise(df, meta, reference)
-    if "seconds" in kept:
-        summary["seconds"] = kept["seconds"]
-    for p in _report(rankable(df, meta), summary, folder, [band] if band else bands_of(df)):
-        click.echo(f"wrote {p}")
+    bands = [check_band(df, band, results)] if band else bands_of(df)
+    check_output_dir(folder)
+    with claim(folder):
+        previous = folder / "summary.json"
+        # the reference row (the sensor's own bands), run time and warnings come from the run, not the table
+        kept = read_summary(previous) if previous.exists() else {}
+        summary = summarise(df, meta, reference_of(kept))
+        for key in ("seconds", "warnings"):
+            if key in kept:
+                summary[key] = kept[key]
+        written = _report(rankable(df, meta), summary, folder, bands)
+    if not quiet:
+        for p in written:
+            click.echo(f"wrote {p}")
 
 
 @cli.command()
@@ -532,7 +657,12 @@ cli.add_command(study)
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the CLI, turning s2cl errors into one line and exit code 2."""
+    """Entry point: run the CLI, turning s2cl errors into one line and exit code 2.
+
+    The safety nets below catch what a user's environment can still cause after every check (a disk
+    filled by another process, memory taken by another process, a file removed during the run): one
+    line naming the file where there is one, exit code 2, never a traceback.
+    """
     try:
         cli.main(args=argv, prog_name="s2cl", standalone_mode=False)
     except click.exceptions.Abort:
@@ -542,8 +672,26 @@ def main(argv: list[str] | None = None) -> None:
         err.show()
         sys.exit(err.exit_code)
     except S2CLError as err:
-        click.echo(f"error: {err}", err=True)
-        sys.exit(2)
+        _fail(str(err))
+    except OSError as err:
+        where = f"{err.filename}: " if err.filename else ""
+        _fail(f"{where}{err.strerror or type(err).__name__} (errno {err.errno})")
+    except MemoryError:
+        _fail("out of memory: another process took the memory this run was estimated to need; lower --max-memory "
+              "or free memory and run again")
+    except RecursionError:
+        _fail("input nested too deeply")
+
+
+def _fail(message: str) -> None:
+    """Print ``error: MESSAGE`` as one line (further lines, e.g. a build log, go to the DEBUG log) and exit 2."""
+    from .logs import LOGGER
+
+    first, _, rest = message.partition("\n")
+    if rest:
+        LOGGER.debug("%s", rest)
+    click.echo(f"error: {first}" + (" (s2cl -v shows the details)" if rest else ""), err=True)
+    sys.exit(2)
 
 
 if __name__ == "__main__":

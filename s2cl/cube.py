@@ -44,7 +44,7 @@ def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray
     try:
         ds = xr.open_dataset(p, engine="h5netcdf")
     except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({err})", source=p) from err
+        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
     with ds:
         candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
         name = variable or (candidates[0] if len(candidates) == 1 else None)
@@ -61,6 +61,26 @@ def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray
         return np.asarray(v.values), check_wavelengths(wl, source=str(p), key="wavelength")
 
 
+def cube_size(path: str | Path) -> tuple[int, int]:
+    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
+    (0, 0) when the file cannot tell (then :func:`load_cube` says what is wrong)."""
+    p = Path(path)
+    try:
+        if p.suffix.lower() == ".hdr":
+            import spectral.io.envi as envi
+
+            meta = envi.read_envi_header(str(p))
+            return int(meta["samples"]) * int(meta["lines"]), int(meta["bands"])
+        with xr.open_dataset(p, engine="h5netcdf") as ds:
+            cubes = [v for v in ds.data_vars.values() if v.ndim == 3 and "wavelength" in v.dims]
+            if not cubes:
+                return 0, 0
+            v = max(cubes, key=lambda c: c.size)
+            return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
+    except Exception:  # a bad file is reported by load_cube, with its reason
+        return 0, 0
+
+
 def _load_envi(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import spectral.io.envi as envi
 
@@ -68,7 +88,7 @@ def _load_envi(p: Path) -> tuple[np.ndarray, np.ndarray]:
         img = envi.open(str(p))
         cube = np.asarray(img.load())
     except Exception as err:  # SPy raises many types for a bad header or data file
-        raise InputError(f"cannot read ENVI image ({err})", source=p) from err
+        raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
     wl = img.metadata.get("wavelength")
     if not wl:
         raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")

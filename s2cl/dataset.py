@@ -60,44 +60,60 @@ def image_layout(n_spectra: int, copies: int, layout: str) -> np.ndarray:
     return out
 
 
+#: per-pixel image variables of a library simulation: (name, units, long name)
+PIXEL_VARIABLES = (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
+                   ("dn", "1", "digital numbers"),
+                   ("flags", "1", "radiometric pixel flags"),
+                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
+                   ("reflectance", "1", "band surface reflectance after atmospheric correction"))
+PIXEL_SPECTRUM_ATTRS = {"long_name": "library spectrum of each pixel (-1: none)"}
+
+
 def library_dataset(sim: LibrarySimulation, layout: str = "rows") -> xr.Dataset:
     """Dataset with ``band_radiance (band, spectrum)`` and per-pixel images ``(band, y, x)``."""
-    lib, bands = sim.library, sim.sensor.bands
+    lib = sim.library
     index = image_layout(lib.size, sim.copies, layout)
     valid = index >= 0
     flat = np.where(valid, index, 0)
-    coords = band_table(bands)
-    coords["spectrum_name"] = ("spectrum", np.array(lib.names, dtype=object))
-    coords["spectrum_group"] = ("spectrum", np.array(lib.groups, dtype=object))
-    for key, values in lib.params.items():
-        coords[f"param_{key}"] = ("spectrum", np.asarray(values))
-    data: dict[str, Any] = {
-        "band_radiance": (("band", "spectrum"), sim.band_radiance,
-                          {"units": RADIANCE_UNITS, "long_name": "noise-free band radiance"}),
-        "pixel_spectrum": (("y", "x"), np.where(valid, index // sim.copies, -1),
-                           {"long_name": "library spectrum of each pixel (-1: none)"}),
-    }
-    for name, units, long_name in (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
-                                   ("dn", "1", "digital numbers"),
-                                   ("flags", "1", "radiometric pixel flags"),
-                                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
-                                   ("reflectance", "1", "band surface reflectance after atmospheric correction")):
+    ds = header_dataset(sim.sensor, lib, sim.band_radiance, sim.copies, layout, sim.attrs, sim.clipped)
+    ds["pixel_spectrum"] = (("y", "x"), np.where(valid, index // sim.copies, -1), PIXEL_SPECTRUM_ATTRS)
+    for name, units, long_name in PIXEL_VARIABLES:
         arr = getattr(sim, name)
         if arr is None:
             continue
         pixels = arr.reshape(arr.shape[0], -1)[:, flat]
         fill = 0 if name in ("dn", "flags") else np.nan
         pixels = np.where(valid[None], pixels, np.asarray(fill, dtype=pixels.dtype))
-        attrs = {"units": units, "long_name": long_name}
-        if name == "flags":  # CF flag attributes (s2cl.status.PixelFlag)
-            attrs = {"long_name": long_name, "flag_masks": np.array([1, 2, 4], np.uint8),
-                     "flag_meanings": "below_lmin above_lmax_saturated no_data_nan_radiance"}
-        data[name] = (("band", "y", "x"), pixels, attrs)
-    if sim.clipped is not None:
-        data["clipped"] = (("limit", "band"), sim.clipped, {"long_name": "pixels below Lmin / above Lmax"})
+        ds[name] = (("band", "y", "x"), pixels, pixel_attrs(name, units, long_name))
+    return ds
+
+
+def pixel_attrs(name: str, units: str, long_name: str) -> dict[str, Any]:
+    """Attributes of a per-pixel variable; ``flags`` gets CF flag attributes (:class:`s2cl.status.PixelFlag`)."""
+    if name == "flags":
+        return {"long_name": long_name, "flag_masks": np.array([1, 2, 4], np.uint8),
+                "flag_meanings": "below_lmin above_lmax_saturated no_data_nan_radiance"}
+    return {"units": units, "long_name": long_name}
+
+
+def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int, layout: str,
+                   attrs: dict[str, Any], clipped: np.ndarray | None) -> xr.Dataset:
+    """Everything of a library simulation's dataset but the per-pixel images: band and spectrum
+    tables, noise-free band radiance, clipping counts, attributes."""
+    coords = band_table(sensor.bands)
+    coords["spectrum_name"] = ("spectrum", np.array(lib.names, dtype=object))
+    coords["spectrum_group"] = ("spectrum", np.array(lib.groups, dtype=object))
+    for key, values in lib.params.items():
+        coords[f"param_{key}"] = ("spectrum", np.asarray(values))
+    data: dict[str, Any] = {
+        "band_radiance": (("band", "spectrum"), band_radiance,
+                          {"units": RADIANCE_UNITS, "long_name": "noise-free band radiance"}),
+    }
+    if clipped is not None:
+        data["clipped"] = (("limit", "band"), clipped, {"long_name": "pixels below Lmin / above Lmax"})
         coords["limit"] = ["below_lmin", "above_lmax"]
     ds = xr.Dataset(data, coords=coords)
-    ds.attrs.update({k: str(v) for k, v in sim.attrs.items()})
-    ds.attrs.update(sensor=sim.sensor.name, bits=sim.sensor.bits, copies=sim.copies, layout=layout,
+    ds.attrs.update({k: str(v) for k, v in attrs.items()})
+    ds.attrs.update(sensor=sensor.name, bits=sensor.bits, copies=copies, layout=layout,
                     library_source=lib.source, quantity=lib.quantity)
     return ds

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .errors import InputError
+from .variants import SweepSpace
 
 IGRM_PARAMETERS = 4
 #: centres closer than this (nm) count as one abscissa
@@ -80,16 +81,22 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *, nir_s
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
 
 
-def count_underdetermined(kind: str, per_band: Sequence[np.ndarray], *, nir_slot: int = 0, swir_slot: int = 1,
+#: a band with more variants than this is not listed to count the underdetermined configurations
+MAX_LISTED_VARIANTS = 1_000_000
+
+
+def count_underdetermined(kind: str, space: SweepSpace, *, nir_slot: int = 0, swir_slot: int = 1,
                           limit: int = 10_000_000) -> int | None:
-    """How many configurations of a sweep (``per_band``: each band's variants, ``(n_k, 2)`` of
-    centre and width) cannot be fitted, without enumerating the configurations; None when the
-    distinct (centre, width) combinations that decide it exceed ``limit``.
+    """How many configurations of ``space`` cannot be fitted, without enumerating the configurations;
+    None when a band has more than :data:`MAX_LISTED_VARIANTS` variants (its counts are computed, so
+    nothing is listed) or the distinct values that decide it exceed ``limit``.
 
     Validity depends on centres only (and, for GVMI/SAM, widths of the bands involved), so it is
     evaluated once per combination of distinct values and weighted by how many variants share them.
     """
-    keys = [_value_counts(v, with_width=kind != "igrm") for v in per_band]
+    if max(space.counts) > MAX_LISTED_VARIANTS:
+        return None
+    keys = [_value_counts(v, with_width=kind != "igrm") for v in space.per_band]
     combos = math.prod(len(k[0]) for k in keys)
     if combos > limit:
         return None

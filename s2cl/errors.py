@@ -6,7 +6,32 @@ line and exits non-zero. Messages name the file, the key and the allowed range.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+
+#: Longest piece of a file's content an error message may quote (characters).
+TOKEN_LENGTH = 20
+
+
+def token(value: object, limit: int = TOKEN_LENGTH) -> str:
+    """A short, printable stand-in for a value read from a file, for error messages.
+
+    Messages never echo file content beyond this: control characters become ``?``, anything longer
+    than ``limit`` characters is cut with ``…``, strings are quoted (a user who pointed s2cl at the
+    wrong file learns that it is the wrong file, not what it holds).
+    """
+    text = str(value) if isinstance(value, str) else repr(value)
+    text = re.sub(r"[^\x20-\x7e\u00a0-\uffff]", "?", text)
+    if len(text) > limit:
+        text = text[: limit - 1] + "…"
+    return repr(text) if isinstance(value, str) else text
+
+
+def key_token(name: object) -> str:
+    """A key or column name read from a file, for the ``KEY`` part of a message: as it is when it is a
+    plain identifier (letters, digits, ``_ . -``, at most 40 characters), else :func:`token`."""
+    text = str(name)
+    return text if re.fullmatch(r"[A-Za-z0-9_.\-]{1,40}", text) else token(text)
 
 
 class S2CLError(Exception):
@@ -73,3 +98,15 @@ class RenderError(S2CLError):
 
 class DependencyError(S2CLError):
     """An optional dependency is missing; the message says what to install."""
+
+
+class OutputError(S2CLError):
+    """An output cannot be written: folder not creatable, read-only, full, or in use by another run."""
+
+    def __init__(self, message: str, *, path: str | Path):
+        self.path = str(path)
+        super().__init__(f"{self.path}: {message}")
+
+
+class ResourceError(InputError):
+    """A run would need more memory or disk than it may use; the key names what to lower."""

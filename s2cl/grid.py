@@ -9,6 +9,9 @@ import numpy as np
 
 from .errors import InputError
 
+#: most wavelengths a grid may have (0.021 nm over 400–2500 nm; every library spectrum is held on it)
+MAX_SAMPLES = 100_000
+
 
 @dataclass(frozen=True)
 class SpectralGrid:
@@ -34,6 +37,10 @@ class SpectralGrid:
                 f"must be > grid.start_nm = {self.start_nm}, got {self.stop_nm}", key="grid.stop_nm"
             )
         n = (self.stop_nm - self.start_nm) / self.step_nm
+        if n > MAX_SAMPLES:
+            finest = (self.stop_nm - self.start_nm) / MAX_SAMPLES
+            raise InputError(f"{self.step_nm:g} nm gives {n:,.0f} wavelengths over {self.start_nm:g}–{self.stop_nm:g} "
+                             f"nm (at most {MAX_SAMPLES:,}: a step >= {finest:.2g} nm)", key="grid.step_nm")
         if abs(n - round(n)) > 1e-6:
             raise InputError(
                 f"range {self.start_nm}–{self.stop_nm} nm is not a whole number of {self.step_nm} nm steps",

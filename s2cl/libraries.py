@@ -11,9 +11,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, token
 from .grid import SpectralGrid
-from .library import DEFAULT_FLAT_VALUES, SpectralLibrary, flat_targets, load_csv_library, load_envi_library
+from .library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets, load_csv_library, load_envi_library
 from .minerals import iron_backgrounds, mineral_library, mineral_library_swir
 from .vegetation import load_vegetation
 
@@ -57,7 +57,8 @@ def available_libraries() -> dict[str, str]:
 
 
 def load_library(
-    spec: str, grid: SpectralGrid, *, source: str | Path | None = None, key: str = "library"
+    spec: str, grid: SpectralGrid, *, source: str | Path | None = None, key: str = "library",
+    quantity: Quantity = "reflectance",
 ) -> SpectralLibrary:
     """Load the library named by ``spec`` onto ``grid``.
 
@@ -66,6 +67,7 @@ def load_library(
     :param source: the file ``spec`` came from (a scene), used in error messages and to resolve
         relative paths.
     :param key: the key inside ``source`` that held ``spec``.
+    :param quantity: what a user file holds (``surface.quantity``); built-in libraries are reflectance.
     :raises InputError: unknown builtin (the message lists the available ones), unknown file type,
         or any problem of the file itself.
     """
@@ -77,11 +79,11 @@ def load_library(
         path = Path(source).parent / path
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        return load_csv_library(path, grid)
+        return load_csv_library(path, grid, quantity=quantity)
     if suffix in {".sli", ".hdr"}:
-        return load_envi_library(path, grid)
+        return load_envi_library(path, grid, quantity=quantity)
     raise InputError(
-        f"{text!r} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
+        f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
         source=source,
         key=key,
     )
@@ -98,5 +100,5 @@ def _load_builtin(name: str, grid: SpectralGrid, *, source: str | Path | None, k
         return flat_targets(grid, values)
     if name not in _BUILTINS:
         listing = "; ".join(f"{n} ({d})" for n, (d, _) in _BUILTINS.items())
-        raise InputError(f"unknown builtin library {name!r}; available: {listing}", source=source, key=key)
+        raise InputError(f"unknown builtin library {token(name)}; available: {listing}", source=source, key=key)
     return _BUILTINS[name][1](grid)

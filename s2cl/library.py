@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, key_token, token
 from .grid import SpectralGrid, check_wavelengths
 
 Quantity = Literal["reflectance", "radiance"]
@@ -159,6 +160,9 @@ DEFAULT_FLAT_VALUES = (0.1, 0.2)
 DEFAULT_MAX_GAP_NM = 25.0
 #: Reflectance values outside this range suggest percent or integer scaling, not reflectance.
 REFLECTANCE_RANGE = (-0.05, 2.0)
+#: TOA radiance (W m-2 sr-1 um-1) outside this range suggests other units (the solar constant peaks
+#: near 2000 W m-2 um-1 at 450 nm; no Earth target is brighter than that over pi).
+RADIANCE_RANGE = (-1.0, 1000.0)
 
 
 def flat_targets(grid: SpectralGrid, values: tuple[float, ...] | list[float] = DEFAULT_FLAT_VALUES) -> SpectralLibrary:
@@ -205,13 +209,14 @@ def _normalise_unit(unit: str | None, *, source: str, key: str) -> str | None:
         return "nm"
     if u in {"um", "micron", "microns", "micrometer", "micrometers", "micrometre", "micrometres"}:
         return "um"
-    raise InputError(f"wavelength unit {unit!r} is not nm or µm", source=source, key=key)
+    raise InputError(f"wavelength unit {token(unit)} is not nm or µm", source=source, key=key)
 
 
 def _check_user_spectra(
-    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float
+    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float,
+    quantity: Quantity = "reflectance",
 ) -> None:
-    """Reject non-finite values, reflectance outside a plausible range, and gaps inside the grid.
+    """Reject non-finite values, values outside the plausible range of ``quantity``, and gaps inside the grid.
 
     Only the samples that interpolation onto ``grid`` uses are checked (those inside the grid
     and the one bracketing sample each side): a deleted value far outside the grid is harmless.
@@ -219,7 +224,7 @@ def _check_user_spectra(
     first = max(int(np.searchsorted(w_nm, grid.start_nm, side="right")) - 1, 0)
     last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
     used = slice(first, last + 1)
-    lo, hi = REFLECTANCE_RANGE
+    lo, hi = REFLECTANCE_RANGE if quantity == "reflectance" else RADIANCE_RANGE
     for i, row in enumerate(spectra[:, used]):
         w = w_nm[used]
         bad = ~np.isfinite(row)
@@ -228,16 +233,12 @@ def _check_user_spectra(
             raise InputError(
                 f"holds a non-finite value ({row[j]}) at {w[j]:g} nm; spectra must be finite",
                 source=source,
-                key=names[i],
+                key=key_token(names[i]),
             )
         if row.min() < lo or row.max() > hi:
             j = int(np.argmax((row < lo) | (row > hi)))
-            raise InputError(
-                f"value {row[j]:g} at {w[j]:g} nm is outside the reflectance range {lo:g}–{hi:g}; "
-                "percent or integer-scaled data must be rescaled to 0–1 first (argument scale=…)",
-                source=source,
-                key=names[i],
-            )
+            raise InputError(f"value {row[j]:g} at {w[j]:g} nm {_out_of_range(quantity, lo, hi)}", source=source,
+                             key=key_token(names[i]))
     inside = (w_nm[1:] > grid.start_nm) & (w_nm[:-1] < grid.stop_nm)
     gaps = np.diff(w_nm)
     wide = inside & (gaps > max_gap_nm)
@@ -252,15 +253,26 @@ def _check_user_spectra(
         )
 
 
+def _out_of_range(quantity: Quantity, lo: float, hi: float) -> str:
+    """Why a value is implausible, and what to do about it in scene terms."""
+    if quantity == "reflectance":
+        return (f"is outside the reflectance range {lo:g}–{hi:g}: rescale percent or integer-scaled data to 0–1 in "
+                "the file; if it holds TOA radiance (W m-2 sr-1 um-1) set surface.quantity = \"radiance\"")
+    return (f"is outside the TOA radiance range {lo:g}–{hi:g} W m-2 sr-1 um-1: convert the file to those units; "
+            "if it holds surface reflectance set surface.quantity = \"reflectance\" (with effects.atmosphere)")
+
+
 def _user_library(
-    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float
+    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float,
+    quantity: Quantity = "reflectance",
 ) -> SpectralLibrary:
-    _check_user_spectra(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm)
+    _check_user_spectra(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
     resampled = resample_to_grid(w_nm, spectra, grid, source=source)
     return SpectralLibrary(
         grid=grid,
         spectra=resampled,
         names=names,
+        quantity=quantity,
         groups=["user" for _ in names],
         source=str(source),
     )
@@ -273,6 +285,7 @@ def load_csv_library(
     wavelength_unit: str | None = None,
     scale: float = 1.0,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
+    quantity: Quantity = "reflectance",
 ) -> SpectralLibrary:
     """Read a CSV spectral library and interpolate it linearly onto ``grid``.
 
@@ -284,6 +297,7 @@ def load_csv_library(
 
     :param scale: multiplies every value (``0.01`` for percent).
     :param max_gap_nm: widest wavelength gap inside the grid that interpolation may bridge.
+    :param quantity: what the values are: surface reflectance (0–1) or TOA radiance (W m⁻² sr⁻¹ µm⁻¹).
     :raises InputError: missing/malformed file, bad wavelengths, NaN/inf, values that are not
         reflectance, or data not covering the grid; the message names file and column.
     """
@@ -293,16 +307,14 @@ def load_csv_library(
     if first in {"wavelength_nm", "wavelength_um", "wavelength_µm"}:
         declared = "nm" if first.endswith("nm") else "um"
         if wavelength_unit is not None and _normalise_unit(wavelength_unit, source=source, key=header[0]) != declared:
-            raise InputError(f"column name says {declared} but wavelength_unit={wavelength_unit!r}", source=source)
+            raise InputError(f"column name says {declared} but wavelength_unit={token(wavelength_unit)}",
+                             source=source)
         unit: str | None = declared
     elif first == "wavelength":
         unit = wavelength_unit
     else:
-        raise InputError(
-            f"first column must be named wavelength_nm, wavelength_um or wavelength, got {header[0]!r}",
-            source=source,
-            key=header[0],
-        )
+        raise InputError("first column must be named wavelength_nm, wavelength_um or wavelength (is this a "
+                         "spectral library?)", source=source)
     names = [h.strip() for h in header[1:]]
     if not names:
         raise InputError("holds a wavelength column but no spectrum column", source=source)
@@ -311,7 +323,7 @@ def load_csv_library(
     values = _csv_values(rows, header, source=source)
     w_nm = wavelengths_to_nm(values[:, 0], unit, source=source, key=header[0])
     spectra = np.ascontiguousarray(values[:, 1:].T) * float(scale)
-    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm)
+    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
 
 
 def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
@@ -330,7 +342,8 @@ def _csv_values(rows: list[tuple[int, list[str]]], header: list[str], *, source:
             try:
                 out[r, c] = float(text) if text else np.nan
             except ValueError as err:
-                raise InputError(f"line {line_no}: {text!r} is not a number", source=source, key=header[c]) from err
+                raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
+                                 key=key_token(header[c])) from err
     return out
 
 
@@ -340,6 +353,7 @@ def load_envi_library(
     *,
     wavelength_unit: str | None = None,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
+    quantity: Quantity = "reflectance",
 ) -> SpectralLibrary:
     """Read an ENVI spectral library (``.sli`` + ``.hdr``, through SPy) onto ``grid``.
 
@@ -359,10 +373,11 @@ def load_envi_library(
 
         raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
     try:
+        meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+        _check_envi_size(meta, data, hdr)
         lib = envi.open(str(hdr), str(data))
     except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
-        raise InputError(f"not a readable ENVI spectral library ({type(err).__name__}: {err})", source=hdr) from err
-    meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+        raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
     if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
     centers = lib.bands.centers
@@ -388,7 +403,33 @@ def load_envi_library(
             raise InputError(f"{good.size} entries for {w_nm.size} bands", source=hdr, key="bbl")
         w_nm, spectra = w_nm[good], spectra[:, good]
     names = [str(n).strip() for n in lib.names]
-    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm)
+    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
+
+
+#: bytes per value of the ENVI data types a spectral library may use (real numbers only)
+ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
+#: largest ENVI library read (bytes of data): a library is held in memory as float64 several times
+MAX_ENVI_BYTES = 256 * 2**20
+
+
+def _check_envi_size(meta: dict, data: Path, hdr: Path) -> None:
+    """The data file holds what the header declares (samples × lines × bands values of its data type, after
+    the header offset); checked before SPy allocates anything, so a header cannot ask for petabytes."""
+    try:
+        dims = [int(str(meta[k]).strip()) for k in ("samples", "lines", "bands")]
+        item = ENVI_ITEM_BYTES[str(meta["data type"]).strip()]
+        offset = int(str(meta.get("header offset", "0")).strip() or 0)
+    except (KeyError, ValueError) as err:
+        raise InputError("header lacks valid samples, lines, bands, data type or header offset", source=hdr) from err
+    if min(dims) < 1 or offset < 0:
+        raise InputError(f"samples, lines and bands must be >= 1 and the offset >= 0, got {dims} and {offset}",
+                         source=hdr)
+    need = offset + math.prod(dims) * item
+    have = data.stat().st_size
+    if need > have:
+        raise InputError(f"the header declares {need:,} bytes of data, {data.name} holds {have:,}", source=hdr)
+    if need > MAX_ENVI_BYTES:
+        raise InputError(f"the header declares {need:,} bytes of data (at most {MAX_ENVI_BYTES:,})", source=hdr)
 
 
 def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
@@ -398,7 +439,7 @@ def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
     try:
         return float(value)
     except (TypeError, ValueError) as err:
-        raise InputError(f"must be a number, got {value!r}", source=hdr, key=key) from err
+        raise InputError(f"must be a number, got {token(value)}", source=hdr, key=key) from err
 
 
 def _envi_paths(path: Path) -> tuple[Path, Path]:

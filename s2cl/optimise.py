@@ -8,18 +8,21 @@ from typing import Any
 import numpy as np
 
 from .analysis import AnalysisSettings
-from .design import check_design, count_underdetermined
+from .design import count_underdetermined
 from .errors import InputError
 from .library import SpectralLibrary
 from .scene import Scene
 from .scene_atmosphere import correction_terms, scene_terms
 from .simulate import scene_library
-from .sweep import SweepJob, auto_chunk, evaluate_chunk
+from .sweep import SweepJob, evaluate_chunk
+from .sweep_budget import Budget, sweep_resources
 from .sweep_tables import SweepTables, build_tables, sweep_space
+from .validate import Checked, check_sweep
 from .variants import BandRange, SweepSpace
 
 
-def _check(scene: Scene) -> None:
+def check_sweep_sections(scene: Scene) -> None:
+    """The sections a sweep needs are there: [sweep], [analysis], and the whole chain's effects."""
     if scene.spec.sweep is None:
         raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
                          source=scene.source, key="sweep")
@@ -31,8 +34,8 @@ def _check(scene: Scene) -> None:
                          source=scene.source, key="effects")
 
 
-def _targets(scene: Scene, lib: SpectralLibrary, analysis: AnalysisSettings
-             ) -> tuple[SpectralLibrary, np.ndarray, tuple[str, ...]]:
+def analysis_targets(scene: Scene, lib: SpectralLibrary, analysis: AnalysisSettings
+                     ) -> tuple[SpectralLibrary, np.ndarray, tuple[str, ...]]:
     """The library (restricted to the SAM classes), the per-spectrum target and the class names."""
     if analysis.kind == "sam":
         wanted = scene.spec.analysis.classes or sorted(set(lib.groups))
@@ -52,40 +55,32 @@ def _targets(scene: Scene, lib: SpectralLibrary, analysis: AnalysisSettings
     return lib, np.asarray(lib.params[param], dtype=np.float64), ()
 
 
-def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> SweepTables:
-    lib, target, classes = _targets(scene, scene_library(scene), analysis)
+def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
+            library: SpectralLibrary | None = None) -> SweepTables:
+    lib, target, classes = analysis_targets(scene, library or scene_library(scene), analysis)
     return build_tables(scene, space, lib, scene_terms(scene), correction_terms(scene), target=target,
                         class_names=classes)
 
 
-def plan_sweep(scene: Scene, *, backend: str = "opencl", chunk: int | None = None) -> SweepJob:
-    """The sweep a scene describes, ready for :func:`s2cl.sweep.run_sweep`."""
-    _check(scene)
-    space = sweep_space(scene)
-    analysis = AnalysisSettings.from_scene(scene, space.bands)
-    check_fittable(scene, space, analysis)
-    tables = _tables(scene, space, analysis)
-    chunk = chunk or scene.spec.sweep.chunk or auto_chunk(tables)
+def plan_sweep(scene: Scene, *, backend: str = "opencl", chunk: int | None = None,
+               checked: Checked | None = None, budget: Budget | None = None) -> SweepJob:
+    """The sweep a scene describes, ready for :func:`s2cl.sweep.run_sweep`: checked (:mod:`s2cl.validate`),
+    its memory estimated against ``budget`` before the tables are built, the chunk chosen to fit."""
+    checked = checked or check_sweep(scene)
+    plan = sweep_resources(checked, chunk=chunk, budget=budget)
+    assert checked.space is not None and checked.analysis is not None
+    tables = _tables(scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
-    return SweepJob(tables, analysis, chunk=chunk, backend=backend, precision=scene.spec.output.precision,
-                    scene_name=scene.name, scene_text=text, underdetermined=scene.spec.sweep.underdetermined)
+    return SweepJob(tables, checked.analysis, chunk=plan.chunk, backend=backend,
+                    precision=scene.spec.output.precision, scene_name=scene.name, scene_text=text,
+                    underdetermined=scene.spec.sweep.underdetermined)
 
 
 def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
     """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.design`), counted without
     enumerating them; None when there are too many distinct centres to count."""
-    return count_underdetermined(analysis.kind, space.per_band, nir_slot=analysis.nir_slot,
+    return count_underdetermined(analysis.kind, space, nir_slot=analysis.nir_slot,
                                  swir_slot=analysis.swir_slot)
-
-
-def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
-    """Refuse, before any work, a sweep in which no configuration can be fitted (one line naming the
-    reason, e.g. a fixed design with two IGRM bands on one centre)."""
-    bad = underdetermined_count(space, analysis)
-    if bad is not None and bad == space.size:
-        first = space.shapes(0, 1)[0]
-        check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
-                     nir_slot=analysis.nir_slot, swir_slot=analysis.swir_slot)
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
@@ -102,8 +97,7 @@ def count_table(scene: Scene) -> list[dict[str, Any]]:
     """Variants per band (count and extremes) for ``s2cl sweep count``."""
     space = sweep_space(scene)
     rows = []
-    for r, v in zip(space.ranges, space.per_band, strict=True):
-        rows.append({"band": r.band, "variants": int(v.shape[0]),
-                     "centres_nm": f"{v[:, 0].min():g}–{v[:, 0].max():g}",
-                     "widths_nm": f"{v[:, 1].min():g}–{v[:, 1].max():g}"})
+    for r, n in zip(space.ranges, space.counts, strict=True):
+        c0, c1, w0, w1 = r.extent()
+        rows.append({"band": r.band, "variants": n, "centres_nm": f"{c0:g}–{c1:g}", "widths_nm": f"{w0:g}–{w1:g}"})
     return rows

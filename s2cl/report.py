@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputError, token
 from .output import write_json
 from .plots import pyplot, save_png
 
@@ -22,15 +23,79 @@ def metric_of(columns: list[str]) -> str:
 
 
 def load(path: str | Path) -> tuple[Any, dict[str, str]]:
-    """Results as a pandas DataFrame and the file's metadata."""
+    """Results as a pandas DataFrame and the file's metadata.
+
+    :raises InputError: no results in a folder (a sweep that did not finish says how to resume it), a
+        file that is not Parquet, or a Parquet file that s2cl did not write (metadata and columns).
+    """
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     p = Path(path)
     if p.is_dir():
-        p = p / "results.parquet"
-    table = pq.read_table(p)
-    meta = {k.decode(): v.decode() for k, v in (table.schema.metadata or {}).items() if not k.startswith(b"pandas")}
+        p = _results_in(p)
+    if not p.is_file():
+        raise InputError("is not a regular file", source=p)
+    try:
+        table = pq.read_table(p)
+    except (pa.ArrowException, OSError, ValueError) as err:
+        raise InputError(f"not a readable Parquet file ({type(err).__name__}); a damaged results.parquet is "
+                         "rebuilt by running the sweep again (finished chunks are kept)", source=p) from None
+    meta = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (table.schema.metadata or {}).items()
+            if not k.startswith(b"pandas")}
+    _check_results(table, meta, p)
     return table.to_pandas(), meta
+
+
+def _results_in(folder: Path) -> Path:
+    results = folder / "results.parquet"
+    if results.exists():
+        return results
+    if (folder / "manifest.json").exists() or (folder / "chunks").is_dir():
+        raise InputError("the sweep in this folder did not finish (no results.parquet yet); run the same `s2cl "
+                         "sweep run SCENE -o FOLDER` again to resume it", source=folder)
+    raise InputError("no results.parquet here: not a sweep's output folder", source=folder)
+
+
+def _check_results(table: Any, meta: dict[str, str], source: Path) -> None:
+    """A results table s2cl wrote: its metadata, the config column, a metric, band centre/width pairs."""
+    missing = [k for k in ("fingerprint", "scene", "analysis") if k not in meta]
+    if missing:
+        raise InputError(f"not an s2cl sweep result (no {', '.join(missing)} in its metadata)", source=source)
+    columns = set(table.column_names)
+    bands = [c[: -len("_centre_nm")] for c in columns if c.endswith("_centre_nm")]
+    needed = ["config", metric_of(list(columns)), *(f"{b}_width_nm" for b in bands)]
+    lacking = [c for c in needed if c not in columns]
+    if lacking or not bands:
+        raise InputError(f"not an s2cl sweep result (columns missing: {', '.join(lacking) or 'band centres'})",
+                         source=source)
+    if table.num_rows == 0:
+        raise InputError("holds no configurations", source=source)
+
+
+def check_band(df: Any, band: str, source: str | Path) -> str:
+    """``band`` as the results spell it; :class:`InputError` (key ``--band``) when it is not swept."""
+    bands = bands_of(df)
+    for b in bands:
+        if b.lower() == band.lower():
+            return b
+    raise InputError(f"{token(band)} is not a band of these results; bands: {', '.join(bands)}", source=source,
+                     key="--band")
+
+
+def reference_of(summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The reference row (the sensor's own bands) of a previous ``summary.json``, in the row form
+    :func:`summarise` takes; None when there is none."""
+    ref = summary.get("reference")
+    if not isinstance(ref, dict) or not isinstance(ref.get("bands"), dict):
+        return None
+    row = {k: v for k, v in ref.items() if k not in ("bands", "configurations_better")}
+    try:
+        for b, (c, w) in ref["bands"].items():
+            row |= {f"{b}_centre_nm": c, f"{b}_width_nm": w}
+    except (TypeError, ValueError):  # not what s2cl writes: no reference
+        return None
+    return row
 
 
 def bands_of(df: Any) -> list[str]:
@@ -155,7 +220,12 @@ def write_summary(path: str | Path, summary: dict[str, Any]) -> Path:
 
 
 def read_summary(path: str | Path) -> dict[str, Any]:
-    return json.loads(Path(path).read_text())
+    """A previous ``summary.json``; an unreadable one counts as none (the report rewrites it)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 # -- the paper's values beside s2cl's (Segl et al. 2012, Tables 3-6) -------------------------------

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import BuildError, DeviceError, InputError
+from .errors import BuildError, DeviceError, InputError, token
 from .vectypes import VALID_LANES
 
 _log = logging.getLogger(__name__)
@@ -90,13 +91,15 @@ def _select(spec: str | None) -> tuple[Any, DeviceInfo]:
     infos = list_devices()
     if not infos:
         raise DeviceError("no OpenCL platform found: " + INSTALL_HINT)
-    listing = "\n  ".join(str(i) for i in infos)
+    listing = "; ".join(str(i) for i in infos)
     if spec is None:
         chosen = _first_working(infos)
     else:
         chosen = _match(spec, infos)
         if chosen is None:
-            raise DeviceError(f"no OpenCL device matches {spec!r}; available:\n  {listing}")
+            origin = " ($PYOPENCL_CTX)" if spec == _env_spec() else ""
+            raise DeviceError(f"no OpenCL device matches {token(spec, 40)}{origin}; available: {listing} "
+                              "(give PLATFORM:DEVICE indices or part of a name)")
     device = _platforms()[chosen.platform_index].get_devices()[chosen.device_index]
     return device, chosen
 
@@ -139,13 +142,21 @@ def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
     raise DeviceError("no OpenCL device could compile a kernel (" + "; ".join(logs) + "): " + hint)
 
 
+_INDICES = re.compile(r"(\d+)(?::(\d*))?")
+
+
 def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
+    """The device named by ``spec``: ``P``, ``P:`` or ``P:D`` indices, or part of a device or platform
+    name. Anything else made of digits and colons (``0:0:0``) or empty matches nothing."""
     spec = spec.strip()
-    parts = spec.split(":")
-    if all(p.isdigit() for p in parts if p) and parts[0]:
-        pi = int(parts[0])
-        di = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+    if not spec:
+        return None
+    indices = _INDICES.fullmatch(spec)
+    if indices:
+        pi, di = int(indices.group(1)), int(indices.group(2) or 0)
         return next((i for i in infos if i.platform_index == pi and i.device_index == di), None)
+    if re.fullmatch(r"[\d:]+", spec):
+        return None
     needle = spec.lower()
     return next((i for i in infos if needle in i.name.lower() or needle in i.platform.lower()), None)
 
@@ -378,9 +389,13 @@ def save_source(source: str, template: str) -> Path:
 _RUNTIMES: dict[str | None, Runtime] = {}
 
 
+def _env_spec() -> str | None:
+    return os.environ.get("PYOPENCL_CTX") or None
+
+
 def get_runtime(device: str | None = None) -> Runtime:
     """The process-wide :class:`Runtime` for ``device`` (see module doc for the order)."""
-    spec = device if device is not None else (os.environ.get("PYOPENCL_CTX") or None)
+    spec = device if device is not None else _env_spec()
     runtime = _RUNTIMES.get(spec)
     if runtime is None:
         runtime = _RUNTIMES[spec] = Runtime(spec)

@@ -10,30 +10,43 @@ range are errors that name the file, the key and the allowed range.
 from __future__ import annotations
 
 import difflib
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from .effects import EffectSet
-from .errors import InputError
+from .errors import InputError, key_token, token
 from .grid import SpectralGrid
 from .resources import scene_dir
 from .sensor import Sensor
 from .srf import DEFAULT_SUPPORT, load_srf_csv, measured_sentinel2_srf
 
 UINT32_MAX = 2**32 - 1
+#: largest scene file read (bytes): scenes are a few kB; this refuses a wrong file before parsing it
+MAX_SCENE_BYTES = 1_000_000
+#: a scene name is a folder name: no separators, no leading dot
+SCENE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class SceneMeta(_Section):
     name: str = Field(min_length=1, description="short name, used for the output folder")
     description: str = ""
+
+    @field_validator("name")
+    @classmethod
+    def _folder_name(cls, value: str) -> str:
+        if not SCENE_NAME.fullmatch(value):
+            raise ValueError("must be 1-100 letters, digits, '.', '_' or '-', starting with a letter or digit "
+                             "(it names the output folder s2cl-out/NAME)")
+        return value
 
 
 class SurfaceSpec(_Section):
@@ -215,13 +228,7 @@ class Scene:
     def load(cls, scene: str | Path) -> Scene:
         """Load a scene file, or a built-in scene by name (``default``; see :func:`builtin_scenes`)."""
         path = find_scene(scene)
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as err:
-            raise InputError(f"not valid TOML: {err}", source=path) from err
-        except (OSError, UnicodeDecodeError) as err:
-            raise InputError(f"cannot read scene ({err})", source=path) from err
-        return cls.from_dict(data, path=path)
+        return cls.from_dict(read_toml(path), path=path)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, path: Path | None = None, base_dir: Path | None = None) -> Scene:
@@ -241,6 +248,25 @@ class Scene:
             for band in sensor.bands:
                 band.weights(grid, spec.sensor.support, source)
         return cls(spec=spec, path=path, grid=grid, sensor=sensor, effects=effects, base_dir=base)
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """A scene file's TOML as a dict; every failure (not a regular file, too large, not UTF-8, not TOML,
+    nested too deeply) is an :class:`InputError` naming the file."""
+    try:
+        if not path.is_file():
+            raise InputError("is not a regular file", source=path)
+        if path.stat().st_size > MAX_SCENE_BYTES:
+            raise InputError(f"is larger than {MAX_SCENE_BYTES:,} bytes: not a scene file", source=path)
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"not valid TOML: {err}", source=path) from None
+    except RecursionError:
+        raise InputError("not a usable scene: arrays or tables nested too deeply", source=path) from None
+    except UnicodeDecodeError:
+        raise InputError("cannot read scene: not UTF-8 text", source=path) from None
+    except OSError as err:
+        raise InputError(f"cannot read scene ({err.strerror or type(err).__name__})", source=path) from None
 
 
 def builtin_scenes() -> dict[str, Path]:
@@ -351,7 +377,7 @@ def _input_error(err: ValidationError, source: str) -> InputError:
     """The first validation problem as one line: file, dotted key, what is allowed."""
     e = err.errors()[0]
     loc = [str(x) for x in e["loc"]]
-    key = ".".join(loc)
+    key = ".".join(key_token(x) for x in loc)
     if e["type"] == "extra_forbidden":
         allowed = _allowed_keys(loc[:-1])
         near = difflib.get_close_matches(loc[-1], allowed, n=1)
@@ -359,8 +385,9 @@ def _input_error(err: ValidationError, source: str) -> InputError:
         return InputError(f"unknown key{hint} allowed keys here: {', '.join(allowed)}", source=source, key=key)
     if e["type"] == "missing":
         return InputError("required key is missing", source=source, key=key)
-    got = e.get("input")
-    return InputError(f"{_allowed_text(e, loc)}, got {got!r}", source=source, key=key)
+    if e["type"] == "value_error":
+        return InputError(str((e.get("ctx") or {}).get("error", e["msg"])), source=source, key=key)
+    return InputError(f"{_allowed_text(e, loc)}, got {token(e.get('input'))}", source=source, key=key)
 
 
 _BOUNDS = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))

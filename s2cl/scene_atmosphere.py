@@ -62,8 +62,12 @@ def state_terms(scene: Scene, state: Any, section: str) -> Any:
     try:
         return scene_lut(scene).terms(state, scene.grid, scene.spec.atmosphere.interpolation)
     except InputError as err:
+        if err.key in STATE_KEYS or err.key == "grid":  # the scene's value is outside the LUT's axes
+            key = "grid" if err.key == "grid" else f"{section}.{err.key}"
+            lut = f" (LUT {Path(err.source).name})" if err.source else ""
+            raise InputError(err.detail + lut, source=scene.source, key=key) from None
         if err.source and Path(err.source).suffix in (".npz", ".nc"):
-            raise
+            raise  # the LUT file itself is at fault
         raise err.within(scene.source, section) from None
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, key_token, token
 from .grid import SpectralGrid
 from .noise_model import NoiseModel, fit_noise_model
 from .srf import DEFAULT_SUPPORT, BandWeights, TabulatedResponse, band_weights
@@ -180,7 +180,8 @@ class Sensor:
                 try:
                     return float(text)
                 except ValueError as err:
-                    raise InputError(f"not a number: {text!r}", source=path, key=f"{_band}.{key}") from err
+                    raise InputError(f"not a number: {token(text)}", source=path,
+                                     key=f"{key_token(_band)}.{key}") from err
 
             levels = {k: number(k) for k in ("lmin", "lref", "lmax")}
             snrs = {k: number("snr_" + k, optional=True) for k in ("lmin", "lref", "lmax")}

@@ -13,7 +13,7 @@ import numpy as np
 from . import __version__
 from .correction import BandAtmosphere
 from .effects import EffectSet
-from .errors import InputError
+from .errors import InputError, token
 from .library import SpectralLibrary
 from .resample import AtmosphereArrays, ResamplePlan, Resampler
 from .runtime import Runtime, get_runtime
@@ -65,6 +65,57 @@ class LibrarySimulation:
 
     def summary(self) -> list[dict[str, Any]]:
         """Per band: mean radiance, measured and modelled SNR, clipping, calibration error."""
+        stats = BandSummary(self.sensor, self.band_radiance, self.copies)
+        stats.add(0, self.library.size, self.noisy, self.calibrated, self.clipped, self.flags)
+        return stats.rows()
+
+    def to_dataset(self, layout: str = "rows") -> Any:
+        """xarray Dataset: per-band images in the scene's layout plus the spectrum table."""
+        from .dataset import library_dataset
+
+        return library_dataset(self, layout)
+
+
+class BandSummary:
+    """The per-band summary of a simulation, accumulated over chunks of whole spectra (each chunk holds
+    every copy of its spectra, so per-spectrum statistics are exact whatever the chunking)."""
+
+    def __init__(self, sensor: Sensor, band_radiance: np.ndarray, copies: int):
+        self.sensor, self.band_radiance, self.copies = sensor, band_radiance, copies
+        nb = band_radiance.shape[0]
+        self.n_pixels = band_radiance.shape[1] * copies
+        self._snr: list[np.ndarray] = []
+        self._sq_error = np.zeros(nb)
+        self._clipped: np.ndarray | None = None
+        self._nodata: np.ndarray | None = None
+        self._calibrated = False
+
+    def add(self, lo: int, hi: int, noisy: np.ndarray | None, calibrated: np.ndarray | None,
+            clipped: np.ndarray | None, flags: np.ndarray | None = None) -> None:
+        """Spectra ``lo … hi-1``: ``noisy``, ``calibrated`` and ``flags`` ``(n_bands, hi - lo, copies)``,
+        ``clipped`` ``(2, n_bands)`` counts (None where the stage is off)."""
+        if flags is not None:
+            nodata = np.count_nonzero(flags.reshape(flags.shape[0], -1) & PixelFlag.NODATA, axis=1)
+            self._nodata = nodata + (0 if self._nodata is None else self._nodata)
+        L = self.band_radiance[:, lo:hi].astype(np.float64)
+        if noisy is not None and self.copies > 1:
+            std = noisy.astype(np.float64).std(axis=2, ddof=1)
+            self._snr.append(np.where(std > 0, L / np.where(std > 0, std, 1.0), np.nan))
+        if calibrated is not None:
+            err = calibrated.astype(np.float64) - L[:, :, None]
+            self._sq_error += np.einsum("kij,kij->k", err, err)
+            self._calibrated = True
+        if clipped is not None:
+            self._clipped = clipped.astype(np.int64) + (0 if self._clipped is None else self._clipped)
+
+    @property
+    def clipped(self) -> np.ndarray | None:
+        """``(2, n_bands)`` pixels below Lmin / above Lmax so far (None without quantisation)."""
+        return self._clipped
+
+    def rows(self) -> list[dict[str, Any]]:
+        """Per band: mean radiance, measured and modelled SNR, clipping, calibration error."""
+        snr = np.concatenate(self._snr, axis=1) if self._snr else None
         rows = []
         for k, band in enumerate(self.sensor.bands):
             L = self.band_radiance[k].astype(np.float64)
@@ -72,27 +123,19 @@ class LibrarySimulation:
                 "band": band.name, "centre_nm": band.centre_nm, "fwhm_nm": band.fwhm_nm,
                 "mean_radiance": float(L.mean()),
             }
-            if self.noisy is not None and self.copies > 1:
-                std = self.noisy[k].astype(np.float64).std(axis=1, ddof=1)
-                ok = std > 0
-                row["snr_measured_median"] = float(np.median(L[ok] / std[ok])) if ok.any() else float("nan")
+            if snr is not None:
+                ok = np.isfinite(snr[k])
+                row["snr_measured_median"] = float(np.median(snr[k][ok])) if ok.any() else float("nan")
                 row["snr_model_median"] = float(np.median(band.noise.snr(L, band.fwhm_nm)))
-            if self.clipped is not None:
-                row["clipped_low_pct"] = 100.0 * float(self.clipped[0, k]) / self.n_pixels
-                row["clipped_high_pct"] = 100.0 * float(self.clipped[1, k]) / self.n_pixels
-            if self.flags is not None:
-                row["nodata_pct"] = 100.0 * float(np.count_nonzero(self.flags[k] & PixelFlag.NODATA)) / self.n_pixels
-            if self.calibrated is not None:
-                err = self.calibrated[k].astype(np.float64) - L[:, None]
-                row["rms_error_vs_noise_free"] = float(np.sqrt(np.mean(err**2)))
+            if self._clipped is not None:
+                row["clipped_low_pct"] = 100.0 * float(self._clipped[0, k]) / self.n_pixels
+                row["clipped_high_pct"] = 100.0 * float(self._clipped[1, k]) / self.n_pixels
+            if self._calibrated:
+                row["rms_error_vs_noise_free"] = float(np.sqrt(self._sq_error[k] / self.n_pixels))
+            if self._nodata is not None:
+                row["nodata_pct"] = 100.0 * float(self._nodata[k]) / self.n_pixels
             rows.append(row)
         return rows
-
-    def to_dataset(self, layout: str = "rows") -> Any:
-        """xarray Dataset: per-band images in the scene's layout plus the spectrum table."""
-        from .dataset import library_dataset
-
-        return library_dataset(self, layout)
 
 
 class Simulator:
@@ -189,8 +232,9 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
         scene = Scene.load(scene)
     if scene.spec.surface.cube is not None:
         raise InputError("this scene holds an image cube: use s2cl.cube.simulate_cube", source=scene.source)
-    rt = get_runtime(device)
     lib = library if library is not None else scene_library(scene)
+    _require_memory(scene, lib)
+    rt = get_runtime(device)
     sim = Simulator.for_scene(scene, runtime=rt, atmosphere=scene_atmosphere(scene))
     s = scene.spec
     result = sim.run_library(lib, copies=s.surface.copies, seed=s.effects.seed, frame=s.effects.frame,
@@ -201,6 +245,24 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
     return result
 
 
+#: bytes per pixel and band of an in-memory simulation: float32 noisy/calibrated/reflectance and uint16 DN,
+#: and the copies :meth:`LibrarySimulation.to_dataset` makes of them
+IN_MEMORY_BYTES_PER_PIXEL_BAND = 48
+
+
+def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
+    """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
+    from .budget import BASELINE_BYTES, Budget, largest_fitting
+
+    copies, nb = scene.spec.surface.copies, scene.sensor.size
+    per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
+    budget = Budget.of()
+    budget.require(BASELINE_BYTES + copies * per_copy, what=f"an in-memory simulation of {lib.size:,} spectra × "
+                   f"{copies:,} copies", key="surface.copies", source=scene.source,
+                   fits=f"at most {largest_fitting(budget.memory_bytes, BASELINE_BYTES, per_copy):,} copies fit; "
+                        "`s2cl simulate` writes any number of copies in bounded memory")
+
+
 def scene_library(scene: Scene) -> SpectralLibrary:
     """The scene's spectral library on the scene's grid."""
     from .libraries import load_library
@@ -208,10 +270,10 @@ def scene_library(scene: Scene) -> SpectralLibrary:
     spec = scene.spec.surface.library
     assert spec is not None
     name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
-    lib = load_library(name, scene.grid, source=scene.source)
     want = scene.spec.surface.quantity
+    lib = load_library(name, scene.grid, source=scene.source, key="surface.library", quantity=want)
     if lib.quantity != want:
-        raise InputError(f"library {spec!r} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
+        raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
                          source=scene.source, key="surface.quantity")
     return lib
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, key_token
 from .grid import SpectralGrid
 
 X0 = 0.0001
@@ -152,7 +152,7 @@ def load_srf_csv(path: str, band_names: list[str] | None = None) -> dict[str, Ta
     try:
         data = np.array([[float(v) for v in row] for row in rows], dtype=np.float64)
     except ValueError as err:
-        raise InputError(f"holds a value that is not a number ({err})", source=path) from err
+        raise InputError("holds a value that is not a number", source=path) from err
     if data.ndim != 2 or data.shape[0] < 2:
         raise InputError("needs at least two rows of responses", source=path)
     from .grid import check_wavelengths
@@ -165,9 +165,9 @@ def load_srf_csv(path: str, band_names: list[str] | None = None) -> dict[str, Ta
             continue
         r = data[:, j]
         if not np.all(np.isfinite(r)) or np.any(r < 0):
-            raise InputError("responses must be finite and >= 0", source=path, key=name)
+            raise InputError("responses must be finite and >= 0", source=path, key=key_token(name))
         if not np.any(r > 0):
-            raise InputError("response is zero everywhere", source=path, key=name)
+            raise InputError("response is zero everywhere", source=path, key=key_token(name))
         out[name] = TabulatedResponse(wl, r, origin=f"{path}:{name}")
     return out
 

@@ -13,7 +13,8 @@ import click
               "[study.quick]")
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="output folder (default: s2cl-out/study-NAME)")
-def study(name: str, quick: bool, output: Path | None) -> None:
+@click.option("--quiet", "-q", is_flag=True, help="no tables or notes: only the files written")
+def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
     """Run an atmospheric-band study of the paper (Sec. 3): prints a table, writes NAME.json + NAME.png.
 
     \b
@@ -26,6 +27,9 @@ def study(name: str, quick: bool, output: Path | None) -> None:
     from .studies import run_study
 
     result, js, png = run_study(name, quick=quick, output=output)
+    if quiet:
+        click.echo(f"wrote {js} and {png}")
+        return
     console = _console()
     table = Table(title=result.title)
     for c in result.columns:

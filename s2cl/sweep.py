@@ -29,8 +29,9 @@ import numpy as np
 
 from . import __version__
 from .analysis import AnalysisSettings
+from .budget import available_memory, require_disk
 from .design import underdetermined
-from .errors import DependencyError, InputError
+from .errors import DependencyError, InputError, ResourceError
 from .metrics import classification_metrics, regression_metrics
 from .output import atomic_path, write_json
 from .reference.sweep import RawChunk
@@ -217,43 +218,26 @@ def merge_results(job: SweepJob, out: Path) -> Path:
 
 # -- estimates --------------------------------------------------------------------------------------
 
+def results_disk_bytes(n_configs: int, n_slots: int) -> float:
+    """Disk the chunk files and ``results.parquet`` of a sweep take at most (bytes): both hold every row
+    (config, centre and width per band, about ten metrics), float64, with Parquet overhead."""
+    return n_configs * (2 * n_slots + 11) * 8 * 1.3 + 1e6
+
+
 def check_resources(job: SweepJob, out: Path) -> dict[str, float]:
     """Disk and memory the sweep needs; :class:`InputError` before starting when they are not there."""
-    n_cols = len(job.columns()) + 10
-    disk = job.n_configs * n_cols * 8 * 1.3 + 1e6
-    free = shutil.disk_usage(out if out.exists() else _existing_parent(out)).free
-    if disk > free:
-        raise InputError(f"the sweep needs about {disk / 1e6:,.0f} MB of disk for its results, "
-                         f"{free / 1e6:,.0f} MB are free", source=out)
+    disk = results_disk_bytes(job.n_configs, len(job.tables.bands))
+    require_disk(out, disk, what=f"the results of {job.n_configs:,} configurations", key="sweep")
     memory = job.chunk * job.tables.n_pixels * HOST_BYTES_PER_EVALUATION
     available = _available_memory()
     if available and memory > 0.8 * available:
-        raise InputError(f"a chunk of {job.chunk} configurations needs about {memory / 1e9:.1f} GB of memory, "
-                         f"{available / 1e9:.1f} GB are available; lower sweep.chunk", key="sweep.chunk")
+        raise ResourceError(f"a chunk of {job.chunk} configurations needs about {memory / 1e9:.1f} GB of memory, "
+                            f"{available / 1e9:.1f} GB are available; lower sweep.chunk", key="sweep.chunk")
     return {"disk_bytes": disk, "chunk_memory_bytes": memory}
 
 
-def auto_chunk(tables: SweepTables, budget_bytes: float = 512e6) -> int:
-    """Configurations per chunk so that a chunk's work arrays stay within ``budget_bytes``."""
-    per_config = tables.n_pixels * HOST_BYTES_PER_EVALUATION
-    return int(max(1, min(tables.n_configs, budget_bytes // per_config, 16384)))
-
-
-def _existing_parent(p: Path) -> Path:
-    p = p.resolve()
-    while not p.exists():
-        p = p.parent
-    return p
-
-
 def _available_memory() -> float | None:
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return float(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
+    return float(available_memory())
 
 
 # -- running ------------------------------------------------------------------------------------------

@@ -23,6 +23,9 @@ import numpy as np
 from .errors import InputError
 
 EPS = 1e-9
+#: most widths, and centres per width, one band may take (a finer step is refused before anything is counted)
+MAX_WIDTHS = 1_000_000
+MAX_CENTRES = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,7 @@ class BandRange:
         return cls(band, centre_nm - width_nm / 2, centre_nm + width_nm / 2, width_nm, width_nm, step_nm=0.0)
 
     def validate(self, source: str | None = None) -> None:
-        key = f"sweep.{self.band}"
+        key = f"sweep.ranges.{self.band}"
         values = (self.left_nm, self.right_nm, self.min_width_nm, self.max_width_nm, self.step_nm)
         if not all(math.isfinite(v) for v in values):
             raise InputError("all range values must be finite", source=source, key=key)
@@ -56,7 +59,14 @@ class BandRange:
             raise InputError(f"right ({self.right_nm}) must be > left ({self.left_nm})", source=source, key=key)
         if self.step_nm < 0:
             raise InputError(f"step must be >= 0 nm, got {self.step_nm}", source=source, key=key)
-        if not self.variants().size:
+        if not self.is_fixed:
+            widths = (self.max_width_nm - self.min_width_nm) / self.step_nm + 1
+            centres = (self.right_nm - self.left_nm) / self.step_nm + 1
+            if widths > MAX_WIDTHS or centres > MAX_CENTRES:
+                raise InputError(f"a {self.step_nm:g} nm step gives {widths:,.0f} widths and {centres:,.0f} centres "
+                                 f"for band {self.band} (at most {MAX_WIDTHS:,} and {MAX_CENTRES:,})",
+                                 source=source, key="sweep.step_nm")
+        if not self.count():
             raise InputError(
                 f"admits no variant: no width in {self.min_width_nm:g}–{self.max_width_nm:g} nm on the "
                 f"{self.step_nm:g} nm grid fits inside {self.left_nm:g}–{self.right_nm:g} nm",
@@ -72,6 +82,34 @@ class BandRange:
             return np.array([self.min_width_nm])
         n = math.floor((self.max_width_nm - self.min_width_nm) / self.step_nm + EPS)
         return self.min_width_nm + self.step_nm * np.arange(n + 1)
+
+    def _centre_ranges(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per width: (width, first and last centre index k on the step grid, whether the width fills the
+        window with no grid centre), computed as :meth:`variants` does, without enumerating centres."""
+        w = self.widths()
+        lo, hi = self.left_nm + w / 2, self.right_nm - w / 2
+        k0, k1 = np.ceil(lo / self.step_nm - EPS), np.floor(hi / self.step_nm + EPS)
+        fills = (np.abs(w - (self.right_nm - self.left_nm)) < EPS) & (k1 < k0)
+        return w, k0, k1, fills
+
+    def count(self) -> int:
+        """Number of variants (what ``len(variants())`` would be), computed, not enumerated."""
+        if self.is_fixed:
+            return 1
+        _, k0, k1, fills = self._centre_ranges()
+        return int(np.maximum(k1 - k0 + 1, 0).sum() + fills.sum())
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """(smallest centre, largest centre, smallest width, largest width) of the variants, nm."""
+        if self.is_fixed:
+            c = (self.left_nm + self.right_nm) / 2
+            return c, c, self.min_width_nm, self.min_width_nm
+        w, k0, k1, fills = self._centre_ranges()
+        some = k1 >= k0
+        fill_c = (self.left_nm + self.right_nm) / 2
+        centres = [*(k0[some] * self.step_nm), *(k1[some] * self.step_nm), *([fill_c] if fills.any() else [])]
+        widths = w[some | fills]
+        return float(min(centres)), float(max(centres)), float(widths.min()), float(widths.max())
 
     def variants(self) -> np.ndarray:
         """All (centre, width) pairs, float64 ``(n, 2)``, sorted by width then centre."""
@@ -99,7 +137,7 @@ class BandGrid:
     widths: tuple[float, ...]
 
     def validate(self, source: str | None = None) -> None:
-        key = f"sweep.{self.band}"
+        key = f"sweep.ranges.{self.band}"
         values = self.centres + self.widths
         if not self.centres or not self.widths:
             raise InputError("needs at least one centre and one width", source=source, key=key)
@@ -114,6 +152,13 @@ class BandGrid:
     @property
     def is_fixed(self) -> bool:
         return len(self.centres) == len(self.widths) == 1
+
+    def count(self) -> int:
+        return len(self.centres) * len(self.widths)
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """(smallest centre, largest centre, smallest width, largest width), nm."""
+        return min(self.centres), max(self.centres), min(self.widths), max(self.widths)
 
     def variants(self) -> np.ndarray:
         """All (centre, width) pairs, ``(n, 2)``, widths outer, centres inner."""
@@ -147,7 +192,8 @@ class SweepSpace:
 
     @property
     def counts(self) -> list[int]:
-        return [v.shape[0] for v in self.per_band]
+        """Variants per band, computed without enumerating them."""
+        return [r.count() for r in self.ranges]
 
     @property
     def size(self) -> int:

@@ -40,3 +40,28 @@ def gvmi_job(chunk: int = 5, copies: int = 20, backend: str = "numpy", b11_max_w
     tables = build_tables(scene, space, lib, terms, terms, target=lib.params["ewt"])
     analysis = AnalysisSettings.from_scene(scene, space.bands)
     return SweepJob(tables, analysis, chunk=chunk, backend=backend, scene_name=scene.name)
+
+
+#: A small whole-chain sweep scene (Lib1, IGRM, B4 over 3 centres × 2 widths: 6 configurations) for
+#: command-line tests; ``{copies}`` noisy copies per spectrum.
+SMALL_SWEEP_TOML = """
+[scene]
+name = "small"
+[surface]
+library = "builtin:lib1"
+quantity = "reflectance"
+copies = {copies}
+[effects]
+atmosphere = true
+correct = true
+[analysis]
+kind = "igrm"
+parameter = "cab"
+[sweep]
+bands = ["B4", "B5", "B6", "B7"]
+[sweep.ranges]
+B4 = {{ centres = [665, 675, 685], widths = [20, 30] }}
+B5 = {{ centre = 705, width = 15 }}
+B6 = {{ centre = 740, width = 15 }}
+B7 = {{ centre = 783, width = 20 }}
+"""

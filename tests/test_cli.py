@@ -10,6 +10,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 import xarray as xr
+from sweep_fixtures import SMALL_SWEEP_TOML
 
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -29,8 +30,8 @@ def test_simulate_default_scene(tmp_path) -> None:
     assert out.returncode == 0, out.stderr
     assert out.stderr == ""  # no compiler output, no warnings: only the "wrote ..." line on stdout
     assert "warning" not in out.stdout.lower()
-    summary = json.loads((tmp_path / "sim" / "summary.json").read_text())
-    assert summary["pixels"] == 12_000 and len(summary["bands"]) == 13
+    summary = json.loads((tmp_path / "sim" / "simulation.json").read_text())
+    assert summary["pixels"] == 12_000 and len(summary["bands"]) == 13 and summary["warnings"] == []
     assert summary["analysis"]["kind"] == "igrm" and 0 < summary["analysis"]["rms"] < 30
     ds = xr.open_dataset(tmp_path / "sim" / "simulation.nc", engine="h5netcdf")
     assert ds["dn"].shape == (13, 120, 100) and ds["reflectance"].shape == (13, 120, 100)
@@ -39,27 +40,7 @@ def test_simulate_default_scene(tmp_path) -> None:
 
 def _small_sweep(tmp_path: Path) -> Path:
     scene = tmp_path / "small.toml"
-    scene.write_text("""
-[scene]
-name = "small"
-[surface]
-library = "builtin:lib1"
-quantity = "reflectance"
-copies = 5
-[effects]
-atmosphere = true
-correct = true
-[analysis]
-kind = "igrm"
-parameter = "cab"
-[sweep]
-bands = ["B4", "B5", "B6", "B7"]
-[sweep.ranges]
-B4 = { centres = [665, 675, 685], widths = [20, 30] }
-B5 = { centre = 705, width = 15 }
-B6 = { centre = 740, width = 15 }
-B7 = { centre = 783, width = 20 }
-""")
+    scene.write_text(SMALL_SWEEP_TOML.format(copies=5))
     return scene
 
 

@@ -47,8 +47,8 @@ def test_counting_without_enumerating_equals_enumerating(bands: list[str]) -> No
     space = table2_space(bands)
     shapes = space.shapes(0, space.size)
     flags = underdetermined("igrm", shapes[..., 0], shapes[..., 1])
-    assert count_underdetermined("igrm", space.per_band) == int(flags.sum())
-    assert count_underdetermined("igrm", space.per_band, limit=10) is None  # too many to count: said so
+    assert count_underdetermined("igrm", space) == int(flags.sum())
+    assert count_underdetermined("igrm", space, limit=10) is None  # too many to count: said so
     if bands[-1] == "B8":
         assert int(flags.sum()) == 92  # the default scene: every one has B5 = B6
 

@@ -52,7 +52,7 @@ def test_fixed_band() -> None:
 def test_bad_ranges(rng: BandRange, message: str) -> None:
     with pytest.raises(InputError, match=message) as err:
         SweepSpace((rng,)).validate("sweep.toml")
-    assert "sweep.B4" in str(err.value) and "sweep.toml" in str(err.value)
+    assert "sweep.ranges.B4" in str(err.value) and "sweep.toml" in str(err.value)
 
 
 def test_duplicate_band() -> None:

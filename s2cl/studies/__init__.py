@@ -43,14 +43,18 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
     """
+    from .. import __version__
+    from ..outdir import check_output_dir, claim
+
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)
-    result = STUDIES[setup.study.kind](setup)
     out = Path(output) if output else Path("s2cl-out") / scene.name
+    check_output_dir(out, where="--output" if output else f"scene.name in {scene.source}")
+    result = STUDIES[setup.study.kind](setup)
     stem = setup.study.kind
-    png = result.plot(out / f"{stem}.png")
-    from .. import __version__
-
-    payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick, "s2cl_version": __version__}
-    js = write_json(out / f"{stem}.json", payload)
+    with claim(out):
+        png = result.plot(out / f"{stem}.png")
+        payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick,
+                   "s2cl_version": __version__}
+        js = write_json(out / f"{stem}.json", payload)
     return result, js, png

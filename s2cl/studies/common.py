@@ -79,13 +79,18 @@ class StudySetup:
 
     def truth(self, **changes: Any) -> AtmosphereState:
         """The scene's [atmosphere] state, with ``changes``."""
-        state = true_state(self.scene)
-        return state.replace(**changes) if changes else state
+        return self._changed(true_state(self.scene), changes)
 
     def assumed(self, **changes: Any) -> AtmosphereState:
         """The state the correction assumes: [correction] keys over [atmosphere], with ``changes``."""
-        state = assumed_state(self.scene)
-        return state.replace(**changes) if changes else state
+        return self._changed(assumed_state(self.scene), changes)
+
+    def _changed(self, state: AtmosphereState, changes: dict[str, Any]) -> AtmosphereState:
+        """``state`` with the study's ``changes``; an invalid one names ``study.KEY`` in the scene file."""
+        try:
+            return state.replace(**changes) if changes else state
+        except InputError as err:
+            raise err.within(self.source, "study") from None
 
     def terms(self, state: AtmosphereState) -> AtmosphericTerms:
         return state_terms(self.scene, state, "study")
