@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     parts = select(args.only, names)
 
     from bench.chain import Context
-    from s2cl.runtime import get_runtime
+    from s2cl.cl.runtime import get_runtime
 
     ctx = Context.make(args.quick)
     t_start = time.perf_counter()

@@ -23,11 +23,11 @@ def resample(ctx: Context) -> dict[str, Any]:
     """2101-wavelength spectra → 13 Sentinel-2 bands, float32."""
     from spectral import BandResampler
 
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference.forward import resample as ref_resample
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.runtime import get_runtime
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()
@@ -64,9 +64,9 @@ def resample(ctx: Context) -> dict[str, Any]:
 def igrm(ctx: Context) -> dict[str, Any]:
     """IGRM fits of noisy PROSAIL canopies on B4 B5 B6 B8, each method at its own accuracy."""
     from bench.bench_igrm import REFERENCE_SETTINGS, at_optimum
-    from s2cl.igrm import IgrmFitter, IgrmSettings
     from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
     from s2cl.reference.igrm_cases import band_centres, prosail_population
+    from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings
 
     n = 100_000 if ctx.quick else 1_000_000
     n_scipy = 200 if ctx.quick else 1000
@@ -107,7 +107,7 @@ def sam(ctx: Context) -> dict[str, Any]:
     from bench.bench_sam import numpy_sam
     from bench.bench_sam import scene as sam_scene
     from s2cl.reference import stages as ref
-    from s2cl.sam import SamClassifier
+    from s2cl.retrieve.sam import SamClassifier
 
     n = 100_000 if ctx.quick else 1_000_000
     refs, _, pix = sam_scene(n, 13, 20)

@@ -27,9 +27,9 @@ import time
 import numpy as np
 
 from bench.common import check, machine_info, median_time, write_json
-from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, prosail_population, synthetic
+from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
 
 REFERENCE_SETTINGS = IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12)
 TOL_NM, TOL_RHO = 0.05, 5e-4

@@ -1,7 +1,7 @@
 """Pixels per work-item: each vectorised kernel at 4, 8 and 16 lanes on this machine's device.
 
 The runtime's default is the device's native vector width (PoCL: 16 floats with AVX-512, 8 with
-AVX2; :func:`s2cl.runtime.choose_lanes`). This script measures whether that is the right choice
+AVX2; :func:`s2cl.cl.runtime.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
 resampler's vector-load width. Every width is first checked bit-identical to one pixel per
 work-item (the resampler: against its float64 oracle), then all widths are timed in interleaved
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import check, interleaved_medians, load_average, load_note, machine_info, write_result
-from s2cl.runtime import Runtime, get_runtime
+from s2cl.cl.runtime import Runtime, get_runtime
 
 WIDTHS = (4, 8, 16)
 
@@ -29,8 +29,8 @@ Family = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, it
 
 
 def _igrm(rt: Runtime, n: int) -> Family:
-    from s2cl.igrm import IgrmFitter
     from s2cl.reference.igrm_cases import BANDS_4, band_centres, prosail_population
+    from s2cl.retrieve.igrm import IgrmFitter
 
     wl = band_centres(BANDS_4)
     y = prosail_population(n, BANDS_4, noise=0.003, seed=1)[0].astype(np.float32)
@@ -60,9 +60,9 @@ def _kernel_launcher(fitter: Any, y: np.ndarray, wl: np.ndarray) -> Callable[[],
 
 
 def _sweep(rt: Runtime) -> Family:
-    from s2cl.optimise import plan_sweep
-    from s2cl.scene import Scene
-    from s2cl.sweep_kernel import SweepKernel
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.kernel import SweepKernel
+    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(Scene.load("default"))
     lo, hi = job.n_configs // 3, job.n_configs // 3 + 48
@@ -79,8 +79,8 @@ def _sweep(rt: Runtime) -> Family:
 
 
 def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
-    from s2cl.gvmi import GvmiKernel
-    from s2cl.sam import SamClassifier
+    from s2cl.retrieve.gvmi import GvmiKernel
+    from s2cl.retrieve.sam import SamClassifier
 
     rng = np.random.default_rng(3)
     refl = rng.uniform(0.02, 0.6, (6, n)).astype(np.float32)
@@ -98,10 +98,10 @@ def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
 
 
 def _resample(rt: Runtime, n: int) -> Family:
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference import forward as ref
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     bands = Sensor.sentinel2().bands
     plan = ResamplePlan(tuple(b.name for b in bands), tuple(b.weights(DEFAULT_GRID) for b in bands), DEFAULT_GRID.size)

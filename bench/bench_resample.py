@@ -41,11 +41,11 @@ def main() -> None:
 
     from spectral import BandResampler
 
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference.forward import resample as ref_resample
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.runtime import get_runtime
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()

@@ -16,7 +16,7 @@ import numpy as np
 
 from bench.common import check, machine_info, median_time, write_json
 from s2cl.reference import stages as ref
-from s2cl.sam import SamClassifier
+from s2cl.retrieve.sam import SamClassifier
 
 CASES = ((2, 20), (6, 20), (13, 20))  # (bands, references): B11+B12 as in the paper, red edge, full MSI
 

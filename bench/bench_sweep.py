@@ -49,12 +49,12 @@ from bench.common import (
     median_and_times,
     write_json,
 )
-from s2cl.metrics import regression_metrics
-from s2cl.optimise import plan_sweep
 from s2cl.reference.sweep import evaluate
-from s2cl.scene import Scene
-from s2cl.sweep import SweepJob, evaluate_chunk, run_sweep
-from s2cl.sweep_kernel import SweepKernel
+from s2cl.retrieve.metrics import regression_metrics
+from s2cl.scene.scene import Scene
+from s2cl.sweep.engine import SweepJob, evaluate_chunk, run_sweep
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.plan import plan_sweep
 
 OUTPUT = RESULTS / "sweep.json"
 MAIN_SCENE = "table3-lib1-b4567"  # 43,056 configurations × 12,000 pixels
@@ -216,7 +216,7 @@ def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, An
 
 
 def plan_config_count(scene: str) -> int:
-    from s2cl.sweep_tables import sweep_space
+    from s2cl.sweep.tables import sweep_space
 
     return int(sweep_space(Scene.load(scene)).size)
 

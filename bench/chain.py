@@ -1,8 +1,8 @@
 """The end-to-end chain the accuracy knobs are measured on: a Lib1 slice through the default scene
 (PROSAIL canopies → 6S atmosphere → SRFs → noise → 12-bit DN → calibration → correction → IGRM
 chlorophyll on B4 B5 B6 B8), built from ``scenes/default.toml`` with overrides, through s2cl's
-public API (:class:`s2cl.Scene`, :class:`s2cl.Simulator`, :class:`s2cl.igrm.IgrmFitter`,
-:func:`s2cl.quantify.score_igrm`).
+public API (:class:`s2cl.Scene`, :class:`s2cl.Simulator`, :class:`s2cl.retrieve.igrm.IgrmFitter`,
+:func:`s2cl.retrieve.quantify.score_igrm`).
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ import numpy as np
 
 from bench.common import check, interleaved_medians, max_rel_error
 from s2cl import Scene, Simulator, SpectralLibrary
-from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
-from s2cl.quantify import RetrievalScore, score_igrm
+from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample, toa_radiance
-from s2cl.scene import find_scene
-from s2cl.simulate import scene_atmosphere, scene_library
-from s2cl.srf import BandWeights
+from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
+from s2cl.retrieve.quantify import RetrievalScore, score_igrm
+from s2cl.scene.scene import find_scene
+from s2cl.sensor.srf import BandWeights
 
 BANDS = ("B4", "B5", "B6", "B8")  # the default scene's analysis (and sweep) bands, in wavelength order
 #: converged float64 fits: the reference every fit setting is scored against

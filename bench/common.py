@@ -163,7 +163,7 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
 
 def write_json(name: str | Path, data: dict[str, Any]) -> Path:
     """Write JSON atomically: ``name`` relative to ``bench/results/`` or a path."""
-    from s2cl.output import write_json as _write
+    from s2cl.io.output import write_json as _write
 
     path = Path(name)
     return _write(path if path.is_absolute() or path.parent != Path() else RESULTS / path, data)
@@ -177,6 +177,6 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure atomically (temporary file in the same folder + rename)."""
-    from s2cl.output import write_atomic
+    from s2cl.io.output import write_atomic
 
     return write_atomic(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))

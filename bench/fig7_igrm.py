@@ -15,9 +15,9 @@ import numpy as np
 
 from bench.common import RESULTS, save_figure, write_json
 from s2cl.grid import DEFAULT_GRID
-from s2cl.igrm import IgrmFitter
-from s2cl.libraries import load_library
-from s2cl.quantify import score_igrm
+from s2cl.libraries.registry import load_library
+from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.retrieve.quantify import score_igrm
 
 WINDOWS_NM = ((650, 800), (670, 780))
 PAPER = {"r2": 0.98, "rms_ug_cm2": 3.8}
@@ -28,7 +28,7 @@ def default_soil_canopies() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     mean of its dry and wet soil spectra) instead of the iron-bearing backgrounds: 40 spectra."""
     import prosail
 
-    from s2cl.vegetation import LIB1, simulate
+    from s2cl.libraries.vegetation import LIB1, simulate
 
     soil = prosail.spectral_lib.soil
     background = 0.5 * soil.rsoil1 + 0.5 * soil.rsoil2

@@ -36,12 +36,12 @@ from bench.chain import (
 )
 from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
-from s2cl.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensions, by name
-from s2cl.igrm import IgrmFitter, IgrmSettings, kernel_config
-from s2cl.quantify import score_igrm, score_retrieval
+from s2cl.atmos.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensions, by name
+from s2cl.atmos.scene_terms import scene_lut, true_state
+from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample
-from s2cl.scene_atmosphere import scene_lut, true_state
-from s2cl.simulate import scene_atmosphere, scene_library
+from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings, kernel_config
+from s2cl.retrieve.quantify import score_igrm, score_retrieval
 
 Family = dict[str, Any]
 RADIANCE_ERROR = ("err_radiance_ner_max", "max band-radiance error / NER")
@@ -175,7 +175,7 @@ def knob_lm(ctx: Context) -> Family:
                          "on the slice itself")
 
 
-#: LUT axis (its array in the .npz) -> the dimension's name in s2cl.atmosphere's array layout
+#: LUT axis (its array in the .npz) -> the dimension's name in s2cl.atmos.atmosphere's array layout
 LUT_AXIS_DIM = {"aot550": "aot", "solar_zenith": "sza", "water_vapour": "wv"}
 
 
@@ -199,7 +199,7 @@ def knob_lut(ctx: Context) -> Family:
     The paper's standard atmosphere (AOT 0.2347, SZA 40°, 1.5 g/cm² H2O) lies on nodes of the
     shipped LUT, so the full LUT gives its exact terms; thinning drops exactly those nodes, so
     interpolation has to bridge the widest gap it would meet."""
-    from s2cl.atmosphere import AtmosphereLUT, default_lut_path
+    from s2cl.atmos.atmosphere import AtmosphereLUT, default_lut_path
 
     validated(ctx)
     scene = ctx.scene()

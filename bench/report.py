@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import ROOT, load_note, save_figure
-from s2cl.output import write_text
+from s2cl.io.output import write_text
 
 DOCS = ROOT / "docs"
 

@@ -20,8 +20,8 @@ import numpy as np
 from bench.chain import BANDS, Context, oracle_band_radiance
 from bench.common import ROOT, check, max_rel_error, median_time
 from s2cl import Simulator
-from s2cl.igrm import IgrmFitter
-from s2cl.simulate import scene_atmosphere, scene_library
+from s2cl.forward.simulate import scene_atmosphere, scene_library
+from s2cl.retrieve.igrm import IgrmFitter
 
 
 def slope(x: list[float], t: list[float]) -> float:
@@ -93,11 +93,11 @@ def fits_vs_pixels(ctx: Context) -> dict[str, Any]:
 def resample_vs_bands(ctx: Context) -> dict[str, Any]:
     """SRF resampling of random spectra into the first 1, 2, 4, 8 and 13 bands, float32; each
     band plan validated on a slice against the float64 oracle before it is timed."""
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference.forward import resample
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.runtime import get_runtime
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     sensor = Sensor.sentinel2()
     rt = get_runtime()
@@ -125,8 +125,8 @@ def _sweep_scene(ctx: Context, copies: int) -> Any:
 def validated_job(ctx: Context, copies: int, chunk: int | None = None) -> tuple[Any, float]:
     """The default scene's sweep with ``copies`` copies, its first configurations checked against
     the numpy float64 oracle (max relative difference of the Cab RMS)."""
-    from s2cl.optimise import plan_sweep
-    from s2cl.sweep import evaluate_chunk
+    from s2cl.sweep.engine import evaluate_chunk
+    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(_sweep_scene(ctx, copies), chunk=chunk)
     key = f"sweep-validation-{copies}"
@@ -142,7 +142,7 @@ def validated_job(ctx: Context, copies: int, chunk: int | None = None) -> tuple[
 def sweep_vs_configs(ctx: Context) -> dict[str, Any]:
     """The fused sweep kernel (gather → noise → DN → calibration → correction → IGRM → metrics)
     on the default scene's B4 B5 B6 B8 sweep, validated against the numpy float64 oracle first."""
-    from s2cl.sweep import evaluate_chunk
+    from s2cl.sweep.engine import evaluate_chunk
 
     copies = 10 if ctx.quick else 100
     job, err = validated_job(ctx, copies)
@@ -161,8 +161,8 @@ _MEMORY_PROBE = """
 import json, sys, threading, time
 from bench.chain import Context
 from bench.scaling import _sweep_scene
-from s2cl.optimise import plan_sweep
-from s2cl.sweep import evaluate_chunk
+from s2cl.sweep.plan import plan_sweep
+from s2cl.sweep.engine import evaluate_chunk
 
 def rss():
     with open("/proc/self/status") as fh:
@@ -200,7 +200,7 @@ def memory_vs_chunk(ctx: Context) -> dict[str, Any]:
         out = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(c), str(copies)], capture_output=True,
                              text=True, env=env, cwd=ROOT, check=True)
         points.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    from s2cl.sweep import HOST_BYTES_PER_EVALUATION
+    from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION
 
     pixels = job.tables.n_pixels
     for p in points:
@@ -214,7 +214,7 @@ def memory_vs_chunk(ctx: Context) -> dict[str, Any]:
 
 def dask_workers(ctx: Context) -> dict[str, Any]:
     """The whole sweep written to Parquet in-process and with Dask LocalCluster(1 and 2 workers)."""
-    from s2cl.sweep import run_sweep
+    from s2cl.sweep.engine import run_sweep
 
     copies = 10 if ctx.quick else 100
     job, _ = validated_job(ctx, copies, chunk=512)

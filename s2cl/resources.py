@@ -11,7 +11,7 @@ import importlib.resources
 from functools import cache
 from pathlib import Path
 
-from .errors import S2CLError
+from s2cl.errors import S2CLError
 
 
 @cache

@@ -11,7 +11,7 @@ import os
 
 import pytest
 
-from s2cl.runtime import STRICT_ENV, Runtime, get_runtime
+from s2cl.cl.runtime import STRICT_ENV, Runtime, get_runtime
 
 os.environ.setdefault(STRICT_ENV, "error")
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from s2cl.analysis import AnalysisSettings
-from s2cl.libraries import load_library
-from s2cl.scene import Scene
-from s2cl.sweep import SweepJob
-from s2cl.sweep_tables import build_tables, sweep_space
+from s2cl.libraries.registry import load_library
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.scene.scene import Scene
+from s2cl.sweep.engine import SweepJob
+from s2cl.sweep.tables import build_tables, sweep_space
 
 
 class Terms:

@@ -52,7 +52,7 @@ def test_sweep_count_run_report_and_refuse_mixing(tmp_path) -> None:
     assert first.returncode == 0, first.stderr
     assert "warning" not in (first.stdout + first.stderr).lower()
     verbose = run("-v", "devices", cwd=tmp_path)  # -v: the DEBUG log on stderr
-    assert verbose.returncode == 0 and "s2cl.runtime DEBUG: OpenCL device" in verbose.stderr
+    assert verbose.returncode == 0 and "s2cl.cl.runtime DEBUG: OpenCL device" in verbose.stderr
     table = pq.read_table(tmp_path / "out" / "results.parquet")
     assert table.num_rows == 6 and table.schema.metadata[b"scene"] == b"small"
     assert (tmp_path / "out" / "heatmap_B4.png").stat().st_size > 1000

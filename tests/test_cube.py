@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from s2cl.cube import aggregate, load_cube, simulate_cube
 from s2cl.errors import InputError
+from s2cl.forward.cube import aggregate, load_cube, simulate_cube
+from s2cl.forward.sense import Radiometry
 from s2cl.grid import DEFAULT_GRID
-from s2cl.output import write_netcdf
+from s2cl.io.output import write_netcdf
 from s2cl.reference import forward as ref
-from s2cl.scene import Scene
-from s2cl.sense import Radiometry
+from s2cl.scene.scene import Scene
 
 
 def _cube(rows: int = 60, cols: int = 60, seed: int = 0) -> np.ndarray:

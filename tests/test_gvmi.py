@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.gvmi import GvmiKernel, gvmi
 from s2cl.reference import stages as ref
+from s2cl.retrieve.gvmi import GvmiKernel, gvmi
 
 
 @pytest.mark.parametrize("n", [1, 13, 10007])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmSettings, fit_igrm
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy, model
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, synthetic
+from s2cl.retrieve.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmSettings, fit_igrm
 
 WL4, WL6 = band_centres(BANDS_4), band_centres(BANDS_6)
 #: float64 reference settings: tight tolerance, generous iteration limit

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.reference.igrm import model
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, synthetic
+from s2cl.retrieve.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmResult, IgrmSettings
 
 WL4, WL6 = band_centres(BANDS_4), band_centres(BANDS_6)
 FIELDS = ("rmax", "rmin", "l0", "s", "lp", "rms", "status", "iterations", "bounds")
@@ -169,9 +169,9 @@ def test_float32_vs_float64_population(rt):
 def _sparse_canopy_pixels(n_copies: int = 40) -> tuple[np.ndarray, np.ndarray]:
     """Noisy, quantised, atmosphere-corrected B4 B5 B6 B8 reflectance of the sparse-canopy library
     (Lib2, the paper's hard case): the pixels a sweep fits."""
-    from s2cl.optimise import plan_sweep
     from s2cl.reference.sweep import band_reflectance
-    from s2cl.scene import Scene
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.plan import plan_sweep
 
     scene = Scene.from_dict({
         "scene": {"name": "lib2-hard"}, "surface": {"library": "builtin:lib2", "quantity": "reflectance",

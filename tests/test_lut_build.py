@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.errors import InputError
-from s2cl.lut_build import (
+from s2cl.atmos.lut_build import (
     SCATTERING_NODES_UM,
     SCATTERING_SAMPLES_UM,
     LUTAxes,
@@ -14,7 +13,8 @@ from s2cl.lut_build import (
     _log_interp_matrix,
     _to_1nm,
 )
-from s2cl.sixs import on_sixs_grid
+from s2cl.atmos.sixs import on_sixs_grid
+from s2cl.errors import InputError
 
 
 def test_default_axes_cover_the_brief():
@@ -83,4 +83,4 @@ def test_to_1nm_keeps_6s_values_on_shared_wavelengths():
 
 def test_command_line_has_no_machine_path(monkeypatch):
     monkeypatch.setattr("sys.argv", ["/some/where/s2cl/lut_build.py", "-o", "out.npz"])
-    assert _command_line() == "python -m s2cl.lut_build -o out.npz"
+    assert _command_line() == "python -m s2cl.atmos.lut_build -o out.npz"

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from s2cl.effects import EffectSet, build_options
+from s2cl.forward.noise import TAG_SENSOR_NOISE, normal4, philox4x32, sensor_noise, uniform
+from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.reference import forward as ref
-from s2cl.reference.philox import TAG_SENSOR_NOISE, normal4, philox4x32, sensor_noise, uniform
-from s2cl.sense import Radiometry, Sensing
-from s2cl.sensor import Sensor
+from s2cl.scene.effects import EffectSet, build_options
+from s2cl.sensor.sensor import Sensor
 
 TEST_KERNELS = r"""
 #include "common/s2_real.clh"

@@ -7,8 +7,8 @@ import os
 import numpy as np
 import pytest
 
-from s2cl.cache import write_npz_atomic
-from s2cl.output import write_atomic
+from s2cl.io.cache import write_npz_atomic
+from s2cl.io.output import write_atomic
 
 
 @pytest.fixture

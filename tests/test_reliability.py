@@ -152,9 +152,9 @@ def test_full_filesystem_is_refused_before_the_run(tmp_path) -> None:
 def test_disk_filling_during_the_write_is_an_output_error(tmp_path) -> None:
     """Another process fills the disk after the check: the streamed write fails in one error, no temp file."""
     from s2cl.errors import OutputError
-    from s2cl.scene import Scene
-    from s2cl.simulate_stream import simulate_to_netcdf
-    from s2cl.validate import check_simulate
+    from s2cl.forward.stream import simulate_to_netcdf
+    from s2cl.scene.scene import Scene
+    from s2cl.scene.validate import check_simulate
 
     checked = check_simulate(Scene.load(scene(tmp_path, **{"copies = 2": "copies = 200"})))
     with small_filesystem(tmp_path / "small", "3m") as small:
@@ -384,7 +384,7 @@ def test_simulate_and_optimise_into_one_folder_keep_each_others_results(finished
 def test_every_command_has_quiet() -> None:
     import click
 
-    from s2cl.cli import cli
+    from s2cl.cli.main import cli
 
     def commands(group: click.Group, prefix: str = "") -> Iterator[tuple[str, click.Command]]:
         for name, cmd in group.commands.items():

@@ -7,7 +7,7 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.reference import stages as ref
-from s2cl.sam import SamClassifier, SamStatus, confusion_matrix, score_classification
+from s2cl.retrieve.sam import SamClassifier, SamStatus, confusion_matrix, score_classification
 
 
 def _scene(n: int, seed: int = 0):
@@ -99,7 +99,7 @@ def test_confusion_and_mean_omission(rt):
     assert score.mean_omission < 0.05 and score.overall_accuracy > 0.95
     cm = confusion_matrix(np.array([0, 0, 0, 1, 1]), np.array([0, 1, -1, 1, 1]), 2)
     np.testing.assert_array_equal(cm, [[1, 1, 1], [0, 2, 0]])
-    from s2cl.sam import SamResult
+    from s2cl.retrieve.sam import SamResult
 
     r = SamResult(np.zeros(5, np.int32), np.array([0, 1, -1, 1, 1], np.int32), np.zeros(5),
                   np.array([0, 0, 1, 0, 0], np.uint8))

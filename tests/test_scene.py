@@ -7,7 +7,7 @@ import copy
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.scene import Scene, builtin_scenes, find_scene
+from s2cl.scene.scene import Scene, builtin_scenes, find_scene
 
 BASE = {"scene": {"name": "t"}, "surface": {"library": "lib.csv"}}
 

@@ -17,7 +17,7 @@ from sweep_fixtures import gvmi_job
 
 from s2cl.errors import InputError
 from s2cl.reference.sweep import evaluate
-from s2cl.sweep import RESULTS, run_sweep
+from s2cl.sweep.engine import RESULTS, run_sweep
 
 HERE = Path(__file__).resolve().parent
 
@@ -44,7 +44,7 @@ def test_sweep_writes_rows_and_metadata(tmp_path) -> None:
 def test_sweep_metrics_match_direct_evaluation(tmp_path) -> None:
     job = gvmi_job()
     table = _table(run_sweep(job, tmp_path / "out"))
-    from s2cl.metrics import regression_metrics
+    from s2cl.retrieve.metrics import regression_metrics
 
     raw = evaluate(job.tables, job.analysis, 0, job.n_configs)
     m = regression_metrics(raw.index, raw.status, raw.bounds, job.tables.target)
@@ -80,7 +80,7 @@ DRIVER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {tests!r})
     from sweep_fixtures import gvmi_job
-    import s2cl.sweep as sweep
+    import s2cl.sweep.engine as sweep
     real = sweep.evaluate_chunk
     def slow(*args, **kwargs):
         time.sleep(0.05)
@@ -123,7 +123,7 @@ def test_dask_two_workers_equal_single_process(tmp_path) -> None:
 def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
     import shutil as _shutil
 
-    import s2cl.sweep as sweep
+    import s2cl.sweep.engine as sweep
 
     job = gvmi_job()
     monkeypatch.setattr(sweep, "_available_memory", lambda: 1e5)
@@ -148,8 +148,8 @@ def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
       "not swept")],
 )
 def test_bad_sweep_sections(sweep_section: dict, message: str) -> None:
-    from s2cl.scene import Scene
-    from s2cl.sweep_tables import sweep_space
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.tables import sweep_space
 
     scene = Scene.from_dict({"scene": {"name": "t"}, "surface": {"library": "x.csv"}, "sweep": sweep_section})
     with pytest.raises(InputError, match=message) as err:

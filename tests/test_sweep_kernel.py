@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from sweep_fixtures import Terms, gvmi_job
 
-from s2cl.analysis import AnalysisSettings
-from s2cl.libraries import load_library
+from s2cl.libraries.registry import load_library
 from s2cl.reference.sweep import evaluate
-from s2cl.scene import Scene
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.scene.scene import Scene
 from s2cl.status import Status
-from s2cl.sweep_kernel import SweepKernel
-from s2cl.sweep_tables import build_tables, sweep_space
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.tables import build_tables, sweep_space
 
 
 def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:

@@ -7,17 +7,17 @@ import itertools
 import numpy as np
 import pytest
 
-from s2cl.effects import EffectSet
+from s2cl.cl.templates import render
+from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError, RenderError
+from s2cl.forward.resample import ResamplePlan, Resampler
+from s2cl.forward.sense import Radiometry, Sensing
+from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
-from s2cl.resample import ResamplePlan, Resampler
 from s2cl.resources import kernel_dir
-from s2cl.scene import Scene, builtin_scenes
-from s2cl.sense import Radiometry, Sensing
-from s2cl.sensor import Sensor
-from s2cl.simulate import Simulator
-from s2cl.templates import render
-from s2cl.vectypes import VecTypes
+from s2cl.scene.effects import EffectSet
+from s2cl.scene.scene import Scene, builtin_scenes
+from s2cl.sensor.sensor import Sensor
 
 NOISE_MARKERS = ("s2_normal4", "s2_random.clh", "noise_a", "seed")
 QUANTISE_MARKERS = ("s2_quantise", "S2_QUANTISE_", "maxdn", "dn[", "flags[")
@@ -96,7 +96,7 @@ def test_every_effect_combination_builds(rt, real_t: str, effects: EffectSet) ->
 @pytest.mark.parametrize("name", sorted(builtin_scenes()))
 def test_every_builtin_scene_renders_and_builds(rt, name: str) -> None:
     scene = Scene.load(name)
-    from s2cl.simulate import scene_atmosphere
+    from s2cl.forward.simulate import scene_atmosphere
 
     sim = Simulator.for_scene(scene, runtime=rt, atmosphere=scene_atmosphere(scene))
     assert sim.resampler.kernel is not None

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sense import Radiometry
-from ..srf import BandWeights
-from ..status import PixelFlag
-from . import stages
-from .philox import sensor_noise
+from s2cl.forward.noise import sensor_noise
+from s2cl.forward.sense import Radiometry
+from s2cl.reference import stages
+from s2cl.sensor.srf import BandWeights
+from s2cl.status import PixelFlag
 
 
 def resample(spectra: np.ndarray, weights: list[BandWeights] | tuple[BandWeights, ...]) -> np.ndarray:

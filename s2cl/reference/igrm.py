@@ -8,14 +8,14 @@
 * :func:`initial_guess`: the kernel's deterministic initial guesses, in numpy.
 
 Parameters are handled as in the kernel: ``p = (rmin, depth = rmax - rmin, L = (l0 - xc)/xw,
-S = s/xw)`` with :func:`s2cl.igrm.kernel_config` giving ``xc``, ``xw`` and the normalised bounds.
+S = s/xw)`` with :func:`s2cl.retrieve.igrm.kernel_config` giving ``xc``, ``xw`` and the normalised bounds.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..igrm import FitStatus, IgrmResult, IgrmSettings, KernelConfig, kernel_config
+from s2cl.retrieve.igrm import FitStatus, IgrmResult, IgrmSettings, KernelConfig, kernel_config
 
 
 def model(wavelengths_nm: np.ndarray, rmax, rmin, l0, s) -> np.ndarray:

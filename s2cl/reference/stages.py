@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..status import MAX_ABS_REFLECTANCE, PixelFlag, Status
+from s2cl.status import MAX_ABS_REFLECTANCE, PixelFlag, Status
 
 MIN_DENOMINATOR = 1e-6  # the correction's clamp of 1 + S y
 

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis import AnalysisSettings
-from ..metrics import condition_code
-from ..status import Status
-from ..sweep_tables import SweepTables
-from . import stages
+from s2cl.reference import stages
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.metrics import condition_code
+from s2cl.status import Status
+from s2cl.sweep.tables import SweepTables
 
 
 @dataclass
@@ -92,8 +92,8 @@ def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict
     centres ``(n_configs, n_slots)``: the kernel's LM in vectorised numpy, one configuration at a
     time, the bands sorted by centre (stable) as the kernel sorts them. Returns λp (nm), status,
     bound bits and condition codes, each ``(n_configs, n_pixels)``."""
-    from ..igrm import IgrmSettings
-    from .igrm import fit_numpy_lm
+    from s2cl.reference.igrm import fit_numpy_lm
+    from s2cl.retrieve.igrm import IgrmSettings
 
     s = IgrmSettings.from_mapping(settings)
     n_cfg, n_px = rhos.shape[1:]

@@ -1,7 +1,7 @@
 """The paper's atmospheric-band studies (Segl et al. 2012, Sec. 3): ``s2cl study NAME``.
 
 Each study is a scene ``scenes/study-NAME.toml`` with a [study] section (what varies besides the
-bands) and a [sweep] section (the band variants, :mod:`s2cl.variants`), and a module here with a
+bands) and a [sweep] section (the band variants, :mod:`s2cl.sensor.variants`), and a module here with a
 ``run(setup) -> StudyResult``. :func:`run_study` loads the scene, runs the study and writes
 ``NAME.json`` and ``NAME.png`` atomically.
 """
@@ -11,11 +11,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import InputError
-from ..output import write_json
-from ..scene import Scene
-from . import aerosol, cirrus, methane, ozone, water_vapour
-from .common import StudyResult, StudySetup, load_study
+from s2cl.errors import InputError
+from s2cl.io.output import write_json
+from s2cl.scene.scene import Scene
+from s2cl.studies import aerosol, cirrus, methane, ozone, water_vapour
+from s2cl.studies.common import StudyResult, StudySetup, load_study
 
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
     "cirrus": cirrus.run,
@@ -43,8 +43,8 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
     """
-    from .. import __version__
-    from ..outdir import check_output_dir, claim
+    from s2cl import __version__
+    from s2cl.io.outdir import check_output_dir, claim
 
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)

@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..correction import BandAtmosphere
-from ..plots import pyplot, save_png
-from ..reference.forward import toa_radiance
-from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
+from s2cl.atmos.correction import BandAtmosphere
+from s2cl.io.plots import pyplot, save_png
+from s2cl.reference.forward import toa_radiance
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 # "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
 PAPER_DOMINANT_ABOVE = 0.10

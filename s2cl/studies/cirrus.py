@@ -31,12 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atmosphere import AtmosphereState, AtmosphericTerms
-from ..errors import InputError
-from ..grid import SpectralGrid
-from ..plots import pyplot, save_png
-from ..srf import BandWeights
-from .common import KeyFigure, StudyResult, StudySetup, apply
+from s2cl.atmos.atmosphere import AtmosphereState, AtmosphericTerms
+from s2cl.errors import InputError
+from s2cl.grid import SpectralGrid
+from s2cl.io.plots import pyplot, save_png
+from s2cl.sensor.srf import BandWeights
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_CHANGE_PCT = {0.4: -15.0, 1.0: -34.0}  # Segl et al. 2012, Sec. 3.3: 1380/30 vs 1375/30
 BAND = "B10"

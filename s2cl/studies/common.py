@@ -13,19 +13,19 @@ from typing import Any
 
 import numpy as np
 
-from ..atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
-from ..correction import BandAtmosphere
-from ..errors import InputError
-from ..libraries import load_library
-from ..library import SpectralLibrary
-from ..reference.forward import add_noise
-from ..scene import Scene, StudySpec
-from ..scene_atmosphere import assumed_state, scene_lut, state_terms, true_state
-from ..sense import Radiometry
-from ..sensor import Band
-from ..srf import BandWeights
-from ..sweep_tables import sweep_space
-from ..variants import SweepSpace
+from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
+from s2cl.atmos.correction import BandAtmosphere
+from s2cl.atmos.scene_terms import assumed_state, scene_lut, state_terms, true_state
+from s2cl.errors import InputError
+from s2cl.forward.sense import Radiometry
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.registry import load_library
+from s2cl.reference.forward import add_noise
+from s2cl.scene.scene import Scene, StudySpec
+from s2cl.sensor.sensor import Band
+from s2cl.sensor.srf import BandWeights
+from s2cl.sensor.variants import SweepSpace
+from s2cl.sweep.tables import sweep_space
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class StudySetup:
 
     @property
     def lut(self) -> AtmosphereLUT:
-        """The scene's LUT (:func:`s2cl.scene_atmosphere.scene_lut`: path relative to the scene, cached)."""
+        """The scene's LUT (:func:`s2cl.atmos.scene_terms.scene_lut`: path relative to the scene, cached)."""
         return scene_lut(self.scene)
 
     def truth(self, **changes: Any) -> AtmosphereState:
@@ -96,7 +96,7 @@ class StudySetup:
         return state_terms(self.scene, state, "study")
 
     def space(self) -> SweepSpace:
-        """The [sweep] section as band variants (:mod:`s2cl.variants`)."""
+        """The [sweep] section as band variants (:mod:`s2cl.sensor.variants`)."""
         return sweep_space(self.scene).validate(self.source)
 
     def nominal(self, space: SweepSpace) -> int:
@@ -154,7 +154,7 @@ def apply(weights: BandWeights, spectrum: np.ndarray) -> np.ndarray:
 
 
 def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]) -> list[dict[str, np.ndarray]]:
-    """Band-effective Lp, G, S (:class:`s2cl.correction.BandAtmosphere`) of each band over a state
+    """Band-effective Lp, G, S (:class:`s2cl.atmos.correction.BandAtmosphere`) of each band over a state
     axis: one dict per band with keys ``lp``, ``g``, ``s``, each ``(n_states,)``."""
     per = [BandAtmosphere.of(t, list(weights)) for t in terms]
     lp, g, s = (np.array([getattr(b, n) for b in per])
@@ -171,7 +171,7 @@ def inverse(lp: np.ndarray, g: np.ndarray, s: np.ndarray, radiance: np.ndarray) 
 def noisy(setup: StudySetup, bands: Sequence[Band], radiance: np.ndarray, band_ids: Sequence[int],
           pixels: int) -> np.ndarray:
     """``pixels`` noisy copies of band radiances ``(n_bands, n)`` → ``(n_bands, n, pixels)``: the
-    sensor's noise model at each band's width (:class:`s2cl.sense.Radiometry`) times the sense
+    sensor's noise model at each band's width (:class:`s2cl.forward.sense.Radiometry`) times the sense
     kernel's Philox deviates keyed by ``band_ids`` (:func:`s2cl.reference.forward.add_noise`, seed
     and frame from [effects]); no noise when the scene switches noise off."""
     radiance = np.asarray(radiance, dtype=np.float64)

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..plots import pyplot, save_png
-from .common import KeyFigure, StudyResult, StudySetup, apply, inverse
+from s2cl.io.plots import pyplot, save_png
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, inverse
 
 PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
 BAND = "B11"

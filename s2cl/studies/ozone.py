@@ -3,7 +3,7 @@ true ozone column of [study] ``ozone`` (DU) are corrected with the [correction] 
 for flat targets ρ in [study] ``reflectance``.
 
 Band radiance = SRF-weighted TOA radiance at the true state; correction with band-effective terms
-of the assumed state (:class:`s2cl.correction.BandAtmosphere`). Error = (ρ_retrieved − ρ)/ρ in %.
+of the assumed state (:class:`s2cl.atmos.correction.BandAtmosphere`). Error = (ρ_retrieved − ρ)/ρ in %.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..correction import BandAtmosphere
-from ..plots import pyplot, save_png
-from .common import KeyFigure, StudyResult, StudySetup, apply
+from s2cl.atmos.correction import BandAtmosphere
+from s2cl.io.plots import pyplot, save_png
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_MAX_B3_PCT = 6.0  # "relative errors of up to about 6 %" in B3 (Fig. 5, MODTRAN4)
 

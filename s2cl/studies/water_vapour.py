@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..library import SpectralLibrary
-from ..plots import pyplot, save_png
-from ..srf import BandWeights
-from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
+from s2cl.io.plots import pyplot, save_png
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.sensor.srf import BandWeights
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 PAPER_RMS_PCT = (5.0, 10.0)   # "the 5–10 % accuracy of the 865-/945-nm water vapor retrievals"
 # "Relative RMS errors ... increase by 6 % if winter scenes are processed with summer LUTs"

@@ -1,0 +1,80 @@
+"""Band-effective atmospheric terms and the inverse effect: calibrated band radiance → reflectance.
+
+The atmosphere acts per wavelength (``L = Lp + G·ρ / (1 − S·ρ)``); a sensor only sees band
+averages. The correction uses band-effective terms, SRF-weighted from the per-wavelength terms
+of the (assumed) atmospheric state::
+
+    Lp_k = Σ w·Lp,   G_k = Σ w·G,   S_k = Σ w·G·S / Σ w·G   (S weighted by the ground signal)
+
+and inverts ``y = (L − Lp_k) / G_k``, ``ρ_k = y / (1 + S_k·y)``. For spectrally flat targets this
+recovers ρ up to the covariance of G and S inside the band (the "band-averaging residual",
+reported by ``s2cl residuals``). A denominator ``1 + S·y`` below 1e-6 (unphysical
+radiance far below the path radiance) is clamped, so the result stays finite.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from s2cl.sensor.srf import BandWeights
+
+MIN_DENOMINATOR = 1e-6
+
+
+class Terms(Protocol):
+    path_radiance: np.ndarray
+    ground_term: np.ndarray
+    spherical_albedo: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class BandAtmosphere:
+    """Band-effective terms, float64 arrays ``(n_bands,)``; radiances in W m⁻² sr⁻¹ µm⁻¹."""
+
+    path_radiance: np.ndarray
+    ground_term: np.ndarray
+    spherical_albedo: np.ndarray
+
+    @classmethod
+    def of(cls, terms: Terms, weights: list[BandWeights] | tuple[BandWeights, ...]) -> BandAtmosphere:
+        lp, g, s = (np.asarray(getattr(terms, n), dtype=np.float64)
+                    for n in ("path_radiance", "ground_term", "spherical_albedo"))
+        out_lp, out_g, out_s = [], [], []
+        for w in weights:
+            sl = slice(w.start, w.stop)
+            gw = w.weights * g[sl]
+            out_lp.append(w.weights @ lp[sl])
+            out_g.append(gw.sum())
+            out_s.append(gw @ s[sl] / gw.sum() if gw.sum() > 0 else w.weights @ s[sl])
+        return cls(np.array(out_lp), np.array(out_g), np.array(out_s))
+
+    def with_calibration_gain(self, gain: float) -> BandAtmosphere:
+        """Terms that correct radiance calibrated with a relative error: ``ρ(gain · L)``.
+
+        ``(gain·L − Lp) / G = (L − Lp/gain) / (G/gain)``, so the error folds into the terms and
+        the kernels need no extra stage.
+        """
+        if gain == 1.0:
+            return self
+        return BandAtmosphere(self.path_radiance / gain, self.ground_term / gain, self.spherical_albedo)
+
+    @property
+    def n_bands(self) -> int:
+        return int(self.path_radiance.size)
+
+    def reflectance(self, radiance: np.ndarray) -> np.ndarray:
+        """Band reflectance from band radiance ``(n_bands, …)`` (float64 oracle of the kernel)."""
+        shape = (-1,) + (1,) * (np.ndim(radiance) - 1)
+        L = np.asarray(radiance, dtype=np.float64)
+        y = (L - self.path_radiance.reshape(shape)) / self.ground_term.reshape(shape)
+        return y / np.maximum(1.0 + self.spherical_albedo.reshape(shape) * y, MIN_DENOMINATOR)
+
+    def radiance(self, reflectance: np.ndarray) -> np.ndarray:
+        """Band radiance of a band reflectance (the band-level forward model)."""
+        shape = (-1,) + (1,) * (np.ndim(reflectance) - 1)
+        rho = np.asarray(reflectance, dtype=np.float64)
+        return self.path_radiance.reshape(shape) + self.ground_term.reshape(shape) * rho / (
+            1.0 - self.spherical_albedo.reshape(shape) * rho)

@@ -1,0 +1,67 @@
+"""The analysis that scores a band design: IGRM red-edge index, GVMI, or SAM classes.
+
+Per-pixel statuses are the shared codes of :mod:`s2cl.status` (``kernels/common/s2_status.clh``);
+which designs can be analysed at all is :mod:`s2cl.retrieve.design`'s rule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from s2cl.errors import InputError
+from s2cl.status import REGRESS_NAMES, Status
+
+
+@dataclass(frozen=True)
+class AnalysisSettings:
+    """What to compute from the band reflectances of each pixel.
+
+    :param kind: ``"igrm"`` (index: inflection wavelength λp in nm), ``"gvmi"`` (index: GVMI) or
+        ``"sam"`` (class of each pixel).
+    :param parameter: library parameter regressed on the index (``cab``, ``ewt``); igrm/gvmi.
+    :param nir_slot, swir_slot: gvmi: band slots of the NIR and SWIR bands.
+    :param angle_threshold_deg: sam: pixels whose smallest angle exceeds it are unclassified.
+    :param igrm: IGRM fit settings (keys of ``s2cl.retrieve.igrm.IgrmSettings``).
+    :param regress: IGRM statuses (:class:`s2cl.status.Status` values) whose index enters the regression.
+    """
+
+    kind: str
+    parameter: str | None = None
+    nir_slot: int = 0
+    swir_slot: int = 1
+    angle_threshold_deg: float | None = None
+    igrm: tuple[tuple[str, Any], ...] = field(default_factory=tuple)
+    regress: tuple[int, ...] = (Status.OK, Status.STALLED, Status.ITERATION_LIMIT)
+
+    @property
+    def regression(self) -> bool:
+        return self.kind in ("igrm", "gvmi")
+
+    @classmethod
+    def from_scene(cls, scene: Any, bands: list[str]) -> AnalysisSettings:
+        """From the scene's [analysis] section; ``bands`` are the band slots in order."""
+        a = scene.spec.analysis
+        if a is None:
+            raise InputError("the scene has no [analysis] section", source=scene.source, key="analysis")
+        lower = [b.lower() for b in bands]
+
+        def slot(name: str | None, key: str) -> int:
+            if name is None:
+                raise InputError("gvmi needs nir and swir band names", source=scene.source, key=f"analysis.{key}")
+            if name.lower() not in lower:
+                raise InputError(f"band {name!r} is not among the bands {', '.join(bands)}", source=scene.source,
+                                 key=f"analysis.{key}")
+            return lower.index(name.lower())
+
+        if a.kind in ("igrm", "gvmi") and not a.parameter:
+            raise InputError(f"{a.kind} needs the library parameter to regress (e.g. 'cab', 'ewt')",
+                             source=scene.source, key="analysis.parameter")
+        if a.kind == "igrm" and len(bands) < 4:
+            raise InputError(f"IGRM needs at least 4 bands, got {len(bands)}", source=scene.source, key="analysis")
+        if a.kind == "gvmi":
+            return cls("gvmi", a.parameter, nir_slot=slot(a.nir, "nir"), swir_slot=slot(a.swir, "swir"))
+        if a.kind == "sam":
+            return cls("sam", angle_threshold_deg=a.angle_threshold_deg)
+        regress = tuple(sorted(int(REGRESS_NAMES[name]) for name in set(a.regress)))
+        return cls("igrm", a.parameter, igrm=tuple(sorted(a.igrm.items())), regress=regress)
