@@ -1,7 +1,7 @@
 """Pixels per work-item: each vectorised kernel at 4, 8 and 16 lanes on this machine's device.
 
 The runtime's default is the device's native vector width (PoCL: 16 floats with AVX-512, 8 with
-AVX2; :func:`s2cl.cl.runtime.choose_lanes`). This script measures whether that is the right choice
+AVX2; :func:`s2cl.cl.devices.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
 resampler's vector-load width. Every width is first checked bit-identical to one pixel per
 work-item (the resampler: against its float64 oracle), then all widths are timed in interleaved

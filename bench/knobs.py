@@ -40,7 +40,8 @@ from s2cl.atmos.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensi
 from s2cl.atmos.scene_terms import scene_lut, true_state
 from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample
-from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings, kernel_config
+from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
 from s2cl.retrieve.quantify import score_igrm, score_retrieval
 
 Family = dict[str, Any]

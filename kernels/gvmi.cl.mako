@@ -8,7 +8,7 @@ Template variables
 The index and its validity rule: s2_gvmi_<T.suffix> of common/stages.mako (the sweep kernel runs
 the same function): status S2_OK, or S2_INVALID with index 0 for NaN/inf, |rho| > max_abs, or an
 offset reflectance (NIR + 0.1, SWIR + 0.02) that is not positive.
-Kernel arguments (outputs first; SoA, pixel index fastest)
+Kernel arguments (s2cl.retrieve.gvmi.ARGS; outputs first; SoA, pixel index fastest)
   gvmi    out [pitch] real    the index, in [-1, 1] for non-negative reflectance
   status  out [pitch] uchar
   refl    in  [n_bands][pitch] real  band reflectance
@@ -23,12 +23,7 @@ Global size: pitch / T.lanes.
 ${st.gvmi(T, max_abs)}
 
 __kernel void gvmi(
-    __global ${T.R} *restrict gvmi,
-    __global uchar *restrict status,
-    __global const ${T.R} *restrict refl,
-    const int nir,
-    const int swir,
-    const int pitch)
+    ${signature(args, T)})
 {
     const int gid = get_global_id(0);
     ${T.M} st;

@@ -21,12 +21,12 @@ Template variables
   kind       "igrm" | "gvmi" | "sam";  nir, swir (gvmi slots); n_classes, cos_min (sam; below -1:
              no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
   max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
-Arguments
+Arguments (s2cl.sweep.kernel.ARGS)
   index     out [n_configs][pitch] real   igrm: lp (nm); gvmi: GVMI; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
-  extra     out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako);
-  extra2    out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 255 = >= 12.75
-                                          decades or singular (0 for the other analyses)
+  bounds    out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako); else 0
+  condition out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 240 = the cap of 12
+                                          decades (singular); else 0
   radiance  in  [rows][n_spectra] real    W m-2 sr-1 um-1
   sigma     in  [rows][n_spectra] real    noise standard deviation, same units
   z         in  [n_slots][pitch] real     standard normal deviates
@@ -84,20 +84,7 @@ ${st.sam(T, n_slots, n_classes, max_abs)}
 % endif
 
 __kernel void sweep_configs(
-    __global ${R} *restrict index,
-    __global uchar *restrict status,
-    __global uchar *restrict extra,
-    __global uchar *restrict extra2,
-    __global const ${R} *restrict radiance,
-    __global const ${R} *restrict sigma,
-    __global const ${R} *restrict z,
-    __global const ${R} *restrict centre,
-    __global const ${R} *restrict lp,
-    __global const ${R} *restrict g,
-    __global const ${R} *restrict s,
-    __global const ${R} *restrict refs,
-    const uint config_start,
-    const uint n_configs)
+    ${signature(args, T)})
 {
     const uint blk = get_global_id(0);
     const uint c = get_global_id(1);
@@ -137,8 +124,8 @@ __kernel void sweep_configs(
     ${vstore(f"s2_gvmi_{T.suffix}(rho[{nir}], rho[{swir}], &st)", "(index + at)")}
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = 0;
-    extra2[at + ${l}] = 0;
+    bounds[at + ${l}] = 0;
+    condition[at + ${l}] = 0;
   % endfor
 % elif kind == "sam":
     /* the configuration's class references, scaled to unit length (the same for every lane) */
@@ -163,8 +150,8 @@ __kernel void sweep_configs(
     ${vstore(f"ok ? {T.convert(T.R) if L > 1 else '(' + R + ')'}(best) : ({V})({T.lit(float(n_classes))})", "(index + at)")}
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = 0;
-    extra2[at + ${l}] = 0;
+    bounds[at + ${l}] = 0;
+    condition[at + ${l}] = 0;
   % endfor
 % else:
     /* sort the slots by band centre (stable; the centres are the same for every lane) */
@@ -184,8 +171,8 @@ __kernel void sweep_configs(
     const ${V} code = out[6] * ${T.lit(20.0)} + ${T.lit(0.5)};
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = (uchar)${lane("bd", l)};
-    extra2[at + ${l}] = (uchar)${lane("code", l)};
+    bounds[at + ${l}] = (uchar)${lane("bd", l)};
+    condition[at + ${l}] = (uchar)${lane("code", l)};
   % endfor
 % endif
 }

@@ -14,7 +14,7 @@ from s2cl.retrieve.gvmi import GvmiKernel, gvmi
 def test_gvmi_matches_oracle(rt, real_t, lanes, n):
     rng = np.random.default_rng(n)
     refl = np.vstack([rng.uniform(0.0, 0.6, n), rng.uniform(0.2, 0.7, n), rng.uniform(0.05, 0.5, n)])
-    out = GvmiKernel(real_t=real_t, lanes=lanes)(refl, nir=1, swir=2)
+    out = GvmiKernel(rt, real_t=real_t, lanes=lanes)(refl, nir=1, swir=2)
     expect, status = ref.gvmi(refl[1], refl[2])
     np.testing.assert_array_equal(out.status, status)
     tol = 1e-6 if real_t == "float32" else 1e-14

@@ -54,10 +54,10 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     scene = _scene(kind)
-    direct = pixel_results(scene, simulate(scene))
+    direct = pixel_results(rt, scene, simulate(scene))
     job = plan_sweep(scene)
     assert job.n_configs == 1
-    swept = SweepKernel(job.tables, job.analysis, precision="float64")(0, 1)
+    swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
     np.testing.assert_array_equal(swept.status[0], direct.status)
     tol = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0}[kind]  # nm / index / class
     np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=tol)
@@ -93,4 +93,4 @@ def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tm
     from s2cl.retrieve.igrm import IgrmFitter
 
     with pytest.raises(InputError, match="underdetermined"):
-        IgrmFitter(4).fit(np.zeros((4, 3)), np.array([665.0, 730.0, 730.0, 783.0]))
+        IgrmFitter(rt, 4).fit(np.zeros((4, 3)), np.array([665.0, 730.0, 730.0, 783.0]))

@@ -9,8 +9,10 @@ import sys
 
 import pytest
 
-from s2cl.cl import runtime
-from s2cl.cl.runtime import LANES_ENV, STRICT_ENV, Runtime, choose_lanes, get_runtime, list_devices
+from s2cl.cl import devices, runtime
+from s2cl.cl.builds import STRICT_ENV
+from s2cl.cl.devices import LANES_ENV, choose_lanes, list_devices
+from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import BuildError, DeviceError, InputError
 
 
@@ -47,7 +49,7 @@ def test_pyopencl_ctx_is_honoured(monkeypatch, rt: Runtime) -> None:
 
 
 def test_no_platform_says_how_to_install(monkeypatch) -> None:
-    monkeypatch.setattr(runtime, "_platforms", lambda: [])
+    monkeypatch.setattr(devices, "_platforms", lambda: [])
     with pytest.raises(DeviceError) as err:
         Runtime()
     assert "pyopencl[pocl]" in str(err.value)
@@ -106,7 +108,7 @@ def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) 
     assert any("exceed this CPU device's native vector width (8)" in r.message for r in caplog.records)
     from s2cl.retrieve.igrm import IgrmFitter
 
-    assert IgrmFitter(4, lanes=16, rt=rt).types.lanes == 8
+    assert IgrmFitter(rt, 4, lanes=16).types.lanes == 8
 
 
 def test_lanes_from_environment(rt: Runtime, monkeypatch) -> None:
@@ -150,18 +152,18 @@ def test_strict_builds_refuse_warnings(rt: Runtime, monkeypatch) -> None:
 
 def test_default_device_compiles(rt: Runtime) -> None:
     """The default device is one that builds kernels (a PoCL that cannot is skipped, see below)."""
-    assert runtime._builds(rt.info) is None
+    assert devices._builds(rt.info) is None
 
 
 def test_default_skips_a_device_that_cannot_compile(monkeypatch) -> None:
     infos = list_devices()
     broken = infos[0]
-    real = runtime._builds
-    monkeypatch.setattr(runtime, "_builds", lambda info: "error: unknown target CPU 'generic'"
+    real = devices._builds
+    monkeypatch.setattr(devices, "_builds", lambda info: "error: unknown target CPU 'generic'"
                         if info == broken else real(info))
     if any(real(i) is None for i in infos[1:]):  # another device that really compiles is chosen instead
-        assert runtime._first_working(infos) != broken
+        assert devices._first_working(infos) != broken
     with pytest.raises(DeviceError) as err:
-        runtime._first_working([broken])
+        devices._first_working([broken])
     assert "unknown target CPU" in str(err.value)
     assert "pocl-opencl-icd" in str(err.value)

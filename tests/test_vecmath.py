@@ -15,7 +15,7 @@ EXP_REL_TOL = {"float32": 3e-7, "float64": 4e-16}
 
 
 def _program(rt, real_t: str, lanes: int, degree: int | None = None):
-    T = VecTypes(real_t, rt.lanes(real_t, lanes))  # a width this CPU cannot use falls back (runtime.choose_lanes)
+    T = VecTypes(real_t, rt.lanes(real_t, lanes))  # a width this CPU cannot use falls back (devices.choose_lanes)
     src = render("vecmath_check.cl.mako", T=T, **exp_template_vars(real_t, degree))
     return T, rt.build(src, template="vecmath_check.cl.mako")
 

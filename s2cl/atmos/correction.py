@@ -66,15 +66,31 @@ class BandAtmosphere:
         return int(self.path_radiance.size)
 
     def reflectance(self, radiance: np.ndarray) -> np.ndarray:
-        """Band reflectance from band radiance ``(n_bands, …)`` (float64 oracle of the kernel)."""
+        """Band reflectance from band radiance ``(n_bands, …)`` (:func:`correct`, float64)."""
         shape = (-1,) + (1,) * (np.ndim(radiance) - 1)
-        L = np.asarray(radiance, dtype=np.float64)
-        y = (L - self.path_radiance.reshape(shape)) / self.ground_term.reshape(shape)
-        return y / np.maximum(1.0 + self.spherical_albedo.reshape(shape) * y, MIN_DENOMINATOR)
+        return correct(radiance, self.path_radiance.reshape(shape), self.ground_term.reshape(shape),
+                       self.spherical_albedo.reshape(shape))
 
     def radiance(self, reflectance: np.ndarray) -> np.ndarray:
-        """Band radiance of a band reflectance (the band-level forward model)."""
+        """Band radiance of a band reflectance (the band-level forward model, :func:`toa`)."""
         shape = (-1,) + (1,) * (np.ndim(reflectance) - 1)
-        rho = np.asarray(reflectance, dtype=np.float64)
-        return self.path_radiance.reshape(shape) + self.ground_term.reshape(shape) * rho / (
-            1.0 - self.spherical_albedo.reshape(shape) * rho)
+        return toa(reflectance, self.path_radiance.reshape(shape), self.ground_term.reshape(shape),
+                   self.spherical_albedo.reshape(shape))
+
+
+def toa(rho: np.ndarray, lp: np.ndarray, g: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """TOA radiance ``Lp + G·ρ / (1 − S·ρ)`` (W m⁻² sr⁻¹ µm⁻¹, float64; arguments broadcast): per
+    wavelength with the 6S terms, or per band with band-effective ones. The resampling kernel's
+    atmosphere effect computes the same per wavelength."""
+    rho = np.asarray(rho, dtype=np.float64)
+    return lp + g * rho / (1.0 - s * rho)
+
+
+def correct(radiance: np.ndarray, lp: np.ndarray, g: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The correction inverse on the host, float64: ``ρ = y / max(1 + S·y, 1e-6)``, ``y = (L − Lp) / G``
+    (arguments broadcast). The same rule as the device stage ``s2_correct`` (kernels/common/stages.mako),
+    including the clamp that keeps unphysical radiance far below the path radiance finite; NaN stays NaN."""
+    y = (np.asarray(radiance, dtype=np.float64) - lp) / g
+    d = 1.0 + s * y
+    with np.errstate(invalid="ignore"):
+        return y / np.where(d > MIN_DENOMINATOR, d, MIN_DENOMINATOR)

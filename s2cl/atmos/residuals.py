@@ -2,9 +2,10 @@
 
 The correction inverts band radiance with SRF-weighted terms (:mod:`s2cl.atmos.correction`). Even
 without noise or quantisation it cannot return the true band reflectance exactly: the atmosphere
-acts per wavelength, the sensor sees band averages. This module measures that residual with the
-float64 oracles: reflectance → TOA radiance at every grid wavelength → SRF resampling → band-
-effective correction, against the SRF-weighted surface reflectance.
+acts per wavelength, the sensor sees band averages. This module measures that residual:
+reflectance → TOA radiance at every grid wavelength → SRF resampling → band-
+effective correction (the host functions of :mod:`s2cl.atmos.correction`, float64), against the
+SRF-weighted surface reflectance.
 """
 
 from __future__ import annotations
@@ -14,10 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState
-from s2cl.atmos.correction import BandAtmosphere
+from s2cl.atmos.correction import BandAtmosphere, toa
 from s2cl.grid import DEFAULT_GRID
 from s2cl.libraries.registry import load_library
-from s2cl.reference.forward import resample, toa_radiance
 from s2cl.sensor.sensor import Sensor
 
 DEFAULT_LIBRARIES = ("builtin:flat", "builtin:lib1", "builtin:lib2", "builtin:minerals")
@@ -49,8 +49,8 @@ def band_averaging_residuals(libraries: tuple[str, ...] = DEFAULT_LIBRARIES,
     out = []
     for name in libraries:
         rho = load_library(name, DEFAULT_GRID).spectra
-        radiance = toa_radiance(rho, terms.path_radiance, terms.ground_term, terms.spherical_albedo)
-        corrected = band_terms.reflectance(resample(radiance, weights))
-        true = resample(rho, weights)
+        radiance = toa(rho, terms.path_radiance, terms.ground_term, terms.spherical_albedo)
+        corrected = band_terms.reflectance(np.stack([w.apply(radiance) for w in weights]))
+        true = np.stack([w.apply(rho) for w in weights])
         out.append(Residuals(name, tuple(sensor.band_names), corrected - true, true))
     return out

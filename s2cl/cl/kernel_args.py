@@ -1,14 +1,19 @@
-"""One ordered argument list per kernel, used both to write the OpenCL signature (in the
-template) and to bind values (on the host), so the two cannot drift apart.
+"""One ordered argument list per kernel, used both to write the OpenCL signature (in the template) and
+to bind values (on the host), so the two cannot drift apart. Every s2cl kernel is declared this way.
+
+``ctype`` ``"real"`` stands for the kernel's working precision (``float`` or ``double``, from its
+:class:`~s2cl.cl.vectypes.VecTypes`); other ctypes are OpenCL scalar types.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
+from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import S2CLError
 
 ArgKind = Literal["out", "in", "inout", "scalar"]
@@ -24,25 +29,29 @@ _SCALAR_DTYPES = {
 
 @dataclass(frozen=True)
 class Arg:
-    """A kernel argument: a global buffer (``out``/``in``/``inout``) or a scalar."""
+    """A kernel argument: a global buffer (``out``/``in``/``inout``) or a scalar.
+
+    :param ctype: element type; ``"real"``: the working precision.
+    """
 
     name: str
     kind: ArgKind
     ctype: str
 
-    def declaration(self) -> str:
+    def declaration(self, T: VecTypes) -> str:
+        ctype = T.R if self.ctype == "real" else self.ctype
         if self.kind == "scalar":
-            return f"const {self.ctype} {self.name}"
+            return f"const {ctype} {self.name}"
         const = "const " if self.kind == "in" else ""
-        return f"__global {const}{self.ctype} *restrict {self.name}"
+        return f"__global {const}{ctype} *restrict {self.name}"
 
 
-def signature(args: list[Arg] | tuple[Arg, ...]) -> str:
-    """The parameter list of a kernel, one argument per line."""
-    return ",\n    ".join(a.declaration() for a in args)
+def signature(args: Sequence[Arg], T: VecTypes) -> str:
+    """The parameter list of a kernel, one argument per line (templates call it as ``signature(args, T)``)."""
+    return ",\n    ".join(a.declaration(T) for a in args)
 
 
-def bind(args: list[Arg] | tuple[Arg, ...], values: dict[str, Any], real_dtype: Any) -> list[Any]:
+def bind(args: Sequence[Arg], values: dict[str, Any], T: VecTypes) -> list[Any]:
     """Values in signature order; scalars converted to their exact dtype.
 
     :raises S2CLError: an argument has no value, or a value is left over (a programming error).
@@ -55,7 +64,7 @@ def bind(args: list[Arg] | tuple[Arg, ...], values: dict[str, Any], real_dtype: 
     for a in args:
         v = values[a.name]
         if a.kind == "scalar":
-            dtype = real_dtype if a.ctype == "real_t" else _SCALAR_DTYPES[a.ctype]
+            dtype = T.dtype if a.ctype == "real" else _SCALAR_DTYPES[a.ctype]
             v = np.dtype(dtype).type(v)
         out.append(v)
     return out

@@ -30,6 +30,14 @@ def render(name: str, **variables: Any) -> str:
         raise RenderError(f"rendering kernels/{name} failed:\n{text_error_template().render()}") from err
 
 
+def render_def(name: str, def_name: str, **variables: Any) -> str:
+    """Render one ``<%def>`` of ``kernels/<name>`` (e.g. a stage's device functions, to test it alone)."""
+    try:
+        return _lookup().get_template(name).get_def(def_name).render(**variables)
+    except Exception as err:  # Mako raises many types; keep its rendered traceback
+        raise RenderError(f"rendering {def_name} of kernels/{name} failed:\n{text_error_template().render()}") from err
+
+
 def include_options() -> list[str]:
     """Build options that let kernels ``#include "common/…"``."""
     return ["-I", str(kernel_dir())]

@@ -187,7 +187,7 @@ def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:
     rt = _runtime(device)
     with claim(out):
         with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
-            ds = simulate_cube(sc, runtime=rt, progress=lambda n: advance(1))
+            ds = simulate_cube(rt, sc, progress=lambda n: advance(1))
         write_netcdf(out / "simulation.nc", ds)
     click.echo(f"wrote {out / 'simulation.nc'}")
 
@@ -259,7 +259,8 @@ def devices(quiet: bool) -> None:
     """
     import os
 
-    from s2cl.cl.runtime import Runtime, get_runtime, list_devices
+    from s2cl.cl.devices import list_devices
+    from s2cl.cl.runtime import Runtime, get_runtime
     from s2cl.errors import DeviceError, token
     from s2cl.logs import LOGGER
 
@@ -430,8 +431,6 @@ def _sweep_options(f: Callable) -> Callable:
         click.option("--workers", type=click.IntRange(1, 1024), help="run on a local Dask cluster of N workers"),
         click.option("--scheduler", help="run on a Dask cluster: scheduler address, e.g. tcp://10.0.0.5:8786"),
         click.option("--overwrite", is_flag=True, help="replace a different sweep found in the output folder"),
-        click.option("--backend", type=click.Choice(["opencl", "numpy"]), default="opencl", show_default=True,
-                     help="numpy: the float64 reference evaluation (slow)"),
         click.option("--chunk", type=click.IntRange(1), help="configurations per chunk (default: auto)"),
         click.option("--device", "-d", help=DEVICE_HELP),
         click.option("--max-memory", help=MAX_MEMORY_HELP),
@@ -443,7 +442,7 @@ def _sweep_options(f: Callable) -> Callable:
 
 
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
-               backend: str, chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
+               chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
     """Check everything (scene, output folder, memory, disk, device), then run in the claimed folder."""
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
@@ -462,12 +461,11 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     budget = Budget.of(max_memory)
     plan = sweep_resources(checked, chunk=chunk, budget=budget)
     require_sweep_disk(checked, out)
-    if backend == "opencl":
-        _runtime(device)
+    _runtime(device)  # the device is checked before anything is created
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
     with claim(out):
-        job = plan_sweep(sc, backend=backend, chunk=plan.chunk, checked=checked, budget=budget)
+        job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget)
         _sweep_into(sc, job, out, dict(workers=workers, scheduler=scheduler, overwrite=overwrite, device=device),
                     quiet, warnings, t0)
 

@@ -11,7 +11,6 @@ band's grid.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -19,6 +18,7 @@ from scipy.ndimage import gaussian_filter
 
 from s2cl import __version__
 from s2cl.atmos.correction import BandAtmosphere
+from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import RADIANCE_UNITS, band_attrs
 from s2cl.forward.sense import Radiometry, Sensing
@@ -135,9 +135,9 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
 
 
-def simulate_cube(scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None, *,
-                  runtime: Any = None, progress: Progress | None = None) -> xr.Dataset:
-    """Simulate an image cube (the scene's ``surface.cube`` file, or ``cube`` given in memory)."""
+def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None,
+                  *, progress: Progress | None = None) -> xr.Dataset:
+    """Simulate an image cube (the scene's ``surface.cube`` file, or ``cube`` given in memory) on ``rt``."""
     s = scene.spec
     source = scene.source
     if cube is None:
@@ -150,7 +150,7 @@ def simulate_cube(scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: 
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
-    sim = Simulator.for_scene(scene, runtime=runtime, atmosphere=scene_atmosphere(scene))
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
     if progress:
         progress(rows * cols)

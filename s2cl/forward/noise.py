@@ -1,4 +1,6 @@
-"""numpy Philox4x32-10 and the Box–Muller normals of ``kernels/common/s2_random.clh`` (float64).
+"""Sensor noise on the host: numpy Philox4x32-10 and the Box–Muller normals of
+``kernels/common/random.mako`` (float64), and noise added with them (the sweep's noise tables, the
+studies). A deviate is a pure function of (seed, pixel, band id, frame), so host and device agree.
 
 Philox4x32-10 (Salmon et al. 2011, "Parallel random numbers: as easy as 1, 2, 3"): 10 rounds of
 ``(hi0, lo0) = M0·c0, (hi1, lo1) = M1·c2, c = (hi1^c1^k0, lo1, hi0^c3^k1, lo0)`` with the key
@@ -8,7 +10,11 @@ bumped by the Weyl constants between rounds. Known answer: counter 0, key 0 →
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+
+from s2cl.sensor.noise_model import noise_sigma
 
 M0, M1 = 0xD2511F53, 0xCD9E8D57
 W0, W1 = 0x9E3779B9, 0xBB67AE85
@@ -55,3 +61,13 @@ def sensor_noise(seed: int, pixels: np.ndarray, band_ids: list[int] | tuple[int,
     for k, bid in enumerate(band_ids):
         out[k] = normal4(seed, TAG_SENSOR_NOISE, pixels, np.full(pixels.shape, bid >> 2), frame)[..., bid & 3]
     return out
+
+
+def add_noise(radiance: np.ndarray, noise_a: np.ndarray, noise_b: np.ndarray, band_ids: Sequence[int], seed: int,
+              pixel_offset: int = 0, frame: int = 0) -> np.ndarray:
+    """``radiance`` ``(n_bands, n_pixels)`` plus σ(L)·z on the host, float64: σ from each band's noise
+    coefficients at its width (:func:`s2cl.sensor.noise_model.noise_sigma`), z the sense kernel's deviate
+    of (seed, pixel, band id, frame). The sense kernel adds the same noise on the device."""
+    L = np.asarray(radiance, dtype=np.float64)
+    z = sensor_noise(seed, np.arange(L.shape[1]) + pixel_offset, list(band_ids), frame)
+    return L + noise_sigma(L, np.asarray(noise_a)[:, None], np.asarray(noise_b)[:, None]) * z

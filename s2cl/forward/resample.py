@@ -11,8 +11,7 @@ import numpy as np
 from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
-from s2cl.errors import DeviceError, InputError
-from s2cl.scene.effects import build_options, real_dtype
+from s2cl.errors import InputError
 from s2cl.sensor.srf import BandWeights
 
 if TYPE_CHECKING:
@@ -70,9 +69,9 @@ class ResamplePlan:
 
 
 def _args(atmosphere: bool) -> list[Arg]:
-    args = [Arg("out", "out", "real_t"), Arg("spectra", "in", "real_t"), Arg("weights", "in", "real_t")]
+    args = [Arg("out", "out", "real"), Arg("spectra", "in", "real"), Arg("weights", "in", "real")]
     if atmosphere:
-        args += [Arg(n, "in", "real_t") for n in ("path_radiance", "ground_term", "spherical_albedo")]
+        args += [Arg(n, "in", "real") for n in ("path_radiance", "ground_term", "spherical_albedo")]
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
@@ -83,15 +82,14 @@ class Resampler:
         reflectance and are turned into TOA radiance at each wavelength before the SRFs.
     :param vector_width: wavelengths per vector load, 4, 8 or 16 (default :data:`DEFAULT_VECTOR_WIDTH`
         capped at the device's native width; a width the CPU cannot use cleanly falls back, see
-        :func:`s2cl.cl.runtime.choose_lanes`).
+        :func:`s2cl.cl.devices.choose_lanes`).
     """
 
     def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
                  atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None):
-        if real_t == "float64" and not rt.has_fp64:
-            raise DeviceError(f"{rt.name} has no float64 support (cl_khr_fp64); use precision = 'float32'")
+        self.T = rt.types(real_t, vector=False)
         self.rt, self.plan, self.real_t = rt, plan, real_t
-        self.dtype = real_dtype(real_t)
+        self.dtype = self.T.dtype.type
         self.args = _args(atmosphere is not None)
         bands, weights = plan.packed()
         if vector_width not in (None, 4, 8, 16):
@@ -99,9 +97,9 @@ class Resampler:
         if vector_width is None:
             vector_width = max(4, min(DEFAULT_VECTOR_WIDTH, rt.native_lanes(real_t)))
         self.vw = max(4, rt.lanes(real_t, vector_width))  # a width this CPU cannot use falls back
-        self.source = render(TEMPLATE, args=self.args, signature=signature, bands=bands,
+        self.source = render(TEMPLATE, args=self.args, signature=signature, T=self.T, bands=bands,
                              n_wavelengths=plan.n_wavelengths, vw=self.vw, atmosphere=atmosphere is not None)
-        program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))
+        program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "resample_bands")
         self.weights_dev = rt.to_device(weights.astype(self.dtype))
         self.atmosphere_dev = None
@@ -118,7 +116,7 @@ class Resampler:
             values.update(self.atmosphere_dev)
         global_size = _round_up(n_pixels, local_size or 1)
         self.kernel(self.rt.queue, (global_size,), (local_size,) if local_size else None,
-                    *bind(self.args, values, self.dtype))
+                    *bind(self.args, values, self.T))
 
     def __call__(self, spectra: np.ndarray, *, chunk_pixels: int | None = None,
                  local_size: int | None = None) -> np.ndarray:

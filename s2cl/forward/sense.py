@@ -10,9 +10,8 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
-from s2cl.cl.vectypes import VecTypes
-from s2cl.errors import DeviceError, InputError
-from s2cl.scene.effects import EffectSet, build_options, real_dtype
+from s2cl.errors import InputError
+from s2cl.scene.effects import EffectSet
 from s2cl.sensor.sensor import Band
 from s2cl.status import PixelFlag
 
@@ -95,22 +94,22 @@ def clipped_counts(flags: np.ndarray) -> np.ndarray:
 def _args(effects: EffectSet) -> list[Arg]:
     args: list[Arg] = []
     if effects.noise:
-        args.append(Arg("noisy", "out", "real_t"))
+        args.append(Arg("noisy", "out", "real"))
     if effects.quantise:
         args += [Arg("dn", "out", "ushort"), Arg("flags", "out", "uchar")]
     if effects.calibrate:
-        args.append(Arg("calibrated", "out", "real_t"))
+        args.append(Arg("calibrated", "out", "real"))
     if effects.correct:
-        args.append(Arg("reflectance", "out", "real_t"))
-    args.append(Arg("radiance", "in", "real_t"))
+        args.append(Arg("reflectance", "out", "real"))
+    args.append(Arg("radiance", "in", "real"))
     if effects.noise:
-        args += [Arg("noise_a", "in", "real_t"), Arg("noise_b", "in", "real_t")]
+        args += [Arg("noise_a", "in", "real"), Arg("noise_b", "in", "real")]
     if effects.quantise:
-        args += [Arg(n, "in", "real_t") for n in ("lmin", "lmax", "scale")]
+        args += [Arg(n, "in", "real") for n in ("lmin", "lmax", "scale")]
     if effects.calibrate:
-        args.append(Arg("gain", "in", "real_t"))
+        args.append(Arg("gain", "in", "real"))
     if effects.correct:
-        args += [Arg(n, "in", "real_t") for n in ("band_lp", "band_g", "band_s")]
+        args += [Arg(n, "in", "real") for n in ("band_lp", "band_g", "band_s")]
     if effects.noise:
         args += [Arg("seed", "scalar", "uint"), Arg("frame", "scalar", "uint")]
     args.append(Arg("pixel_offset", "scalar", "uint"))
@@ -128,19 +127,18 @@ class Sensing:
 
     def __init__(self, rt: Runtime, radiometry: Radiometry, effects: EffectSet, real_t: str = "float32",
                  correction: BandAtmosphere | None = None):
-        if real_t == "float64" and not rt.has_fp64:
-            raise DeviceError(f"{rt.name} has no float64 support (cl_khr_fp64); use precision = 'float32'")
         if not 1 <= radiometry.bits <= 16:
             raise InputError(f"bits must be in 1–16, got {radiometry.bits}", key="effects.bits")
         self.rt, self.radiometry, self.effects, self.real_t = rt, radiometry, effects, real_t
-        self.dtype = real_dtype(real_t)
+        self.T = rt.types(real_t, vector=False)
+        self.dtype = self.T.dtype.type
         self.args = _args(effects)
         if effects.correct and (correction is None or correction.n_bands != radiometry.n_bands):
             raise InputError("the correct effect needs band-effective atmospheric terms for every band")
         self.source = render(TEMPLATE, args=self.args, signature=signature, n_bands=radiometry.n_bands,
-                             band_ids=list(radiometry.band_ids), noise=effects.noise, T=VecTypes(real_t, 1),
+                             band_ids=list(radiometry.band_ids), noise=effects.noise, T=self.T,
                              quantise=effects.quantise, calibrate=effects.calibrate, correct=effects.correct)
-        program = rt.build(self.source, template=TEMPLATE, options=build_options(real_t))
+        program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "sense_bands")
         r = radiometry
         constants = {"noise_a": r.noise_a, "noise_b": r.noise_b, "lmin": r.lmin, "lmax": r.lmax,
@@ -202,7 +200,7 @@ class Sensing:
         values.update(outs, pixel_offset=pixel_offset + lo, n_pixels=m)
         global_size = -(-m // (local_size or 1)) * (local_size or 1)
         self.kernel(rt.queue, (global_size,), (local_size,) if local_size else None,
-                    *bind(self.args, values, self.dtype))
+                    *bind(self.args, values, self.T))
         if "noisy" in outs:
             result.noisy[:, lo:hi] = rt.fetch(outs["noisy"], (nb, m), self.dtype)
         if "dn" in outs:

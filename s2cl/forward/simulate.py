@@ -139,12 +139,12 @@ class BandSummary:
 
 
 class Simulator:
-    """Compiled chain for one scene (or sensor + effects), reusable across inputs."""
+    """Compiled chain for one scene (or sensor + effects) on ``rt``'s device, reusable across inputs."""
 
-    def __init__(self, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
-                 precision: str = "float32", runtime: Runtime | None = None,
-                 atmosphere: AtmosphereArrays | None = None, correction: BandAtmosphere | None = None):
-        self.rt = runtime or get_runtime()
+    def __init__(self, rt: Runtime, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
+                 precision: str = "float32", atmosphere: AtmosphereArrays | None = None,
+                 correction: BandAtmosphere | None = None):
+        self.rt = rt
         self.sensor, self.effects, self.precision = sensor, effects, precision
         self.correction = correction
         self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
@@ -155,8 +155,7 @@ class Simulator:
         )
 
     @classmethod
-    def for_scene(cls, scene: Scene, *, runtime: Runtime | None = None,
-                  atmosphere: AtmosphereArrays | None = None) -> Simulator:
+    def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None) -> Simulator:
         weights = [
             b.weights(scene.grid, scene.spec.sensor.support, scene.source)
             if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
@@ -168,8 +167,8 @@ class Simulator:
 
             correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
                 scene.spec.correction.calibration_gain)
-        return cls(scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.spec.output.precision,
-                   runtime=runtime, atmosphere=atmosphere, correction=correction)
+        return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.spec.output.precision,
+                   atmosphere=atmosphere, correction=correction)
 
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
         """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
@@ -235,7 +234,7 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
     lib = library if library is not None else scene_library(scene)
     _require_memory(scene, lib)
     rt = get_runtime(device)
-    sim = Simulator.for_scene(scene, runtime=rt, atmosphere=scene_atmosphere(scene))
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     s = scene.spec
     result = sim.run_library(lib, copies=s.surface.copies, seed=s.effects.seed, frame=s.effects.frame,
                              scene=scene.name, progress=progress)

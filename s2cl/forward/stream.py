@@ -16,11 +16,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from s2cl import __version__
+
+if TYPE_CHECKING:
+    from s2cl.cl.runtime import Runtime
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
 from s2cl.io.budget import (
@@ -115,7 +118,7 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     assert lib is not None
     s = scene.spec
     rt = get_runtime(device)
-    sim = Simulator.for_scene(scene, runtime=rt, atmosphere=scene_atmosphere(scene))
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     t0 = time.perf_counter()
     band_radiance = sim.band_radiance(lib.spectra)
     seconds = {"resample": time.perf_counter() - t0}
@@ -145,7 +148,7 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
             if clipped is not None:
                 images.set_clipped(stats.clipped)
         seconds["sense_and_write"] = time.perf_counter() - t1
-    analysis = picked.analyse(band_radiance) if checked.analysis is not None else None
+    analysis = picked.analyse(band_radiance, rt) if checked.analysis is not None else None
     return StreamedSimulation(path, stats.rows(), attrs, lib.size * s.surface.copies, analysis, seconds)
 
 
@@ -254,7 +257,7 @@ class _AnalysisBands:
         if self.data is not None and reflectance is not None:
             self.data[:, first_pixel : first_pixel + reflectance.shape[1]] = reflectance[self.rows]
 
-    def analyse(self, band_radiance: np.ndarray) -> dict[str, Any]:
+    def analyse(self, band_radiance: np.ndarray, rt: Runtime) -> dict[str, Any]:
         from s2cl.retrieve.scene_analysis import analyse
 
         scene, lib = self.checked.scene, self.checked.library
@@ -263,4 +266,4 @@ class _AnalysisBands:
         copies = scene.spec.surface.copies
         sim = LibrarySimulation(scene.name, sensor, lib, copies, scene.effects, band_radiance[self.rows],
                                 reflectance=self.data.reshape(len(self.rows), lib.size, copies))
-        return analyse(scene, sim)
+        return analyse(rt, scene, sim)

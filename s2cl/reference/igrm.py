@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from s2cl.retrieve.igrm import FitStatus, IgrmResult, IgrmSettings, KernelConfig, kernel_config
+from s2cl.retrieve.igrm import FitStatus, IgrmResult
+from s2cl.retrieve.igrm_settings import IgrmSettings, KernelConfig, kernel_config
 
 
 def model(wavelengths_nm: np.ndarray, rmax, rmin, l0, s) -> np.ndarray:

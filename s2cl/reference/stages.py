@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from s2cl.atmos.correction import correct  # the host correction is the twin of s2_correct
 from s2cl.status import MAX_ABS_REFLECTANCE, PixelFlag, Status
 
-MIN_DENOMINATOR = 1e-6  # the correction's clamp of 1 + S y
+__all__ = ["calibrate", "correct", "gvmi", "quantise", "sam", "sam_classify", "spectral_angles"]
+
 
 
 def quantise(L: np.ndarray, lmin, lmax, maxdn: int) -> tuple[np.ndarray, np.ndarray]:
@@ -34,14 +36,6 @@ def calibrate(dn: np.ndarray, flags: np.ndarray, lmin, gain) -> np.ndarray:
     """Radiance from DN, ``lmin + DN gain``; NaN where the pixel has no data."""
     L = np.asarray(lmin, dtype=np.float64) + np.asarray(dn, dtype=np.float64) * np.asarray(gain, dtype=np.float64)
     return np.where((np.asarray(flags) & PixelFlag.NODATA) != 0, np.nan, L)
-
-
-def correct(L: np.ndarray, lp, g, s) -> np.ndarray:
-    """Band-effective inverse ``y / max(1 + s y, 1e-6)`` with ``y = (L - lp) / g``; NaN stays NaN."""
-    y = (np.asarray(L, dtype=np.float64) - lp) / g
-    d = 1.0 + np.asarray(s, dtype=np.float64) * y
-    with np.errstate(invalid="ignore"):
-        return y / np.where(d > MIN_DENOMINATOR, d, MIN_DENOMINATOR)
 
 
 def gvmi(nir: np.ndarray, swir: np.ndarray, max_abs: float = MAX_ABS_REFLECTANCE) -> tuple[np.ndarray, np.ndarray]:

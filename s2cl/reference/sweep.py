@@ -1,5 +1,6 @@
 """float64 numpy evaluation of sweep configurations: the oracle of the OpenCL sweep kernel and the
-"same sweep written as vectorised numpy" baseline of the benchmarks.
+"same sweep written as vectorised numpy" baseline of the benchmarks (pass a :class:`NumpyEvaluator` to
+:func:`s2cl.sweep.engine.run_sweep` to run a whole sweep this way).
 
 Per configuration and pixel: gather noise-free band radiance and σ → add σ·z → quantise (ties
 up) → calibrate → band-effective correction (a calibration error is folded into its terms) → the
@@ -16,33 +17,8 @@ from s2cl.reference import stages
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.metrics import condition_code
 from s2cl.status import Status
+from s2cl.sweep.raw import RawChunk, variant_indices
 from s2cl.sweep.tables import SweepTables
-
-
-@dataclass
-class RawChunk:
-    """Per (configuration, pixel) results of configurations ``start … stop-1``.
-
-    ``index``: λp (nm) for igrm, GVMI for gvmi, class index for sam (float64); ``status``
-    (:class:`s2cl.status.Status`), ``bounds`` (IGRM active-bound bits) and ``condition`` (IGRM:
-    round(20 log10 of the fit's condition estimate), 240 = capped) are uint8; all ``(n_configs, n_pixels)``.
-    """
-
-    start: int
-    stop: int
-    index: np.ndarray
-    status: np.ndarray
-    bounds: np.ndarray
-    condition: np.ndarray | None = None
-
-
-def variant_indices(t: SweepTables, start: int, stop: int) -> np.ndarray:
-    """Variant index per slot, ``(n_configs, n_slots)``, last slot fastest (as SweepSpace.indices)."""
-    flat = np.arange(start, stop, dtype=np.int64)
-    out = np.empty((flat.size, t.n_slots), dtype=np.int64)
-    for k in range(t.n_slots - 1, -1, -1):
-        flat, out[:, k] = np.divmod(flat, t.counts[k])
-    return out
 
 
 def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.ndarray], np.ndarray]:
@@ -106,3 +82,14 @@ def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict
         condition[i] = condition_code(r.log10_condition)
     return index, status, bounds, condition
 
+
+@dataclass(frozen=True)
+class NumpyEvaluator:
+    """A picklable chunk evaluator (for :func:`s2cl.sweep.engine.run_sweep`, Dask included) of
+    :func:`evaluate` on ``tables`` and ``analysis``."""
+
+    tables: SweepTables
+    analysis: AnalysisSettings
+
+    def __call__(self, start: int, stop: int) -> RawChunk:
+        return evaluate(self.tables, self.analysis, start, stop)

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from s2cl.cl.bufferpool import BufferPool
+from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.cl.templates import render
-from s2cl.cl.vectypes import VecTypes, pad_pixels
+from s2cl.cl.vectypes import pad_pixels
 from s2cl.errors import InputError
 from s2cl.status import MAX_ABS_REFLECTANCE
 
@@ -29,23 +29,26 @@ class GvmiResult:
     status: np.ndarray
 
 
-class GvmiKernel:
-    """Compiled GVMI for one precision and lane count.
+#: the kernel's arguments (kernels/gvmi.cl.mako), in order
+ARGS = (Arg("gvmi", "out", "real"), Arg("status", "out", "uchar"), Arg("refl", "in", "real"),
+        Arg("nir", "scalar", "int"), Arg("swir", "scalar", "int"), Arg("pitch", "scalar", "int"))
 
+
+class GvmiKernel:
+    """Compiled GVMI for one device, precision and lane count.
+
+    :param rt: the OpenCL runtime to run on.
     :param real_t: ``"float32"`` or ``"float64"``.
     :param lanes: pixels per work-item (default: :meth:`Runtime.lanes`).
     :param max_abs: |reflectance| above which a pixel is invalid.
     """
 
-    def __init__(self, *, real_t: str = "float32", lanes: int | None = None, max_abs: float = MAX_ABS_REFLECTANCE,
-                 rt: Runtime | None = None):
-        self.rt = rt or get_runtime()
-        if real_t == "float64" and not self.rt.has_fp64:
-            raise InputError(f"device {self.rt.name} has no float64 support", key="real_t")
-        self.types = VecTypes(real_t, self.rt.lanes(real_t, lanes))
-        source = render("gvmi.cl.mako", T=self.types, max_abs=float(max_abs))
-        self.kernel = self.rt.kernel(self.rt.build(source, template="gvmi.cl.mako"), "gvmi")
-        self.buffers = BufferPool(self.rt)
+    def __init__(self, rt: Runtime, *, real_t: str = "float32", lanes: int | None = None,
+                 max_abs: float = MAX_ABS_REFLECTANCE):
+        self.rt = rt
+        self.types = rt.types(real_t, lanes)
+        source = render("gvmi.cl.mako", T=self.types, max_abs=float(max_abs), args=ARGS, signature=signature)
+        self.kernel = rt.kernel(rt.build(source, template="gvmi.cl.mako"), "gvmi")
 
     def __call__(self, refl: np.ndarray, nir: int, swir: int) -> GvmiResult:
         """GVMI from rows ``nir`` and ``swir`` of ``refl`` (n_bands, n_pixels)."""
@@ -56,15 +59,16 @@ class GvmiKernel:
             if not 0 <= int(row) < refl.shape[0]:
                 raise InputError(f"band row must be in 0..{refl.shape[0] - 1}, got {row}", key=key)
         n = refl.shape[1]
-        rows = refl[[int(nir), int(swir)]]
-        host, pitch = pad_pixels(rows, self.types.lanes, self.types.dtype)
-        rt, pool = self.rt, self.buffers
-        out_d, st_d = pool.get("gvmi", pitch * self.types.dtype.itemsize), pool.get("status", pitch)
-        self.kernel(rt.queue, (pitch // self.types.lanes,), None, out_d, st_d, pool.upload("refl", host),
-                    np.int32(0), np.int32(1), np.int32(pitch))
-        return GvmiResult(rt.fetch(out_d, (pitch,), self.types.dtype)[:n], rt.fetch(st_d, (pitch,), np.uint8)[:n])
+        T, rt = self.types, self.rt
+        host, pitch = pad_pixels(refl[[int(nir), int(swir)]], T.lanes, T.dtype)
+        values = {"gvmi": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
+                  "refl": rt.upload_new(host), "nir": 0, "swir": 1, "pitch": pitch}
+        self.kernel(rt.queue, (pitch // T.lanes,), None, *bind(ARGS, values, T))
+        return GvmiResult(rt.fetch(values["gvmi"], (pitch,), T.dtype)[:n],
+                          rt.fetch(values["status"], (pitch,), np.uint8)[:n])
 
 
-def gvmi(refl: np.ndarray, nir: int, swir: int, *, real_t: str = "float32", **kwargs) -> GvmiResult:
-    """One-shot :class:`GvmiKernel` (the build is cached)."""
-    return GvmiKernel(real_t=real_t, **kwargs)(refl, nir, swir)
+def gvmi(refl: np.ndarray, nir: int, swir: int, *, real_t: str = "float32", device: str | None = None,
+         **kwargs) -> GvmiResult:
+    """One-shot :class:`GvmiKernel` on ``device`` (default: :func:`s2cl.cl.runtime.get_runtime`'s choice)."""
+    return GvmiKernel(get_runtime(device), real_t=real_t, **kwargs)(refl, nir, swir)

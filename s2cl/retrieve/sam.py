@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from s2cl.cl.bufferpool import BufferPool
-from s2cl.cl.runtime import Runtime, get_runtime
+from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
-from s2cl.cl.vectypes import VecTypes, pad_pixels
+from s2cl.cl.vectypes import pad_pixels
 from s2cl.errors import InputError
 from s2cl.status import MAX_ABS_REFLECTANCE, Status
 
@@ -54,18 +54,25 @@ class SamResult:
     status: np.ndarray
 
 
-class SamClassifier:
-    """Compiled SAM for one band count, reference count, precision and lane count.
+#: the kernel's arguments (kernels/sam.cl.mako), in order
+ARGS = (Arg("best", "out", "int"), Arg("angle", "out", "real"), Arg("status", "out", "uchar"),
+        Arg("refl", "in", "real"), Arg("refs", "in", "real"), Arg("cos_min", "scalar", "real"),
+        Arg("pitch", "scalar", "int"))
 
+
+class SamClassifier:
+    """Compiled SAM for one device, band count, reference count, precision and lane count.
+
+    :param rt: the OpenCL runtime to run on.
     :param references: (n_refs, n_bands) reference spectra at sensor resolution (reflectance).
     :param reference_classes: class index (0..n_classes-1) of each reference; default: its own index.
     :param threshold_rad: maximum angle for a pixel to be classified; ``None``: no threshold.
     """
 
-    def __init__(self, references: np.ndarray, reference_classes: np.ndarray | None = None, *,
+    def __init__(self, rt: Runtime, references: np.ndarray, reference_classes: np.ndarray | None = None, *,
                  threshold_rad: float | None = None, real_t: str = "float32", lanes: int | None = None,
-                 max_abs: float = MAX_ABS_REFLECTANCE, rt: Runtime | None = None):
-        self.rt = rt or get_runtime()
+                 max_abs: float = MAX_ABS_REFLECTANCE):
+        self.rt = rt
         refs = np.asarray(references, dtype=np.float64)
         if refs.ndim != 2 or refs.shape[0] < 1 or refs.shape[1] < 1:
             raise InputError(f"must have shape (n_refs, n_bands), got {refs.shape}", key="references")
@@ -80,17 +87,15 @@ class SamClassifier:
             raise InputError(f"must be {refs.shape[0]} non-negative class indices", key="reference_classes")
         if threshold_rad is not None and not 0.0 <= threshold_rad <= np.pi:
             raise InputError(f"must be in [0, pi] radians, got {threshold_rad}", key="threshold_rad")
-        if real_t == "float64" and not self.rt.has_fp64:
-            raise InputError(f"device {self.rt.name} has no float64 support", key="real_t")
-        self.types = VecTypes(real_t, self.rt.lanes(real_t, lanes))
+        self.types = rt.types(real_t, lanes)
         self.n_refs, self.n_bands = refs.shape
         self.classes = classes.astype(np.int32)
         self.unit_refs = refs / norms[:, None]
         self.cos_min = -2.0 if threshold_rad is None else float(np.cos(threshold_rad))
-        source = render("sam.cl.mako", T=self.types, n_bands=self.n_bands, n_refs=self.n_refs, max_abs=float(max_abs))
-        self.kernel = self.rt.kernel(self.rt.build(source, template="sam.cl.mako"), "sam_classify")
-        self._refs_d = self.rt.to_device(self.unit_refs.astype(self.types.dtype))
-        self.buffers = BufferPool(self.rt)
+        source = render("sam.cl.mako", T=self.types, n_bands=self.n_bands, n_refs=self.n_refs, max_abs=float(max_abs),
+                        args=ARGS, signature=signature)
+        self.kernel = rt.kernel(rt.build(source, template="sam.cl.mako"), "sam_classify")
+        self._refs_d = rt.to_device(self.unit_refs.astype(self.types.dtype))
 
     def duplicate_references(self, tol_rad: float = 1e-6) -> list[tuple[int, int]]:
         """Pairs (i, j), i < j, of references within ``tol_rad`` of each other (j never wins)."""
@@ -104,16 +109,15 @@ class SamClassifier:
         if refl.ndim != 2 or refl.shape[0] != self.n_bands:
             raise InputError(f"must have shape ({self.n_bands}, n_pixels), got {refl.shape}", key="reflectance")
         n = refl.shape[1]
-        host, pitch = pad_pixels(refl, self.types.lanes, self.types.dtype)
-        rt, pool = self.rt, self.buffers
-        best_d, ang_d = pool.get("best", 4 * pitch), pool.get("angle", pitch * self.types.dtype.itemsize)
-        st_d = pool.get("status", pitch)
-        self.kernel(rt.queue, (pitch // self.types.lanes,), None, best_d, ang_d, st_d, pool.upload("refl", host),
-                    self._refs_d, self.types.dtype.type(self.cos_min), np.int32(pitch))
-        best = rt.fetch(best_d, (pitch,), np.int32)[:n]
+        T, rt = self.types, self.rt
+        host, pitch = pad_pixels(refl, T.lanes, T.dtype)
+        v = {"best": rt.alloc(4 * pitch), "angle": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
+             "refl": rt.upload_new(host), "refs": self._refs_d, "cos_min": self.cos_min, "pitch": pitch}
+        self.kernel(rt.queue, (pitch // T.lanes,), None, *bind(ARGS, v, T))
+        best = rt.fetch(v["best"], (pitch,), np.int32)[:n]
         label = np.where(best >= 0, self.classes[np.maximum(best, 0)], -1).astype(np.int32)
-        return SamResult(best, label, rt.fetch(ang_d, (pitch,), self.types.dtype)[:n],
-                         rt.fetch(st_d, (pitch,), np.uint8)[:n])
+        return SamResult(best, label, rt.fetch(v["angle"], (pitch,), T.dtype)[:n],
+                         rt.fetch(v["status"], (pitch,), np.uint8)[:n])
 
 
 def confusion_matrix(true_class: np.ndarray, predicted: np.ndarray, n_classes: int) -> np.ndarray:

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.simulate import LibrarySimulation
 from s2cl.retrieve.analysis import AnalysisSettings
@@ -61,9 +62,9 @@ class PixelResults:
     classes: list[str] | None = None
 
 
-def pixel_results(scene: Scene, sim: LibrarySimulation) -> PixelResults:
-    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, in the scene's precision,
-    with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
+def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelResults:
+    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, on ``rt``, in the scene's
+    precision, with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
     if sim.reflectance is None:
         raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
                          source=scene.source, key="effects.correct")
@@ -79,7 +80,7 @@ def pixel_results(scene: Scene, sim: LibrarySimulation) -> PixelResults:
         pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
         truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
         threshold = settings.angle_threshold_deg
-        r = SamClassifier(_class_references(scene, lib, bands, classes), real_t=real_t,
+        r = SamClassifier(rt, _class_references(scene, lib, bands, classes), real_t=real_t,
                           threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(refl[:, pixels])
         index = np.where(r.label >= 0, r.label, len(classes)).astype(np.float64)
         return PixelResults(settings, bands, index, r.status, np.zeros_like(r.status), None, truth[pixels], pixels,
@@ -91,20 +92,21 @@ def pixel_results(scene: Scene, sim: LibrarySimulation) -> PixelResults:
 
         centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
         order = np.argsort(centres, kind="stable")
-        fit = IgrmFitter(len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
+        fit = IgrmFitter(rt, len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
                          real_t=real_t)
         r = fit.fit(refl[order], centres[order])
         return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
                             everything)
     from s2cl.retrieve.gvmi import GvmiKernel
 
-    g = GvmiKernel(real_t=real_t)(refl, settings.nir_slot, settings.swir_slot)
+    g = GvmiKernel(rt, real_t=real_t)(refl, settings.nir_slot, settings.swir_slot)
     return PixelResults(settings, bands, g.gvmi, g.status, np.zeros_like(g.status), None, target, everything)
 
 
-def analyse(scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
-    """Metrics of the scene's [analysis] on ``sim``: the same columns a sweep row has."""
-    r = pixel_results(scene, sim)
+def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
+    """Metrics of the scene's [analysis] on ``sim``, run on ``rt`` (the simulation's device): the same
+    columns a sweep row has."""
+    r = pixel_results(rt, scene, sim)
     out: dict[str, Any] = {"kind": r.settings.kind, "bands": r.bands}
     if r.settings.kind == "sam":
         m = classification_metrics(r.index.astype(np.int64)[None], r.status[None], r.target, len(r.classes))

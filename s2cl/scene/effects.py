@@ -4,11 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-import numpy as np
-
 from s2cl.errors import InputError
-
-REAL_TYPES = {"float32": np.float32, "float64": np.float64}
 
 
 @dataclass(frozen=True)
@@ -49,17 +45,3 @@ class EffectSet:
     def describe(self) -> str:
         on = [k for k, v in self.as_dict().items() if v]
         return ", ".join(on) if on else "none"
-
-
-def real_dtype(real_t: str) -> type[np.floating]:
-    """numpy dtype for ``"float32"`` / ``"float64"``."""
-    try:
-        return REAL_TYPES[real_t]
-    except KeyError as err:
-        raise InputError(f"precision must be 'float32' or 'float64', got {real_t!r}", key="output.precision") from err
-
-
-def build_options(real_t: str) -> list[str]:
-    """Build options selecting the working precision in kernels/common/s2_real.clh."""
-    real_dtype(real_t)
-    return ["-DS2_DOUBLE"] if real_t == "float64" else []

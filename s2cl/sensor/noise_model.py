@@ -23,6 +23,12 @@ import numpy as np
 from s2cl.errors import InputError
 
 
+def noise_sigma(radiance: np.ndarray | float, a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
+    """σ(L) = sqrt(a + b·max(L, 0)), float64: the noise stage's standard deviation (the kernels compute the
+    same; ``a``, ``b`` are a band's coefficients at its width, broadcast against ``radiance``)."""
+    return np.sqrt(a + b * np.maximum(np.asarray(radiance, dtype=np.float64), 0.0))
+
+
 @dataclass(frozen=True)
 class NoiseModel:
     """σ²(L) = (a + b·max(L, 0)) · w_ref / w, radiance in W m⁻² sr⁻¹ µm⁻¹.
@@ -43,8 +49,7 @@ class NoiseModel:
 
     def sigma(self, radiance: np.ndarray | float, fwhm_nm: float | None = None) -> np.ndarray:
         """Noise standard deviation (NER) at ``radiance`` for a band of width ``fwhm_nm``."""
-        a, b = self.coefficients(fwhm_nm or self.fwhm_ref_nm)
-        return np.sqrt(a + b * np.maximum(np.asarray(radiance, dtype=np.float64), 0.0))
+        return noise_sigma(radiance, *self.coefficients(fwhm_nm or self.fwhm_ref_nm))
 
     def snr(self, radiance: np.ndarray | float, fwhm_nm: float | None = None) -> np.ndarray:
         """SNR = L / NER(L)."""

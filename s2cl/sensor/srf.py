@@ -67,6 +67,11 @@ class BandWeights:
     def stop(self) -> int:
         return self.start + int(self.weights.size)
 
+    def apply(self, spectra: np.ndarray) -> np.ndarray:
+        """The band value of ``spectra`` ``(..., n_wavelengths)`` on the grid: Σ w·spectrum over the
+        support (float64); the resampling kernel computes the same on the device."""
+        return np.asarray(spectra, dtype=np.float64)[..., self.start : self.stop] @ self.weights
+
 
 def band_weights(
     grid: SpectralGrid,

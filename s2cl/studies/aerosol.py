@@ -21,9 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from s2cl.atmos.correction import BandAtmosphere
+from s2cl.atmos.correction import BandAtmosphere, toa
 from s2cl.io.plots import pyplot, save_png
-from s2cl.reference.forward import toa_radiance
 from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 # "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
@@ -45,7 +44,7 @@ def retrieve(L: dict[str, np.ndarray], t: dict[str, dict[str, np.ndarray]], c_rs
     """DDV AOT550 from band radiances ``L[band] (n, …)`` (keys blue, red, swir) with band terms
     ``t[band][term] (n_axis,)`` (terms lp, g, s) and factors ``c_rs, c_br (n,)``."""
     def model(band: str, rho: np.ndarray) -> np.ndarray:
-        return toa_radiance(rho, t[band]["lp"], t[band]["g"], t[band]["s"])
+        return toa(rho, t[band]["lp"], t[band]["g"], t[band]["s"])
 
     shape = (-1,) + (1,) * (L["red"].ndim - 1) + (1,)
     lr, lb, ls = (L[b][..., None] for b in ("red", "blue", "swir"))

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
-from s2cl.atmos.correction import BandAtmosphere
+from s2cl.atmos.correction import BandAtmosphere, correct
 from s2cl.atmos.scene_terms import assumed_state, scene_lut, state_terms, true_state
 from s2cl.errors import InputError
+from s2cl.forward.noise import add_noise
 from s2cl.forward.sense import Radiometry
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.registry import load_library
-from s2cl.reference.forward import add_noise
 from s2cl.scene.scene import Scene, StudySpec
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights
@@ -163,23 +163,22 @@ def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]
 
 
 def inverse(lp: np.ndarray, g: np.ndarray, s: np.ndarray, radiance: np.ndarray) -> np.ndarray:
-    """Band-level correction ``y/(1 + S·y)``, ``y = (L − Lp)/G`` (broadcasting)."""
-    y = (radiance - lp) / g
-    return y / (1.0 + s * y)
+    """Band-level correction (:func:`s2cl.atmos.correction.correct`, broadcasting)."""
+    return correct(radiance, lp, g, s)
 
 
 def noisy(setup: StudySetup, bands: Sequence[Band], radiance: np.ndarray, band_ids: Sequence[int],
           pixels: int) -> np.ndarray:
     """``pixels`` noisy copies of band radiances ``(n_bands, n)`` → ``(n_bands, n, pixels)``: the
-    sensor's noise model at each band's width (:class:`s2cl.forward.sense.Radiometry`) times the sense
-    kernel's Philox deviates keyed by ``band_ids`` (:func:`s2cl.reference.forward.add_noise`, seed
-    and frame from [effects]); no noise when the scene switches noise off."""
+    sensor's noise model at each band's width times the sense kernel's Philox deviates keyed by
+    ``band_ids`` (:func:`s2cl.forward.noise.add_noise`, seed and frame from [effects]); no noise when
+    the scene switches noise off."""
     radiance = np.asarray(radiance, dtype=np.float64)
     L = np.repeat(radiance, pixels, axis=1)
     if setup.scene.effects.noise:
         e = setup.scene.spec.effects
         r = Radiometry.of(list(bands), setup.scene.sensor.bits, list(band_ids))
-        L = add_noise(L, r, e.seed, frame=e.frame)
+        L = add_noise(L, r.noise_a, r.noise_b, r.band_ids, e.seed, frame=e.frame)
     return L.reshape(*radiance.shape, pixels)
 
 

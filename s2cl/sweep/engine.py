@@ -31,11 +31,11 @@ from s2cl import __version__
 from s2cl.errors import DependencyError, InputError, ResourceError
 from s2cl.io.budget import available_memory, require_disk
 from s2cl.io.output import atomic_path, write_json
-from s2cl.reference.sweep import RawChunk
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.status import REGRESS_NAMES
+from s2cl.sweep.raw import ChunkEvaluator, variant_indices
 from s2cl.sweep.tables import SweepTables
 
 REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
@@ -52,7 +52,6 @@ class SweepJob:
     tables: SweepTables
     analysis: AnalysisSettings
     chunk: int
-    backend: str = "opencl"
     precision: str = "float32"
     scene_name: str = ""
     scene_text: str = ""
@@ -69,7 +68,7 @@ class SweepJob:
     def fingerprint(self) -> str:
         h = hashlib.sha256()
         h.update(self.tables.fingerprint().encode())
-        h.update(repr((self.analysis, self.chunk, self.backend, self.precision, __version__)).encode())
+        h.update(repr((self.analysis, self.chunk, self.precision, __version__)).encode())
         return h.hexdigest()
 
     def columns(self) -> list[str]:
@@ -81,35 +80,33 @@ class SweepJob:
 
 # -- evaluating one chunk (in any process) -------------------------------------------------------
 
-_EVALUATORS: dict[tuple[str, str | None], Callable[[int, int], RawChunk]] = {}
+_EVALUATORS: dict[tuple[str, str | None], ChunkEvaluator] = {}
 
 
-def evaluator(job: SweepJob, device: str | None = None) -> Callable[[int, int], RawChunk]:
-    """The chunk evaluator of this process for ``job`` (OpenCL kernels are built once)."""
+def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator:
+    """The fused sweep kernel for ``job`` on ``device`` (built once per process and job)."""
     key = (job.fingerprint(), device)
     ev = _EVALUATORS.get(key)
     if ev is None:
-        if job.backend == "numpy":
-            from s2cl.reference.sweep import evaluate
+        from s2cl.cl.runtime import get_runtime
+        from s2cl.sweep.kernel import SweepKernel
 
-            def ev(start: int, stop: int) -> RawChunk:
-                return evaluate(job.tables, job.analysis, start, stop)
-        else:
-            from s2cl.sweep.kernel import SweepKernel
-
-            ev = SweepKernel(job.tables, job.analysis, precision=job.precision, device=device)
+        ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision)
         _EVALUATORS.clear()
         _EVALUATORS[key] = ev
     return ev
 
 
-def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = None) -> dict[str, np.ndarray]:
-    """Rows of configurations ``start … stop-1``: band centres/widths and metrics (columns → arrays)."""
-    raw = evaluator(job, device)(start, stop)
+def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = None,
+                   evaluator: ChunkEvaluator | None = None) -> dict[str, np.ndarray]:
+    """Rows of configurations ``start … stop-1``: band centres/widths and metrics (columns → arrays).
+
+    :param evaluator: computes the per-pixel results (default: :func:`kernel_evaluator` on ``device``;
+        tests and bench pass the float64 numpy twin).
+    """
+    raw = (evaluator or kernel_evaluator(job, device))(start, stop)
     t = job.tables
     rows: dict[str, np.ndarray] = {"config": np.arange(start, stop, dtype=np.int64)}
-    from s2cl.reference.sweep import variant_indices
-
     idx = variant_indices(t, start, stop)
     centres = np.stack([t.centre[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
     widths = np.stack([t.width[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
@@ -139,7 +136,7 @@ def _chunk_path(out: Path, start: int) -> Path:
 def _manifest(job: SweepJob) -> dict[str, Any]:
     return {"fingerprint": job.fingerprint(), "scene": job.scene_name, "s2cl_version": __version__,
             "configurations": job.n_configs, "chunk": job.chunk, "bands": list(job.tables.bands),
-            "counts": list(job.tables.counts), "analysis": job.analysis.kind, "backend": job.backend,
+            "counts": list(job.tables.counts), "analysis": job.analysis.kind,
             "precision": job.precision, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
 
 
@@ -247,10 +244,12 @@ Progress = Callable[[int], None]
 
 def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
               overwrite: bool = False, device: str | None = None, progress: Progress | None = None,
-              on_start: Callable[[int, int], None] | None = None) -> Path:
+              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None) -> Path:
     """Run (or resume) a sweep into folder ``out``; returns the path of ``results.parquet``.
 
+    :param device: the OpenCL device of every chunk, here and on Dask workers (each builds its own context).
     :param on_start: called with (configurations to compute, configurations already done).
+    :param evaluator: a picklable chunk evaluator instead of the kernel (tests and bench: the numpy twin).
     """
     out = Path(out)
     check_resources(job, out)
@@ -260,9 +259,9 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
         on_start(job.n_configs - done, done)
     if todo:
         if workers or scheduler:
-            results = _run_dask(job, todo, workers, scheduler)
+            results = _run_dask(job, todo, workers, scheduler, device, evaluator)
         else:
-            results = ((lo, evaluate_chunk(job, lo, hi, device)) for lo, hi in todo)
+            results = ((lo, evaluate_chunk(job, lo, hi, device, evaluator)) for lo, hi in todo)
         for lo, rows in results:
             write_chunk(out, lo, rows)
             if progress:
@@ -270,8 +269,8 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
     return merge_results(job, out)
 
 
-def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None,
-              scheduler: str | None) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None, scheduler: str | None,
+              device: str | None, evaluator: ChunkEvaluator | None) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as err:
@@ -284,7 +283,7 @@ def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None,
         client = Client(cluster)
     try:
         shared = client.scatter(job, broadcast=True)
-        futures = {client.submit(evaluate_chunk, shared, lo, hi, pure=False): lo for lo, hi in todo}
+        futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo for lo, hi in todo}
         for future in as_completed(futures):
             yield futures[future], future.result()
     finally:

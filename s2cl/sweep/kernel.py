@@ -4,28 +4,35 @@ from __future__ import annotations
 
 import numpy as np
 
-from s2cl.cl.runtime import Runtime, get_runtime
+from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
-from s2cl.errors import DeviceError, InputError
-from s2cl.reference.sweep import RawChunk
+from s2cl.errors import InputError
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.status import MAX_ABS_REFLECTANCE
+from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
 
 TEMPLATE = "sweep.cl.mako"
+#: per-(variant, spectrum) and per-variant tables on the device, in the kernel's argument order
+TABLES = ("radiance", "sigma", "z", "centre", "lp", "g", "s", "refs")
+
+
+#: the kernel's arguments (kernels/sweep.cl.mako), in order
+ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
+        Arg("condition", "out", "uchar"), *(Arg(n, "in", "real") for n in TABLES),
+        Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
 
 
 class SweepKernel:
-    """The fused per-configuration kernel for one sweep's tables and analysis."""
+    """The fused per-configuration kernel for one sweep's tables and analysis, on ``rt``'s device."""
 
-    def __init__(self, tables: SweepTables, analysis: AnalysisSettings, *, precision: str = "float32",
-                 device: str | None = None, runtime: Runtime | None = None, lanes: int | None = None):
-        self.rt = runtime or get_runtime(device)
-        if precision == "float64" and not self.rt.has_fp64:
-            raise DeviceError(f"{self.rt.name} has no float64 support (cl_khr_fp64)")
+    def __init__(self, tables: SweepTables, analysis: AnalysisSettings, rt: Runtime, *, precision: str = "float32",
+                 lanes: int | None = None):
+        self.rt = rt
         self.tables, self.analysis = tables, analysis
-        self.T = VecTypes(precision, self.rt.lanes(precision, lanes))
+        self.T = rt.types(precision, lanes)
         t = tables
         self.pitch = max(-(-t.n_pixels // self.T.lanes) * self.T.lanes, self.T.lanes)
         counts = list(t.counts)
@@ -36,7 +43,7 @@ class SweepKernel:
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
                          noise=t.noise, quantise=t.quantise, kind=analysis.kind, nir=analysis.nir_slot,
                          swir=analysis.swir_slot, n_classes=len(t.class_names), cos_min=self._cos_min(),
-                         max_abs=MAX_ABS_REFLECTANCE)
+                         max_abs=MAX_ABS_REFLECTANCE, args=ARGS, signature=signature)
         variables.update(self._igrm_variables(precision))
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
@@ -50,8 +57,8 @@ class SweepKernel:
     def _igrm_variables(self, precision: str) -> dict:
         if self.analysis.kind != "igrm":
             return {"c": None, "exp_coef": None, "exp_consts": None}
-        from s2cl.cl.vecmath import exp_template_vars
-        from s2cl.retrieve.igrm import EXP_DEGREE, IgrmSettings, kernel_config
+        from s2cl.cl.vecmath import EXP_DEGREE, exp_template_vars
+        from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
 
         settings = IgrmSettings.from_mapping(dict(self.analysis.igrm))
         c = kernel_config(settings, self.tables.n_slots, precision, "poly")
@@ -78,16 +85,13 @@ class SweepKernel:
         n = stop - start
         if n <= 0 or stop > self.tables.n_configs:
             raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
-        rt, dtype, pitch = self.rt, self.T.dtype, self.pitch
-        index_d = rt.empty(n * pitch * dtype.itemsize)
-        status_d, bounds_d, cond_d = rt.empty(n * pitch), rt.empty(n * pitch), rt.empty(n * pitch)
-        b = self.buffers
-        self.kernel(rt.queue, (pitch // self.T.lanes, n), None, index_d, status_d, bounds_d, cond_d, b["radiance"],
-                    b["sigma"], b["z"], b["centre"], b["lp"], b["g"], b["s"], b["refs"], np.uint32(start),
-                    np.uint32(n))
+        rt, T, pitch = self.rt, self.T, self.pitch
+        out = {"index": rt.alloc(n * pitch * T.dtype.itemsize), "status": rt.alloc(n * pitch),
+               "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
+        values = {**out, **self.buffers, "config_start": start, "n_configs": n}
+        self.kernel(rt.queue, (pitch // T.lanes, n), None, *bind(ARGS, values, T))
         m = self.tables.n_pixels
-        index = rt.fetch(index_d, (n, pitch), dtype)[:, :m].astype(np.float64)
-        status = rt.fetch(status_d, (n, pitch), np.uint8)[:, :m]
-        bounds = rt.fetch(bounds_d, (n, pitch), np.uint8)[:, :m]
-        condition = rt.fetch(cond_d, (n, pitch), np.uint8)[:, :m]
+        index = rt.fetch(out["index"], (n, pitch), T.dtype)[:, :m].astype(np.float64)
+        status, bounds, condition = (rt.fetch(out[k], (n, pitch), np.uint8)[:, :m]
+                                     for k in ("status", "bounds", "condition"))
         return RawChunk(start, stop, index, status, bounds, condition)

@@ -62,7 +62,7 @@ def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
                         class_names=classes)
 
 
-def plan_sweep(scene: Scene, *, backend: str = "opencl", chunk: int | None = None,
+def plan_sweep(scene: Scene, *, chunk: int | None = None,
                checked: Checked | None = None, budget: Budget | None = None) -> SweepJob:
     """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.scene.validate`),
     its memory estimated against ``budget`` before the tables are built, the chunk chosen to fit."""
@@ -71,7 +71,7 @@ def plan_sweep(scene: Scene, *, backend: str = "opencl", chunk: int | None = Non
     assert checked.space is not None and checked.analysis is not None
     tables = _tables(scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
-    return SweepJob(tables, checked.analysis, chunk=plan.chunk, backend=backend,
+    return SweepJob(tables, checked.analysis, chunk=plan.chunk,
                     precision=scene.spec.output.precision, scene_name=scene.name, scene_text=text,
                     underdetermined=scene.spec.sweep.underdetermined)
 

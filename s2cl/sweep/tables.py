@@ -27,6 +27,7 @@ from s2cl.forward.noise import sensor_noise
 from s2cl.forward.resample import AtmosphereArrays
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.scene import Scene
+from s2cl.sensor.noise_model import noise_sigma
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.variants import TABLE2, BandGrid, BandRange, SweepSpace
 
@@ -160,9 +161,8 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
             weights = band.weights(grid, support, scene.source)
             sl = slice(weights.start, weights.stop)
             L = toa[:, sl] @ weights.weights
-            a, b = band.noise_coefficients()
             radiance.append(L)
-            sigma.append(np.sqrt(a + b * np.maximum(L, 0.0)))
+            sigma.append(noise_sigma(L, *band.noise_coefficients()))
             weights_all.append(weights)
             surface.append(rho[:, sl] @ weights.weights)
         corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.spec.correction.calibration_gain)
