@@ -32,7 +32,8 @@ def main() -> None:
     parser.add_argument("--check", type=int, default=500, help="pixels validated against the float64 oracle")
     args = parser.parse_args()
 
-    from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState
+    from s2cl.atmos.atmosphere import AtmosphereLUT
+    from s2cl.atmos.state import AtmosphereState
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID

@@ -12,7 +12,8 @@ Python API (mirrors the CLI)::
 
 __version__ = "0.1.0"
 
-from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState
+from s2cl.atmos.atmosphere import AtmosphereLUT
+from s2cl.atmos.state import AtmosphereState
 from s2cl.errors import BuildError, DeviceError, InputError, S2CLError
 from s2cl.forward.simulate import LibrarySimulation, Simulator, simulate
 from s2cl.grid import DEFAULT_GRID, SpectralGrid

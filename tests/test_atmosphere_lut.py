@@ -10,17 +10,10 @@ import numpy as np
 import pytest
 from sixs_marks import sixs_test
 
-from s2cl.atmos.atmosphere import (
-    GAS_NAMES,
-    PAPER_AOT550,
-    AtmosphereLUT,
-    AtmosphereState,
-    airmass,
-    aot550_to_visibility,
-    default_lut_path,
-    visibility_to_aot550,
-)
+from s2cl.atmos.atmosphere import AtmosphereLUT, default_lut_path
 from s2cl.atmos.lut_format import FIXED_GASES, FORMAT_VERSION, fixed_gas_key
+from s2cl.atmos.state import PAPER_AOT550, AtmosphereState, airmass, aot550_to_visibility, visibility_to_aot550
+from s2cl.atmos.terms import GAS_NAMES
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 
@@ -340,7 +333,8 @@ def test_paper_visibility_gives_6s_aot():
 
 @sixs_test
 def test_rebuilt_slice_matches_the_shipped_file(tmp_path, lut):
-    from s2cl.atmos.lut_build import LUTAxes, build_lut
+    from s2cl.atmos.lut_axes import LUTAxes
+    from s2cl.atmos.lut_build import build_lut
 
     axes = LUTAxes(
         profiles=("midlatitude_summer",),

@@ -168,7 +168,7 @@ def csv_texts(draw: Any) -> str:
 @FUZZ
 @given(text=csv_texts(), quantity=st.sampled_from(["reflectance", "radiance"]))
 def test_csv_libraries_load_or_fail_in_one_line(text: str, quantity: str) -> None:
-    from s2cl.libraries.library import load_csv_library
+    from s2cl.libraries.files import load_csv_library
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "lib.csv"
@@ -228,7 +228,7 @@ def envi_files(draw: Any) -> tuple[str, bytes]:
 @given(files=envi_files())
 def test_envi_libraries_load_or_fail_in_one_line(files: tuple[str, bytes]) -> None:
     pytest.importorskip("spectral")
-    from s2cl.libraries.library import load_envi_library
+    from s2cl.libraries.files import load_envi_library
 
     header, data = files
     with tempfile.TemporaryDirectory() as folder:

@@ -143,7 +143,7 @@ def test_water_transmittance_depends_on_the_slant_column_only():
 
 @sixs_test
 def test_visibility_table_is_6s_conversion():
-    from s2cl.atmos.atmosphere import visibility_to_aot550
+    from s2cl.atmos.state import visibility_to_aot550
 
     for visibility in (23.0, 45.0):
         out = sixs.run_sixs(sixs.SixSInput(0.55, aot550=None, visibility_km=visibility))

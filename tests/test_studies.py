@@ -16,7 +16,7 @@ from s2cl.resources import scene_dir
 from s2cl.scene.scene import Scene
 from s2cl.studies import STUDIES, water_vapour
 from s2cl.studies.aerosol import equal_error
-from s2cl.studies.cirrus import (
+from s2cl.studies.cirrus_spikes import (
     SPIKE_DIP,
     despiked_terms,
     isolated_spikes,

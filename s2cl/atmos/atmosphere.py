@@ -1,8 +1,9 @@
-"""Atmosphere at run time: states, the shipped 6S look-up table, and float64 forward/inverse terms.
+"""The 6S look-up table at run time (:class:`AtmosphereLUT`): read and checked from disk, interpolated to a state.
 
 No Fortran is needed here: the LUT (``s2cl/data/atmosphere_lut.npz``) was built once with 6S
-(:mod:`s2cl.atmos.lut_build`). For a state and a spectral grid, :meth:`AtmosphereLUT.terms` returns
-per-wavelength terms with which
+(``s2cl lut build``, :mod:`s2cl.atmos.lut_build`). For a state (:class:`~s2cl.atmos.state.AtmosphereState`)
+and a spectral grid, :meth:`AtmosphereLUT.terms` returns per-wavelength terms
+(:class:`~s2cl.atmos.terms.AtmosphericTerms`, float64) with which
 
     L = Lp + G rho / (1 - S rho)            (W m-2 sr-1 um-1)
 
@@ -31,13 +32,10 @@ stays the state's): an accuracy/time knob. A state outside the LUT's axes raises
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.resources
 import json
 import math
-import numbers
 import zipfile
-from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -54,222 +52,15 @@ from s2cl.atmos.lut_format import (
     SCATTERING_KEYS,
     fixed_gas_key,
 )
-from s2cl.atmos.sixs_profiles import PROFILES
+from s2cl.atmos.state import AtmosphereState, airmass
+from s2cl.atmos.terms import GAS_NAMES, AtmosphericTerms
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 
 Method = Literal["linear", "nearest"]
-GAS_NAMES: tuple[str, ...] = ("water", "ozone", *FIXED_GASES)
 
 DEFAULT_LUT_NAME = "atmosphere_lut.npz"
-REBUILD_HINT = 'rebuild it with `python -m s2cl.atmos.lut_build -o FILE` (needs `pip install "s2cl[sixs]"`)'
-
-# Visibility (km) -> AOT550 of 6S V1.1's continental aerosol, read from 6S's printed aerosol optical
-# depth at 550 nm (5 decimals) for each visibility. Interpolated linearly in 1/visibility, which
-# reproduces 6S within 4e-5 between these nodes (checked at 5.5-90 km).
-_VISIBILITY_KM = (
-    5,
-    6,
-    7,
-    8,
-    9,
-    10,
-    12,
-    14,
-    16,
-    18,
-    20,
-    23,
-    26,
-    30,
-    35,
-    40,
-    50,
-    60,
-    70,
-    80,
-    100,
-    120,
-    150,
-    200,
-    250,
-    300,
-)
-_VISIBILITY_AOT550 = (
-    0.77998, 0.66409, 0.58127, 0.51913, 0.47078, 0.43208, 0.37399, 0.33246, 0.30128, 0.27701, 0.25757,
-    0.23472, 0.21711, 0.19906, 0.18226, 0.16961, 0.15180, 0.13982, 0.13117, 0.12462, 0.11527, 0.10887,
-    0.10219, 0.09494, 0.08986, 0.08535,
-)  # fmt: skip
-
-PAPER_VISIBILITY_KM = 23.0
-"""The paper's standard atmosphere: rural (here: 6S continental) aerosol, visibility 23 km."""
-
-
-def visibility_to_aot550(visibility_km: float) -> float:
-    """AOT at 550 nm of 6S's continental aerosol for a horizontal visibility (5-300 km).
-
-    6S's own conversion (a Koschmieder extinction 3.912/V spread over its aerosol profile),
-    tabulated from 6S V1.1 and interpolated linearly in 1/V.
-
-    :raises InputError: outside 5-300 km.
-    """
-    v = float(visibility_km)
-    if not (_VISIBILITY_KM[0] <= v <= _VISIBILITY_KM[-1]):
-        raise InputError(
-            f"{v:g} km is outside the tabulated {_VISIBILITY_KM[0]}-{_VISIBILITY_KM[-1]} km", key="visibility_km"
-        )
-    inv = 1.0 / np.asarray(_VISIBILITY_KM, dtype=np.float64)
-    return float(np.interp(1.0 / v, inv[::-1], np.asarray(_VISIBILITY_AOT550)[::-1]))
-
-
-def aot550_to_visibility(aot550: float) -> float:
-    """Inverse of :func:`visibility_to_aot550` (km), for AOT550 in 0.08535-0.77998."""
-    a = np.asarray(_VISIBILITY_AOT550)
-    if not (a[-1] <= aot550 <= a[0]):
-        raise InputError(f"{aot550:g} is outside {a[-1]}-{a[0]} (5-300 km)", key="aot550")
-    inv = 1.0 / np.asarray(_VISIBILITY_KM, dtype=np.float64)
-    return float(1.0 / np.interp(aot550, a[::-1], inv[::-1]))
-
-
-PAPER_AOT550 = visibility_to_aot550(PAPER_VISIBILITY_KM)
-
-
-def airmass(solar_zenith_deg: float, view_zenith_deg: float = 0.0) -> float:
-    """Two-way geometric airmass 1/cos(theta_s) + 1/cos(theta_v)."""
-    return 1.0 / math.cos(math.radians(solar_zenith_deg)) + 1.0 / math.cos(math.radians(view_zenith_deg))
-
-
-@dataclass(frozen=True)
-class AtmosphereState:
-    """An atmospheric state; the defaults are the paper's standard atmosphere.
-
-    :param profile: ``"midlatitude_summer"`` or ``"midlatitude_winter"``.
-    :param water_vapour: water-vapour column, g/cm2 (paper: 1.5).
-    :param aot550: aerosol optical thickness at 550 nm, continental aerosol (paper: visibility
-        23 km, i.e. 0.2347; see :meth:`from_visibility`).
-    :param ozone: ozone column, Dobson units (the paper's assumed 330 DU).
-    :param solar_zenith: solar zenith angle, deg (paper: 40). Sensor at nadir, target at sea level.
-    """
-
-    profile: str = "midlatitude_summer"
-    water_vapour: float = 1.5
-    aot550: float = PAPER_AOT550
-    ozone: float = 330.0
-    solar_zenith: float = 40.0
-
-    def __post_init__(self) -> None:
-        if self.profile not in PROFILES:
-            raise InputError(f"unknown profile {self.profile!r}; allowed: {', '.join(PROFILES)}", key="profile")
-        limits = {
-            "water_vapour": (0.0, math.inf, "g/cm2"),
-            "aot550": (0.0, math.inf, ""),
-            "ozone": (0.0, math.inf, "DU"),
-            "solar_zenith": (0.0, 89.0, "deg"),
-        }
-        for key, (lo, hi, unit) in limits.items():
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-                raise InputError(f"must be a finite number in {lo:g}-{hi:g} {unit}, got {value!r}", key=key)
-            if not lo <= value <= hi:
-                raise InputError(f"must be in {lo:g}-{hi:g} {unit}, got {value!r}", key=key)
-            object.__setattr__(self, key, float(value))  # numpy scalars become plain floats
-
-    @classmethod
-    def from_visibility(cls, visibility_km: float, **kwargs) -> AtmosphereState:
-        """State with the AOT550 that 6S's continental aerosol has at ``visibility_km``."""
-        return cls(aot550=visibility_to_aot550(visibility_km), **kwargs)
-
-    @classmethod
-    def paper_standard(cls) -> AtmosphereState:
-        """Mid-latitude summer, 1.5 g/cm2 water vapour, visibility 23 km, 330 DU, SZA 40 deg."""
-        return cls()
-
-    @property
-    def visibility_km(self) -> float:
-        """Visibility equivalent to ``aot550`` (km)."""
-        return aot550_to_visibility(self.aot550)
-
-    def replace(self, **changes) -> AtmosphereState:
-        """A copy with some fields changed."""
-        return dataclasses.replace(self, **changes)
-
-
-@dataclass(frozen=True, eq=False)
-class AtmosphericTerms:
-    """Atmospheric terms on a spectral grid, all float64 arrays of shape ``(n_wl,)``.
-
-    :param wavelength_nm: wavelengths, nm.
-    :param path_radiance: Lp, W m-2 sr-1 um-1.
-    :param ground_term: G, W m-2 sr-1 um-1 (per unit reflectance).
-    :param spherical_albedo: S, unitless.
-    :param e0: exo-atmospheric irradiance at 1 AU, W m-2 um-1.
-    :param mu_s: cosine of the solar zenith angle.
-    :param path_reflectance: rho_path = pi Lp / (mu_s E0).
-    :param t_gas: two-way transmittance of all gases.
-    :param t_down: downward (sun to ground) scattering transmittance, direct + diffuse.
-    :param t_up: upward (ground to nadir sensor) scattering transmittance, direct + diffuse.
-    :param transmittance: two-way transmittance per gas (:data:`GAS_NAMES`).
-    :param state: the state these terms are for.
-    :param method: the interpolation used.
-    """
-
-    wavelength_nm: np.ndarray
-    path_radiance: np.ndarray
-    ground_term: np.ndarray
-    spherical_albedo: np.ndarray
-    e0: np.ndarray
-    mu_s: float
-    path_reflectance: np.ndarray
-    t_gas: np.ndarray
-    t_down: np.ndarray
-    t_up: np.ndarray
-    transmittance: Mapping[str, np.ndarray]
-    state: AtmosphereState
-    method: str
-
-    @property
-    def t_water(self) -> np.ndarray:
-        return self.transmittance["water"]
-
-    @property
-    def t_ozone(self) -> np.ndarray:
-        return self.transmittance["ozone"]
-
-    @property
-    def t_methane(self) -> np.ndarray:
-        return self.transmittance["methane"]
-
-    def _along_grid(self, values, name: str) -> np.ndarray:
-        arr = np.asarray(values, dtype=np.float64)
-        if arr.ndim > 0 and arr.shape[-1] != self.wavelength_nm.size:
-            raise InputError(
-                f"last axis must have the grid's {self.wavelength_nm.size} wavelengths, got shape {arr.shape}", key=name
-            )
-        return arr
-
-    def toa_radiance(self, rho) -> np.ndarray:
-        """Forward: TOA radiance (W m-2 sr-1 um-1) of Lambertian reflectance ``rho``.
-
-        :param rho: reflectance, scalar or array ``(..., n_wl)``.
-        :returns: float64 array broadcast to ``(..., n_wl)``.
-        """
-        r = self._along_grid(rho, "rho")
-        return self.path_radiance + self.ground_term * r / (1.0 - self.spherical_albedo * r)
-
-    def surface_reflectance(self, radiance) -> np.ndarray:
-        """Inverse: Lambertian surface reflectance from TOA radiance ``(..., n_wl)``.
-
-        ``y = (L - Lp) / G``, ``rho = y / (1 + S y)``. Where G is 0 (fully absorbed) the result is NaN.
-        """
-        radiance = self._along_grid(radiance, "radiance")
-        with np.errstate(divide="ignore", invalid="ignore"):
-            y = (radiance - self.path_radiance) / self.ground_term
-            rho = y / (1.0 + self.spherical_albedo * y)
-        return np.where(self.ground_term > 0, rho, np.nan)
-
-    def toa_reflectance(self, rho) -> np.ndarray:
-        """Forward in reflectance units: pi L / (mu_s E0)."""
-        return np.pi * self.toa_radiance(rho) / (self.mu_s * self.e0)
+REBUILD_HINT = 'rebuild it with `s2cl lut build -o FILE` (needs `pip install "s2cl[sixs]"`)'
 
 
 @dataclass(frozen=True, eq=False)
@@ -405,33 +196,19 @@ class AtmosphereLUT:
         return _regrid(native, self.axes.wavelength_nm, grid, self.source)
 
     def _native_terms(self, state: AtmosphereState, method: Method) -> dict[str, np.ndarray]:
-        a, ax = self._a, self.axes
+        """The terms of ``state`` on the LUT's own 1 nm grid (float64), plus ``_mu_s``, ``_state``, ``_method``."""
+        ax = self.axes
         ip = ax.profiles.index(state.profile)
         sec = 1.0 / np.cos(np.radians(ax.solar_zenith))
         w_sza = _bracket(sec, 1.0 / math.cos(math.radians(state.solar_zenith)), method)
         w_aot = _bracket(ax.aot550, state.aot550, method)
-        m, m_ref = airmass(state.solar_zenith), airmass(ax.reference_zenith)
-        u_eff = state.water_vapour * m / m_ref
-        w_wv = _bracket(np.sqrt(ax.water_vapour), math.sqrt(u_eff), method)
-
-        refl = a["path_reflectance_scattering"][ip]  # (n_sza, n_aot, n_wl)
-        r_mix = _mix(np.stack([_mix(refl[:, j], w_sza) for j in range(refl.shape[1])]), w_aot)
-        r_ray = _mix(refl[:, 0], w_sza)
-        td = a["t_down"][ip]
-        t_down = _mix(np.stack([_mix(td[:, j], w_sza, log=True) for j in range(td.shape[1])]), w_aot, log=True)
-        t_up = _mix(a["t_up"][ip], w_aot, log=True)
-        s_alb = _mix(a["spherical_albedo"][ip], w_aot)
-
-        gas = {"water": _mix(a["t_water"][ip], w_wv, log=True)}
-        exponent = (state.ozone / ax.ozone_reference) * (m / m_ref)
-        gas["ozone"] = np.power(a["t_ozone"][ip].astype(np.float64), exponent)
-        for g in FIXED_GASES:
-            gas[g] = _mix(a[fixed_gas_key(g)][ip], w_sza, log=True)
+        r_ray, r_mix, t_down, t_up, s_alb = self._scattering(ip, w_sza, w_aot)
+        gas = self._gases(ip, state, w_sza, method)
         t_nw = np.prod([gas[g] for g in GAS_NAMES if g != "water"], axis=0)
         t_gas = gas["water"] * t_nw
 
         mu_s = math.cos(math.radians(state.solar_zenith))
-        e0 = a["e0"].astype(np.float64)
+        e0 = self._a["e0"].astype(np.float64)
         rho_path = r_ray * t_nw + (r_mix - r_ray) * t_gas
         scale = mu_s * e0 / np.pi
         return {
@@ -449,8 +226,36 @@ class AtmosphereLUT:
             "_method": method,
         }
 
+    def _scattering(self, ip: int, w_sza: list[tuple[int, float]],
+                    w_aot: list[tuple[int, float]]) -> tuple[np.ndarray, ...]:
+        """Gas-free scattering of profile ``ip``: Rayleigh and total path reflectance, Td, Tu, S."""
+        a = self._a
+        refl = a["path_reflectance_scattering"][ip]  # (n_sza, n_aot, n_wl)
+        r_mix = _mix(np.stack([_mix(refl[:, j], w_sza) for j in range(refl.shape[1])]), w_aot)
+        r_ray = _mix(refl[:, 0], w_sza)
+        td = a["t_down"][ip]
+        t_down = _mix(np.stack([_mix(td[:, j], w_sza, log=True) for j in range(td.shape[1])]), w_aot, log=True)
+        t_up = _mix(a["t_up"][ip], w_aot, log=True)
+        s_alb = _mix(a["spherical_albedo"][ip], w_aot)
+        return r_ray, r_mix, t_down, t_up, s_alb
+
+    def _gases(self, ip: int, state: AtmosphereState, w_sza: list[tuple[int, float]],
+               method: Method) -> dict[str, np.ndarray]:
+        """Two-way transmittance of each gas (:data:`GAS_NAMES`) of profile ``ip`` for ``state``."""
+        a, ax = self._a, self.axes
+        m, m_ref = airmass(state.solar_zenith), airmass(ax.reference_zenith)
+        u_eff = state.water_vapour * m / m_ref
+        w_wv = _bracket(np.sqrt(ax.water_vapour), math.sqrt(u_eff), method)
+        gas = {"water": _mix(a["t_water"][ip], w_wv, log=True)}
+        exponent = (state.ozone / ax.ozone_reference) * (m / m_ref)
+        gas["ozone"] = np.power(a["t_ozone"][ip].astype(np.float64), exponent)
+        for g in FIXED_GASES:
+            gas[g] = _mix(a[fixed_gas_key(g)][ip], w_sza, log=True)
+        return gas
+
 
 def _regrid(native: dict, lut_wl: np.ndarray, grid: SpectralGrid, source: str) -> AtmosphericTerms:
+    """Terms on the LUT's grid ``lut_wl`` onto ``grid`` (linear in wavelength), as read-only arrays."""
     wl = grid.wavelengths
     if wl[0] < lut_wl[0] - 1e-9 or wl[-1] > lut_wl[-1] + 1e-9:
         raise InputError(
@@ -491,6 +296,7 @@ _SHAPES = {
 
 
 def _read_lut(path: Path) -> AtmosphereLUT:
+    """Load the ``.npz`` at ``path`` and check its provenance and arrays; arrays become read-only."""
     source = str(path)
     if not path.is_file():
         raise InputError(f"atmosphere LUT file not found; {REBUILD_HINT}", source=source)
@@ -507,6 +313,7 @@ def _read_lut(path: Path) -> AtmosphereLUT:
 
 
 def _check_provenance(arrays: dict[str, np.ndarray], source: str) -> dict:
+    """The file's provenance record, refused unless it is an s2cl LUT of this format version."""
     if "provenance" not in arrays:
         raise InputError("no provenance record: not an s2cl atmosphere LUT", source=source, key="provenance")
     try:
@@ -526,6 +333,7 @@ def _check_provenance(arrays: dict[str, np.ndarray], source: str) -> dict:
 
 
 def _check_arrays(arrays: dict[str, np.ndarray], source: str) -> None:
+    """Every array present, float, of the shape its axes give (:data:`_SHAPES`), finite; axes increasing."""
     missing = [k for k in (*AXIS_KEYS, *SCATTERING_KEYS, *ALBEDO_KEYS, *_SHAPES) if k not in arrays]
     if missing:
         raise InputError(f"missing arrays: {', '.join(missing)}", source=source)
@@ -552,4 +360,5 @@ def _check_arrays(arrays: dict[str, np.ndarray], source: str) -> None:
 
 @cache
 def _default_lut() -> AtmosphereLUT:
+    """The shipped LUT, read once per process."""
     return _read_lut(default_lut_path())

@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import click
 import numpy as np
 
-from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState
+from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.sixs import SixSInput, on_sixs_grid, run_many
 from s2cl.atmos.sixs_profiles import get_profile
+from s2cl.atmos.state import AtmosphereState
 from s2cl.grid import SpectralGrid
 
 PAPER_WAVELENGTHS_NM: tuple[float, ...] = (550.0, 665.0, 865.0, 945.0, 1375.0, 1610.0, 2190.0)

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState
+from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.correction import BandAtmosphere, toa
+from s2cl.atmos.state import AtmosphereState
 from s2cl.grid import DEFAULT_GRID
 from s2cl.libraries.registry import load_library
 from s2cl.sensor.sensor import Sensor

@@ -27,7 +27,7 @@ def scene_lut(scene: Scene) -> Any:
 
 
 def _state(scene: Scene, values: dict[str, Any], section: str) -> Any:
-    from s2cl.atmos.atmosphere import PAPER_VISIBILITY_KM, AtmosphereState, visibility_to_aot550
+    from s2cl.atmos.state import PAPER_VISIBILITY_KM, AtmosphereState, visibility_to_aot550
 
     v = dict(values)
     try:

@@ -20,7 +20,7 @@ import numpy as np
 from s2cl.errors import InputError
 
 PROFILES: tuple[str, ...] = ("midlatitude_summer", "midlatitude_winter")
-"""Profile names, as :class:`s2cl.atmos.atmosphere.AtmosphereState` takes them."""
+"""Profile names, as :class:`s2cl.atmos.state.AtmosphereState` takes them."""
 
 _DATA_FILE = "sixs_profiles.csv"
 

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from s2cl.cli.console import rich_console
+
 
 @click.command("study")
 @click.argument("name")
@@ -23,14 +25,13 @@ def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
     """
     from rich.table import Table
 
-    from s2cl.cli.main import _console  # not at module level: cli imports this module
     from s2cl.studies import run_study
 
     result, js, png = run_study(name, quick=quick, output=output)
     if quiet:
         click.echo(f"wrote {js} and {png}")
         return
-    console = _console()
+    console = rich_console()
     table = Table(title=result.title)
     for c in result.columns:
         table.add_column(c, justify="right")

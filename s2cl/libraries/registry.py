@@ -1,8 +1,8 @@
 """One entry point for every spectral library: ``load_library("builtin:lib1", grid)`` or a file path.
 
 Builtin names are listed by :func:`available_libraries`; a path ending in ``.csv`` is read by
-:func:`s2cl.libraries.library.load_csv_library`, one ending in ``.sli`` or ``.hdr`` by
-:func:`s2cl.libraries.library.load_envi_library`. A relative path is resolved against the directory of
+:func:`s2cl.libraries.files.load_csv_library`, one ending in ``.sli`` or ``.hdr`` by
+:func:`s2cl.libraries.files.load_envi_library`. A relative path is resolved against the directory of
 ``source`` (the scene file that named it) when one is given.
 """
 
@@ -13,14 +13,8 @@ from pathlib import Path
 
 from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
-from s2cl.libraries.library import (
-    DEFAULT_FLAT_VALUES,
-    Quantity,
-    SpectralLibrary,
-    flat_targets,
-    load_csv_library,
-    load_envi_library,
-)
+from s2cl.libraries.files import load_csv_library, load_envi_library
+from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
 from s2cl.libraries.minerals import iron_backgrounds, mineral_library, mineral_library_swir
 from s2cl.libraries.vegetation import load_vegetation
 

@@ -13,9 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.atmos.atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
+from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.correction import BandAtmosphere, correct
 from s2cl.atmos.scene_terms import assumed_state, scene_lut, state_terms, true_state
+from s2cl.atmos.state import AtmosphereState
+from s2cl.atmos.terms import AtmosphericTerms
 from s2cl.errors import InputError
 from s2cl.forward.noise import add_noise
 from s2cl.forward.sense import Radiometry
