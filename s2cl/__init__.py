@@ -12,6 +12,7 @@ Python API (mirrors the CLI)::
 
 __version__ = "0.1.0"
 
+import s2cl.logs  # noqa: F401  (the s2cl logger is silent until an application configures it)
 from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.state import AtmosphereState
 from s2cl.errors import BuildError, DeviceError, InputError, S2CLError

@@ -35,3 +35,18 @@ def kernel_dir() -> Path:
 def scene_dir() -> Path:
     """Directory of the built-in scenes."""
     return shipped_dir("scenes", "default.toml")
+
+
+@cache
+def code_fingerprint() -> str:
+    """SHA-256 (hex, 16 characters) of s2cl's Python sources and OpenCL kernels: it keys results that a
+    code change could alter (a resumed sweep never reuses chunks computed by other code)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    package = Path(__file__).resolve().parent
+    for root, patterns in ((package, ("*.py",)), (kernel_dir(), ("*.mako", "*.clh", "*.cl"))):
+        for path in sorted(p for pattern in patterns for p in root.rglob(pattern)):
+            h.update(path.relative_to(root).as_posix().encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]

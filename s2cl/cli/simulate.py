@@ -51,7 +51,7 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
         return
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, out)
-    runtime(device)  # a device that does not exist is refused before the folder is made
+    runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
     _simulate_library(sc, checked, out, device, quiet)
 
 
@@ -63,10 +63,10 @@ def _simulate_library(sc: Any, checked: Any, out: Path, device: str | None, quie
     from s2cl.scene.caveats import report
 
     warnings = report(checked.caveats)
-    total = checked.library.size * sc.spec.surface.copies
+    total = checked.library.size * sc.run.copies
     t0 = time.perf_counter()
     with claim(out):
-        label = f"{sc.name}: {checked.library.size} spectra × {sc.spec.surface.copies}"
+        label = f"{sc.name}: {checked.library.size} spectra × {sc.run.copies}"
         with progress_bar(total, label, not quiet) as adv:
             result = simulate_to_netcdf(checked, out / "simulation.nc", device=device, progress=adv)
         seconds = time.perf_counter() - t0
@@ -98,7 +98,7 @@ def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:
     from s2cl.io.outdir import claim
     from s2cl.io.output import write_netcdf
 
-    rt = runtime(device)
+    rt = runtime(device or sc.run.device)
     with claim(out):
         with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
             ds = simulate_cube(rt, sc, progress=lambda n: advance(1))

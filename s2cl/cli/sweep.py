@@ -117,7 +117,7 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     budget = Budget.of(max_memory)
     plan = sweep_resources(checked, chunk=chunk, budget=budget)
     require_sweep_disk(checked, out)
-    runtime(device)  # the device is checked before anything is created
+    runtime(device or sc.run.device)  # the device is checked before anything is created
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
     with claim(out):

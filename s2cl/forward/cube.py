@@ -156,7 +156,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wav
         progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
     ds = xr.Dataset(attrs={"scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
-                           "effects": scene.effects.describe(), "seed": s.effects.seed,
+                           "effects": scene.effects.describe(), "seed": scene.run.seed,
                            "input_gsd_m": gsd_in, "psf": s.spatial.psf})
     bands = scene.sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
@@ -194,7 +194,7 @@ def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], ima
             correction = BandAtmosphere(c.path_radiance[ids], c.ground_term[ids], c.spherical_albedo[ids])
         sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
                           correction=correction)
-        result = sensing(flat, seed=scene.spec.effects.seed, frame=scene.spec.effects.frame)
+        result = sensing(flat, seed=scene.run.seed, frame=scene.run.frame)
     for j, k in enumerate(ids):
         attrs = band_attrs(bands[k], scene.sensor.bits)
         name = bands[k].name

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from s2cl.errors import InputError
 from s2cl.sensor.sensor import Band
-
-if TYPE_CHECKING:
-    from s2cl.forward.simulate import LibrarySimulation
 
 RADIANCE_UNITS = "W m-2 sr-1 um-1"
 
@@ -69,7 +66,7 @@ PIXEL_VARIABLES = (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
 PIXEL_SPECTRUM_ATTRS = {"long_name": "library spectrum of each pixel (-1: none)"}
 
 
-def library_dataset(sim: LibrarySimulation, layout: str = "rows") -> xr.Dataset:
+def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
     """Dataset with ``band_radiance (band, spectrum)`` and per-pixel images ``(band, y, x)``."""
     lib = sim.library
     index = image_layout(lib.size, sim.copies, layout)

@@ -157,7 +157,7 @@ class Simulator:
     @classmethod
     def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None) -> Simulator:
         weights = [
-            b.weights(scene.grid, scene.spec.sensor.support, scene.source)
+            b.weights(scene.grid, scene.run.support, scene.source)
             if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
             for b in scene.sensor.bands
         ]
@@ -166,8 +166,8 @@ class Simulator:
             from s2cl.atmos.scene_terms import correction_terms
 
             correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
-                scene.spec.correction.calibration_gain)
-        return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.spec.output.precision,
+                scene.run.calibration_gain)
+        return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
                    atmosphere=atmosphere, correction=correction)
 
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
@@ -233,14 +233,13 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
         raise InputError("this scene holds an image cube: use s2cl.forward.cube.simulate_cube", source=scene.source)
     lib = library if library is not None else scene_library(scene)
     _require_memory(scene, lib)
-    rt = get_runtime(device)
+    rt = get_runtime(device or scene.run.device)
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    s = scene.spec
-    result = sim.run_library(lib, copies=s.surface.copies, seed=s.effects.seed, frame=s.effects.frame,
-                             scene=scene.name, progress=progress)
+    r = scene.run
+    result = sim.run_library(lib, copies=r.copies, seed=r.seed, frame=r.frame, scene=scene.name, progress=progress)
     result.attrs.update(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
-                        device=rt.name, precision=s.output.precision, effects=scene.effects.describe(),
-                        seed=s.effects.seed, layout=s.surface.layout)
+                        device=rt.name, precision=r.precision, effects=scene.effects.describe(),
+                        seed=r.seed, layout=r.layout)
     return result
 
 
@@ -253,7 +252,7 @@ def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
     """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
     from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 
-    copies, nb = scene.spec.surface.copies, scene.sensor.size
+    copies, nb = scene.run.copies, scene.sensor.size
     per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
     budget = Budget.of()
     budget.require(BASELINE_BYTES + copies * per_copy, what=f"an in-memory simulation of {lib.size:,} spectra × "

@@ -64,7 +64,7 @@ def simulate_memory(checked: Checked, budget: Budget) -> float:
     naming ``surface.copies`` (with the most copies that fit) when it exceeds ``budget``."""
     scene, lib = checked.scene, checked.library
     assert lib is not None
-    copies, nb = scene.spec.surface.copies, scene.sensor.size
+    copies, nb = scene.run.copies, scene.sensor.size
     fixed = BASELINE_BYTES + 24.0 * lib.size * scene.grid.size
     chunk_pixels = chunk_spectra(copies) * copies
     n_ab = len(checked.analysis_bands)
@@ -82,9 +82,9 @@ def netcdf_bytes(checked: Checked) -> float:
     """Size of ``simulation.nc`` (bytes, an upper bound) from the effects that are on."""
     scene, lib = checked.scene, checked.library
     assert lib is not None
-    e, copies = scene.effects, scene.spec.surface.copies
+    e, copies = scene.effects, scene.run.copies
     per_band = 4 * (e.noise + e.calibrate + e.correct) + 2 * e.quantise
-    pixels = image_pixels(lib.size, copies, scene.spec.surface.layout)
+    pixels = image_pixels(lib.size, copies, scene.run.layout)
     return 1.02 * pixels * (scene.sensor.size * per_band + 8) + 2e6
 
 
@@ -116,28 +116,27 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
 
     scene, lib = checked.scene, checked.library
     assert lib is not None
-    s = scene.spec
-    rt = get_runtime(device)
+    r = scene.run
+    rt = get_runtime(device or r.device)
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     t0 = time.perf_counter()
     band_radiance = sim.band_radiance(lib.spectra)
     seconds = {"resample": time.perf_counter() - t0}
     attrs = dict(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__, device=rt.name,
-                 precision=s.output.precision, effects=scene.effects.describe(), seed=s.effects.seed,
-                 layout=s.surface.layout)
-    writer = _ImageWriter(scene, lib.size, s.surface.copies)
-    stats = BandSummary(scene.sensor, band_radiance, s.surface.copies)
-    picked = _AnalysisBands(checked, lib.size * s.surface.copies)
+                 precision=r.precision, effects=scene.effects.describe(), seed=r.seed, layout=r.layout)
+    writer = _ImageWriter(scene, lib.size, r.copies)
+    stats = BandSummary(scene.sensor, band_radiance, r.copies)
+    picked = _AnalysisBands(checked, lib.size * r.copies)
     if progress:
         progress(0)
     with atomic_path(path) as tmp, hdf5_errors(path):
         clipped = np.zeros((2, scene.sensor.size), np.int64) if scene.effects.quantise else None
-        header_dataset(scene.sensor, lib, band_radiance, s.surface.copies, s.surface.layout, attrs,
+        header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs,
                        clipped).to_netcdf(tmp, engine="h5netcdf")
         t1 = time.perf_counter()
         with writer.open(tmp) as images:
-            for lo, hi, out in _sensed_chunks(sim, band_radiance, s.surface.copies, s.effects.seed, s.effects.frame):
-                c = s.surface.copies
+            for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):
+                c = r.copies
                 parts = {name: None if getattr(out, name) is None else
                          getattr(out, name).reshape(scene.sensor.size, hi - lo, c) for name, _, _ in PIXEL_VARIABLES}
                 images.write(lo, hi, parts)
@@ -149,7 +148,7 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
                 images.set_clipped(stats.clipped)
         seconds["sense_and_write"] = time.perf_counter() - t1
     analysis = picked.analyse(band_radiance, rt) if checked.analysis is not None else None
-    return StreamedSimulation(path, stats.rows(), attrs, lib.size * s.surface.copies, analysis, seconds)
+    return StreamedSimulation(path, stats.rows(), attrs, lib.size * r.copies, analysis, seconds)
 
 
 def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed: int, frame: int):
@@ -172,11 +171,11 @@ class _ImageWriter:
     """Creates the per-pixel variables in an open NetCDF file and writes chunks of spectra into them."""
 
     def __init__(self, scene: Any, n_spectra: int, copies: int):
-        self.layout = scene.spec.surface.layout
+        self.layout = scene.run.layout
         self.n_spectra, self.copies, self.n_bands = n_spectra, copies, scene.sensor.size
         self.rows, self.cols, self.side = image_shape(n_spectra, copies, self.layout)
         self.effects = scene.effects
-        self.dtype = np.dtype(scene.spec.output.precision)
+        self.dtype = np.dtype(scene.run.precision)
 
     def open(self, path: Path) -> _OpenImages:
         return _OpenImages(self, path)
@@ -251,7 +250,7 @@ class _AnalysisBands:
         if checked.analysis is not None:
             names = [b.lower() for b in checked.scene.sensor.band_names]
             self.rows = [names.index(b.lower()) for b in checked.analysis_bands]
-            self.data = np.empty((len(self.rows), n_pixels), np.dtype(checked.scene.spec.output.precision))
+            self.data = np.empty((len(self.rows), n_pixels), np.dtype(checked.scene.run.precision))
 
     def add(self, first_pixel: int, reflectance: np.ndarray | None) -> None:
         if self.data is not None and reflectance is not None:
@@ -263,7 +262,7 @@ class _AnalysisBands:
         scene, lib = self.checked.scene, self.checked.library
         assert self.data is not None and lib is not None
         sensor = scene.sensor.select(list(self.checked.analysis_bands))
-        copies = scene.spec.surface.copies
+        copies = scene.run.copies
         sim = LibrarySimulation(scene.name, sensor, lib, copies, scene.effects, band_radiance[self.rows],
                                 reflectance=self.data.reshape(len(self.rows), lib.size, copies))
         return analyse(rt, scene, sim)

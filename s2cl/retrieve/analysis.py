@@ -9,7 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from s2cl.errors import InputError
+from s2cl.libraries.library import SpectralLibrary
 from s2cl.status import REGRESS_NAMES, Status
 
 
@@ -65,3 +68,24 @@ class AnalysisSettings:
             return cls("sam", angle_threshold_deg=a.angle_threshold_deg)
         regress = tuple(sorted(int(REGRESS_NAMES[name]) for name in set(a.regress)))
         return cls("igrm", a.parameter, igrm=tuple(sorted(a.igrm.items())), regress=regress)
+
+
+def analysis_targets(scene: Any, lib: SpectralLibrary, analysis: AnalysisSettings
+                     ) -> tuple[SpectralLibrary, np.ndarray, tuple[str, ...]]:
+    """The library (restricted to the SAM classes), the per-spectrum target and the class names."""
+    if analysis.kind == "sam":
+        wanted = scene.spec.analysis.classes or sorted(set(lib.groups))
+        missing = [c for c in wanted if c not in lib.groups]
+        if missing:
+            raise InputError(f"no spectra of class(es) {', '.join(missing)}; library groups: "
+                             f"{', '.join(sorted(set(lib.groups)))}", source=scene.source, key="analysis.classes")
+        if len(wanted) < 2:
+            raise InputError("SAM needs at least two classes", source=scene.source, key="analysis.classes")
+        keep = [i for i, g in enumerate(lib.groups) if g in wanted]
+        lib = lib.subset(keep)
+        return lib, np.array([wanted.index(g) for g in lib.groups], dtype=np.float64), tuple(wanted)
+    param = analysis.parameter
+    if param not in lib.params:
+        raise InputError(f"library has no parameter {param!r}; it has {', '.join(sorted(lib.params)) or 'none'}",
+                         source=scene.source, key="analysis.parameter")
+    return lib, np.asarray(lib.params[param], dtype=np.float64), ()

@@ -69,7 +69,7 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
         raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
                          source=scene.source, key="effects.correct")
     bands, settings = analysis_design(scene)
-    real_t = scene.spec.output.precision
+    real_t, lanes = scene.run.precision, scene.run.lanes
     rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
     refl = sim.reflectance[rows].reshape(len(rows), -1)
     lib = sim.library
@@ -80,7 +80,7 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
         pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
         truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
         threshold = settings.angle_threshold_deg
-        r = SamClassifier(rt, _class_references(scene, lib, bands, classes), real_t=real_t,
+        r = SamClassifier(rt, _class_references(scene, lib, bands, classes), real_t=real_t, lanes=lanes,
                           threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(refl[:, pixels])
         index = np.where(r.label >= 0, r.label, len(classes)).astype(np.float64)
         return PixelResults(settings, bands, index, r.status, np.zeros_like(r.status), None, truth[pixels], pixels,
@@ -93,13 +93,13 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
         centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
         order = np.argsort(centres, kind="stable")
         fit = IgrmFitter(rt, len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
-                         real_t=real_t)
+                         real_t=real_t, lanes=lanes)
         r = fit.fit(refl[order], centres[order])
         return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
                             everything)
     from s2cl.retrieve.gvmi import GvmiKernel
 
-    g = GvmiKernel(rt, real_t=real_t)(refl, settings.nir_slot, settings.swir_slot)
+    g = GvmiKernel(rt, real_t=real_t, lanes=lanes)(refl, settings.nir_slot, settings.swir_slot)
     return PixelResults(settings, bands, g.gvmi, g.status, np.zeros_like(g.status), None, target, everything)
 
 
@@ -124,7 +124,7 @@ def _class_references(scene: Scene, lib: Any, bands: list[str], classes: list[st
     groups = np.array(lib.groups)
     out = np.empty((len(classes), len(bands)))
     for k, b in enumerate(bands):
-        w = scene.sensor.band(b).weights(scene.grid, scene.spec.sensor.support, scene.source)
+        w = scene.sensor.band(b).weights(scene.grid, scene.run.support, scene.source)
         band_rho = lib.spectra[:, w.start : w.stop] @ w.weights
         out[:, k] = [band_rho[groups == c].mean() for c in classes]
     return out

@@ -17,7 +17,7 @@ from typing import Any
 
 from s2cl.errors import InputError, key_token, token
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats
 from s2cl.scene.scene import Scene
@@ -59,8 +59,6 @@ def check_simulate(scene: Scene) -> Checked:
 
 def check_sweep(scene: Scene) -> Checked:
     """Everything a sweep of ``scene`` needs, checked (the same for optimise, sweep run and sweep count)."""
-    from s2cl.sweep.plan import check_sweep_sections
-
     check_sweep_sections(scene)
     library, space = _surface(scene), _space(scene)
     assert space is not None
@@ -112,8 +110,6 @@ def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -
     if settings.kind == "igrm":
         igrm_settings(scene)
     if library is not None:
-        from s2cl.sweep.plan import analysis_targets
-
         analysis_targets(scene, library, settings)
     return settings
 
@@ -152,3 +148,16 @@ def _caveats(scene: Scene, space: SweepSpace | None, bands: list[str]) -> list[C
         for r in space.ranges:
             widths[r.band] = min(widths.get(r.band, float("inf")), r.extent()[2])
     return grid_caveats(scene, widths) + quantisation_caveats(scene, bands)
+
+
+def check_sweep_sections(scene: Scene) -> None:
+    """The sections a sweep needs are there: [sweep], [analysis], and the whole chain's effects."""
+    if scene.spec.sweep is None:
+        raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
+                         source=scene.source, key="sweep")
+    if scene.spec.analysis is None:
+        raise InputError("a sweep needs an [analysis] section (igrm, gvmi or sam)", source=scene.source,
+                         key="analysis")
+    if not (scene.effects.atmosphere and scene.effects.correct):
+        raise InputError("a sweep runs the whole chain: set effects.atmosphere = true and effects.correct = true",
+                         source=scene.source, key="effects")

@@ -80,7 +80,7 @@ def run(setup: StudySetup) -> StudyResult:
     spectra = np.concatenate([lib.spectra for lib in targets.values()])
     names = [n for lib in targets.values() for n in lib.names]
     axis = aot_axis(setup)
-    gain = setup.scene.spec.correction.calibration_gain
+    gain = setup.scene.run.calibration_gain
     bands = [(b, *space.per_band[slot[b]][nominal[slot[b]]]) for b in (RED, SWIR, BLUE)]
     bands += [(B1, c, w) for c, w in b1_variants]
     weights = [setup.weights(b, c, w) for b, c, w in bands]

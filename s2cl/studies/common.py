@@ -23,7 +23,8 @@ from s2cl.forward.noise import add_noise
 from s2cl.forward.sense import Radiometry
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.registry import load_library
-from s2cl.scene.scene import Scene, StudySpec
+from s2cl.scene.scene import Scene
+from s2cl.scene.schema import StudySpec
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights
 from s2cl.sensor.variants import SweepSpace
@@ -119,7 +120,7 @@ class StudySetup:
     def weights(self, name: str, centre_nm: float, width_nm: float) -> BandWeights:
         """Model-SRF weights (paper eq. 1) of band ``name`` moved to ``centre_nm``/``width_nm``."""
         return self.band(name).with_shape(centre_nm, width_nm).weights(
-            self.scene.grid, self.scene.spec.sensor.support, self.source)
+            self.scene.grid, self.scene.run.support, self.source)
 
     def targets(self) -> dict[str, SpectralLibrary]:
         """Target classes from [study] ``targets`` (each library cut to ``spectra`` spectra)."""
@@ -178,7 +179,7 @@ def noisy(setup: StudySetup, bands: Sequence[Band], radiance: np.ndarray, band_i
     radiance = np.asarray(radiance, dtype=np.float64)
     L = np.repeat(radiance, pixels, axis=1)
     if setup.scene.effects.noise:
-        e = setup.scene.spec.effects
+        e = setup.scene.run
         r = Radiometry.of(list(bands), setup.scene.sensor.bits, list(band_ids))
         L = add_noise(L, r.noise_a, r.noise_b, r.band_ids, e.seed, frame=e.frame)
     return L.reshape(*radiance.shape, pixels)

@@ -51,7 +51,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     scene, space = checked.scene, checked.space
     assert space is not None and checked.library is not None
     budget = budget or Budget.of()
-    spectra, copies, slots = checked.library.size, scene.spec.surface.copies, len(space.ranges)
+    spectra, copies, slots = checked.library.size, scene.run.copies, len(space.ranges)
     pixels = spectra * copies
     n_configs = space.size
     variants = sum(space.counts)

@@ -31,6 +31,7 @@ from s2cl import __version__
 from s2cl.errors import DependencyError, InputError, ResourceError
 from s2cl.io.budget import available_memory, require_disk
 from s2cl.io.output import atomic_path, write_json
+from s2cl.resources import code_fingerprint
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
@@ -53,6 +54,11 @@ class SweepJob:
     analysis: AnalysisSettings
     chunk: int
     precision: str = "float32"
+    #: pixels per work-item of the sweep kernel (None: the device's choice); not in the fingerprint,
+    #: because lanes never change a result beyond the tested tolerance
+    lanes: int | None = None
+    #: the OpenCL device the scene asks for (None: default); the caller's ``device`` wins
+    device: str | None = None
     scene_name: str = ""
     scene_text: str = ""
     #: ranking policy for designs the analysis cannot fit ("exclude" or "keep"; sweep.underdetermined)
@@ -68,7 +74,7 @@ class SweepJob:
     def fingerprint(self) -> str:
         h = hashlib.sha256()
         h.update(self.tables.fingerprint().encode())
-        h.update(repr((self.analysis, self.chunk, self.precision, __version__)).encode())
+        h.update(repr((self.analysis, self.chunk, self.precision, __version__, code_fingerprint())).encode())
         return h.hexdigest()
 
     def columns(self) -> list[str]:
@@ -85,13 +91,15 @@ _EVALUATORS: dict[tuple[str, str | None], ChunkEvaluator] = {}
 
 def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator:
     """The fused sweep kernel for ``job`` on ``device`` (built once per process and job)."""
+    device = device or job.device
     key = (job.fingerprint(), device)
     ev = _EVALUATORS.get(key)
     if ev is None:
         from s2cl.cl.runtime import get_runtime
         from s2cl.sweep.kernel import SweepKernel
 
-        ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision)
+        ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision,
+                         lanes=job.lanes)
         _EVALUATORS.clear()
         _EVALUATORS[key] = ev
     return ev

@@ -8,10 +8,9 @@ from typing import Any
 import numpy as np
 
 from s2cl.atmos.scene_terms import correction_terms, scene_terms
-from s2cl.errors import InputError
 from s2cl.forward.simulate import scene_library
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import count_underdetermined
 from s2cl.scene.scene import Scene
 from s2cl.scene.validate import Checked, check_sweep
@@ -19,40 +18,6 @@ from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.budget import Budget, sweep_resources
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
 from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
-
-
-def check_sweep_sections(scene: Scene) -> None:
-    """The sections a sweep needs are there: [sweep], [analysis], and the whole chain's effects."""
-    if scene.spec.sweep is None:
-        raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
-                         source=scene.source, key="sweep")
-    if scene.spec.analysis is None:
-        raise InputError("a sweep needs an [analysis] section (igrm, gvmi or sam)", source=scene.source,
-                         key="analysis")
-    if not (scene.effects.atmosphere and scene.effects.correct):
-        raise InputError("a sweep runs the whole chain: set effects.atmosphere = true and effects.correct = true",
-                         source=scene.source, key="effects")
-
-
-def analysis_targets(scene: Scene, lib: SpectralLibrary, analysis: AnalysisSettings
-                     ) -> tuple[SpectralLibrary, np.ndarray, tuple[str, ...]]:
-    """The library (restricted to the SAM classes), the per-spectrum target and the class names."""
-    if analysis.kind == "sam":
-        wanted = scene.spec.analysis.classes or sorted(set(lib.groups))
-        missing = [c for c in wanted if c not in lib.groups]
-        if missing:
-            raise InputError(f"no spectra of class(es) {', '.join(missing)}; library groups: "
-                             f"{', '.join(sorted(set(lib.groups)))}", source=scene.source, key="analysis.classes")
-        if len(wanted) < 2:
-            raise InputError("SAM needs at least two classes", source=scene.source, key="analysis.classes")
-        keep = [i for i, g in enumerate(lib.groups) if g in wanted]
-        lib = lib.subset(keep)
-        return lib, np.array([wanted.index(g) for g in lib.groups], dtype=np.float64), tuple(wanted)
-    param = analysis.parameter
-    if param not in lib.params:
-        raise InputError(f"library has no parameter {param!r}; it has {', '.join(sorted(lib.params)) or 'none'}",
-                         source=scene.source, key="analysis.parameter")
-    return lib, np.asarray(lib.params[param], dtype=np.float64), ()
 
 
 def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
@@ -71,8 +36,9 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None,
     assert checked.space is not None and checked.analysis is not None
     tables = _tables(scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
-    return SweepJob(tables, checked.analysis, chunk=plan.chunk,
-                    precision=scene.spec.output.precision, scene_name=scene.name, scene_text=text,
+    run = scene.run
+    return SweepJob(tables, checked.analysis, chunk=plan.chunk, precision=run.precision, lanes=run.lanes,
+                    device=run.device, scene_name=scene.name, scene_text=text,
                     underdetermined=scene.spec.sweep.underdetermined)
 
 

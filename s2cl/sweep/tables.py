@@ -148,7 +148,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
     if library.quantity != "reflectance":
         raise InputError("a sweep needs a reflectance library (it runs the atmosphere and its correction)",
                          source=scene.source, key="surface.quantity")
-    grid, support = scene.grid, scene.spec.sensor.support
+    grid, support = scene.grid, scene.run.support
     rho = library.spectra
     toa = truth.path_radiance + truth.ground_term * rho / (1.0 - truth.spherical_albedo * rho)
     per_slot: dict[str, list[np.ndarray]] = {k: [] for k in
@@ -165,7 +165,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
             sigma.append(noise_sigma(L, *band.noise_coefficients()))
             weights_all.append(weights)
             surface.append(rho[:, sl] @ weights.weights)
-        corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.spec.correction.calibration_gain)
+        corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.run.calibration_gain)
         per_slot["centre"].append(variants[:, 0].copy())
         per_slot["width"].append(variants[:, 1].copy())
         per_slot["radiance"].append(np.array(radiance))
@@ -177,9 +177,9 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
             groups = np.array(library.groups)
             surf = np.array(surface)  # (n_v, n_spectra)
             per_slot["refs"].append(np.stack([surf[:, groups == c].mean(axis=1) for c in class_names], axis=1))
-    copies = scene.spec.surface.copies
+    copies = scene.run.copies
     n_pixels = library.size * copies
-    e = scene.spec.effects
+    e = scene.run
     bands = [scene.sensor.band(r.band) for r in space.ranges]
     # keyed by each band's index in the sensor, as `s2cl simulate` keys it: pixel p of band B gets the
     # same deviate on both paths (and in every configuration: common random numbers)
@@ -193,7 +193,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
         lmin=np.array([b.lmin for b in bands]), lmax=np.array([b.lmax for b in bands]),
         bits=scene.sensor.bits, copies=copies, z=z,
         target=np.zeros(n_pixels) if target is None else np.repeat(np.asarray(target), copies),
-        calibration_gain=scene.spec.correction.calibration_gain,
+        calibration_gain=scene.run.calibration_gain,
         class_names=tuple(class_names), references=tuple(per_slot["refs"]),
-        noise=e.noise, quantise=e.quantise,
+        noise=e.effects.noise, quantise=e.effects.quantise,
     )
