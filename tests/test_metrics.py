@@ -119,3 +119,18 @@ def test_batched_metrics_agree_with_single_population_fit() -> None:
         single = fit_polynomial(x[row], y, mask=status[row] == OK)
         assert m["rms"][row] == pytest.approx(single.rms, rel=1e-10)
         assert m["r2"][row] == pytest.approx(single.r2, rel=1e-10)
+
+
+def test_regression_of_too_few_pixels_is_finite() -> None:
+    """analysis.regress = ["converged"] can leave two pixels in a row (found on table3-lib2-b4568): a
+    singular 3 x 3 system must give finite numbers, in the plain and in the bound-free refit, and leave
+    the other rows of the block exact."""
+    x = np.array([[700.0, 701.0, 702.0, 703.0], [700.0, 701.0, 702.0, 703.0]])
+    y = np.array([10.0, 20.0, 35.0, 55.0])
+    status = np.array([[OK, OK, 1, 1], [OK, OK, OK, OK]], dtype=np.uint8)
+    bounds = np.array([[0, 0, 0, 0], [0, 0, 1, 0]], dtype=np.uint8)  # row 2's refit keeps 3 pixels
+    m = regression_metrics(x, status, bounds, y, regress=(OK,))
+    assert np.all(np.isfinite(m["rms"])) and np.all(np.isfinite(m["rms_unbounded"]))
+    assert m["rms"][0] == pytest.approx(0.0, abs=1e-9)  # two points: a line through both
+    exact = regression_metrics(x[1:], status[1:], bounds[1:], y, regress=(OK,))
+    assert m["rms"][1] == pytest.approx(exact["rms"][0], rel=1e-12)

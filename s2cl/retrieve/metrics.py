@@ -125,7 +125,7 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
     m[constant, :, 1:] = 0.0
     m[constant, 1, 1] = m[constant, 2, 2] = 1.0
     b[constant, 1:] = 0.0
-    coef = np.linalg.solve(m + np.eye(3) * (n[:, None, None] == 0), b[..., None])[..., 0]
+    coef = _solve3(m + np.eye(3) * (n[:, None, None] == 0), b)
     residual = y[None, :] - coef[:, :1] - coef[:, 1:2] * u - coef[:, 2:3] * u2
     if not every:
         residual *= w
@@ -142,6 +142,16 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
         "n_valid": n.astype(np.int64),
         "constant_index": constant & (n > 0),
     }
+
+
+def _solve3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched 3 × 3 normal equations; a block with a singular row (fewer than three distinct index
+    values in the regression, e.g. when ``analysis.regress`` leaves two pixels) is solved by the
+    pseudo-inverse instead: the minimum-norm polynomial, finite, never a LinAlgError."""
+    try:
+        return np.linalg.solve(m, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.einsum("rij,rj->ri", np.linalg.pinv(m), b)
 
 
 def _robust(abs_res: np.ndarray, valid: np.ndarray, n: np.ndarray) -> np.ndarray:
