@@ -39,14 +39,12 @@ def scene_dir() -> Path:
 
 @cache
 def code_fingerprint() -> str:
-    """SHA-256 (hex, 16 characters) of s2cl's Python sources and OpenCL kernels: it keys results that a
+    """SHA-256 (hex) of s2cl's package (sources and data) and its OpenCL kernels: it keys results that a
     code change could alter (a resumed sweep never reuses chunks computed by other code)."""
     import hashlib
 
     h = hashlib.sha256()
-    package = Path(__file__).resolve().parent
-    for root, patterns in ((package, ("*.py",)), (kernel_dir(), ("*.mako", "*.clh", "*.cl"))):
-        for path in sorted(p for pattern in patterns for p in root.rglob(pattern)):
-            h.update(path.relative_to(root).as_posix().encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()[:16]
+    for root in (Path(__file__).resolve().parent, kernel_dir()):
+        for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+            h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -76,6 +77,23 @@ def test_folder_with_another_sweep_is_refused(tmp_path) -> None:
     assert "--overwrite" in str(err.value)
     replaced = run_sweep(other, evaluator=numpy_evaluator(other), out=out, overwrite=True)
     assert _table(replaced).num_rows == other.n_configs
+
+
+def test_chunks_of_other_code_are_never_resumed(tmp_path, monkeypatch) -> None:
+    """A resumed sweep keys its chunks by the sources and kernels too: after a code change (here the
+    code fingerprint, as a changed file would give), the folder is refused until --overwrite."""
+    import s2cl.sweep.engine as engine
+
+    out, job = tmp_path / "out", gvmi_job()
+    run_sweep(job, evaluator=numpy_evaluator(job), out=out)
+    assert json.loads((out / "manifest.json").read_text())["code"] == engine.code_fingerprint()
+    monkeypatch.setattr(engine, "code_fingerprint", lambda: "0" * 64)
+    with pytest.raises(InputError, match="other s2cl code") as err:
+        run_sweep(job, evaluator=numpy_evaluator(job), out=out)
+    assert "--overwrite" in str(err.value)
+    redone = run_sweep(job, evaluator=numpy_evaluator(job), out=out, overwrite=True)
+    assert _table(redone).num_rows == job.n_configs
+    assert json.loads((out / "manifest.json").read_text())["code"] == "0" * 64
 
 
 DRIVER = textwrap.dedent("""

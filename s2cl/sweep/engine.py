@@ -142,7 +142,8 @@ def _chunk_path(out: Path, start: int) -> Path:
 
 
 def _manifest(job: SweepJob) -> dict[str, Any]:
-    return {"fingerprint": job.fingerprint(), "scene": job.scene_name, "s2cl_version": __version__,
+    return {"fingerprint": job.fingerprint(), "code": code_fingerprint(), "scene": job.scene_name,
+            "s2cl_version": __version__,
             "configurations": job.n_configs, "chunk": job.chunk, "bands": list(job.tables.bands),
             "counts": list(job.tables.counts), "analysis": job.analysis.kind,
             "precision": job.precision, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
@@ -158,6 +159,11 @@ def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> list
             raise InputError(f"unreadable sweep manifest ({err}); use --overwrite to start afresh",
                              source=manifest) from err
         if old.get("fingerprint") != job.fingerprint():
+            if not overwrite and old.get("code") != code_fingerprint():
+                raise InputError(
+                    f"the folder holds a sweep of scene {old.get('scene')!r} computed by other s2cl code (sources or "
+                    f"kernels changed since {old.get('created')}), whose chunks cannot be mixed with this code's; "
+                    "pass --overwrite to recompute it, or choose another --output", source=out)
             if not overwrite:
                 raise InputError(
                     f"the folder holds a different sweep (scene {old.get('scene')!r}, {old.get('configurations')} "
