@@ -4,7 +4,8 @@ The runtime's default is the device's native vector width (PoCL: 16 floats with 
 AVX2; :func:`s2cl.cl.devices.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
 resampler's vector-load width. Every width is first checked bit-identical to one pixel per
-work-item (the resampler: against its float64 oracle), then all widths are timed in interleaved
+work-item (the resampler: against its float64 oracle; the one-lane sweep kernel itself by
+:func:`bench.sweep_check.validate_sweep`), then all widths are timed in interleaved
 rounds (medians). Widths above the native one are capped by the runtime and not timed.
 Writes bench/results/lanes-<machine>-<date>.json.
 
@@ -25,10 +26,11 @@ from s2cl.cl.runtime import Runtime, get_runtime
 WIDTHS = (4, 8, 16)
 
 
-Family = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, items per run, unit, default
+Runs = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, items per run, unit, default
 
 
-def _igrm(rt: Runtime, n: int) -> Family:
+def _igrm(rt: Runtime, n: int) -> Runs:
+    from bench.bench_igrm import kernel_launcher
     from s2cl.reference.igrm_cases import BANDS_4, band_centres, prosail_population
     from s2cl.retrieve.igrm import IgrmFitter
 
@@ -41,32 +43,21 @@ def _igrm(rt: Runtime, n: int) -> Family:
         r = f.fit(y[:, :4096], wl)
         check(bool(np.array_equal(r.lp, one.lp) and np.array_equal(r.status, one.status)),
               f"IGRM at {w} lanes differs from one lane")
-        runs[w] = _kernel_launcher(f, y, wl)
-    return runs, n, "fits", IgrmFitter(4, rt=rt).types.lanes
+        runs[w] = kernel_launcher(f, y, wl)[0]
+    return runs, y.shape[1] // 16 * 16, "fits", IgrmFitter(4, rt=rt).types.lanes
 
 
-def _kernel_launcher(fitter: Any, y: np.ndarray, wl: np.ndarray) -> Callable[[], None]:
-    """The IGRM kernel alone, inputs already on the device."""
-    rt, T = fitter.rt, fitter.types
-    n = y.shape[1] // 16 * 16
-    bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
-            rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
-
-    def launch() -> None:
-        fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
-        rt.finish()
-
-    return launch
-
-
-def _sweep(rt: Runtime) -> Family:
+def _sweep(rt: Runtime) -> Runs:
+    from bench.sweep_check import validate_sweep
     from s2cl.scene.scene import Scene
     from s2cl.sweep.kernel import SweepKernel
     from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(Scene.load("default"))
     lo, hi = job.n_configs // 3, job.n_configs // 3 + 48
-    one = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=1)(lo, lo + 4)
+    one_lane = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=1)
+    validate_sweep(job, one_lane)  # against the float64 evaluator; every width then against one lane
+    one = one_lane(lo, lo + 4)
     runs = {}
     for w in WIDTHS:
         k = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=w)
@@ -78,7 +69,7 @@ def _sweep(rt: Runtime) -> Family:
     return runs, (hi - lo) * job.tables.n_pixels, "configuration-pixels", default
 
 
-def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
+def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Runs]:
     from s2cl.retrieve.gvmi import GvmiKernel
     from s2cl.retrieve.sam import SamClassifier
 
@@ -97,7 +88,7 @@ def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
             "sam": (sam, n, "pixels", SamClassifier(refs, rt=rt).types.lanes)}
 
 
-def _resample(rt: Runtime, n: int) -> Family:
+def _resample(rt: Runtime, n: int) -> Runs:
     from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference import forward as ref
