@@ -31,6 +31,7 @@ import numpy as np
 
 from bench.chain import REFERENCE_FIT, Context, reference_vs_scipy
 from bench.common import comparison_rows, machine_info, median_time, print_comparison, write_json
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, prosail_population, synthetic
 from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
@@ -62,16 +63,13 @@ def differences(r: IgrmResult, ref: IgrmResult) -> dict[str, Any]:
 
 def kernel_launcher(fitter: IgrmFitter, y: np.ndarray, wl: np.ndarray) -> tuple[Callable[[], None], int]:
     """The IGRM kernel alone on the first multiple of 16 pixels of ``y`` (inputs on the device,
-    outputs left there), with the arguments :meth:`IgrmFitter.fit` binds (7 parameter rows: the six
-    parameters and the condition estimate); and the number of pixels."""
-    rt, T = fitter.rt, fitter.types
+    outputs left there), through the launch :meth:`IgrmFitter.fit` makes; and the number of pixels."""
     n = y.shape[1] // 16 * 16
-    bufs = [rt.empty(7 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
-            rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
+    v = fitter.buffers(y[:, :n], wl)
 
     def launch() -> None:
-        fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
-        rt.finish()
+        fitter.enqueue(v)
+        fitter.rt.finish()
 
     return launch, n
 
@@ -101,10 +99,10 @@ def igrm_baseline(ctx: Context, n: int, n_scipy: int, n_numpy: int, bands: tuple
     pixels and scipy on ``n_scipy``, each scored against the float64 optimum."""
     bands = bands or ("B4", "B5", "B6", "B8")
     wl, y = band_centres(bands), population(kind, n, bands)
-    ref = IgrmFitter(len(bands), REFERENCE_FIT, real_t="float64").fit(y.astype(np.float64), wl)
+    ref = IgrmFitter(get_runtime(), len(bands), REFERENCE_FIT, real_t="float64").fit(y.astype(np.float64), wl)
     sample = np.linspace(0, n - 1, n_scipy).astype(int)
     dlp = reference_vs_scipy(ref.take(sample), y[:, sample], wl)
-    fast, plain = IgrmFitter(len(bands)), IgrmFitter(len(bands), lanes=1, exp="builtin")
+    fast, plain = IgrmFitter(get_runtime(), len(bands)), IgrmFitter(get_runtime(), len(bands), lanes=1, exp="builtin")
     launch, n_kernel = kernel_launcher(fast, y, wl)
     s2cl_, scipy_ = "s2cl OpenCL float32 (lanes, own exp)", "scipy least_squares trf per pixel (sampled, extrapolated)"
     measured = {s2cl_: _timed(lambda v: fast.fit(v, wl), y, ref, ctx.repeat),
@@ -131,7 +129,7 @@ def main() -> None:
     ap.add_argument("--populations", nargs="+", default=list(POPULATIONS), choices=list(POPULATIONS))
     args = ap.parse_args()
     ctx = Context.make(quick=False, repeat=args.repeat)
-    fast = IgrmFitter(4)
+    fast = IgrmFitter(get_runtime(), 4)
     result = {"benchmark": "igrm", "machine": machine_info(fast.rt), "settings": IgrmSettings().__dict__,
               "accuracy_tolerance": {"nm": TOL_NM, "reflectance": TOL_RHO},
               "igrm_lanes_float32": fast.types.lanes, "cases": []}

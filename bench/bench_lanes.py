@@ -36,15 +36,15 @@ def _igrm(rt: Runtime, n: int) -> Runs:
 
     wl = band_centres(BANDS_4)
     y = prosail_population(n, BANDS_4, noise=0.003, seed=1)[0].astype(np.float32)
-    one = IgrmFitter(4, lanes=1, rt=rt).fit(y[:, :4096], wl)
+    one = IgrmFitter(rt, 4, lanes=1).fit(y[:, :4096], wl)
     runs = {}
     for w in WIDTHS:
-        f = IgrmFitter(4, lanes=w, rt=rt)
+        f = IgrmFitter(rt, 4, lanes=w)
         r = f.fit(y[:, :4096], wl)
         check(bool(np.array_equal(r.lp, one.lp) and np.array_equal(r.status, one.status)),
               f"IGRM at {w} lanes differs from one lane")
         runs[w] = kernel_launcher(f, y, wl)[0]
-    return runs, y.shape[1] // 16 * 16, "fits", IgrmFitter(4, rt=rt).types.lanes
+    return runs, y.shape[1] // 16 * 16, "fits", IgrmFitter(rt, 4).types.lanes
 
 
 def _sweep(rt: Runtime) -> Runs:
@@ -55,17 +55,17 @@ def _sweep(rt: Runtime) -> Runs:
 
     job = plan_sweep(Scene.load("default"))
     lo, hi = job.n_configs // 3, job.n_configs // 3 + 48
-    one_lane = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=1)
+    one_lane = SweepKernel(job.tables, job.analysis, rt, lanes=1)
     validate_sweep(job, one_lane)  # against the float64 evaluator; every width then against one lane
     one = one_lane(lo, lo + 4)
     runs = {}
     for w in WIDTHS:
-        k = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=w)
+        k = SweepKernel(job.tables, job.analysis, rt, lanes=w)
         got = k(lo, lo + 4)
         check(bool(np.array_equal(got.index, one.index) and np.array_equal(got.status, one.status)),
               f"sweep kernel at {w} lanes differs from one lane")
         runs[w] = (lambda k=k: k(lo, hi))
-    default = SweepKernel(job.tables, job.analysis, runtime=rt).T.lanes
+    default = SweepKernel(job.tables, job.analysis, rt).T.lanes
     return runs, (hi - lo) * job.tables.n_pixels, "configuration-pixels", default
 
 
@@ -76,16 +76,16 @@ def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Runs]:
     rng = np.random.default_rng(3)
     refl = rng.uniform(0.02, 0.6, (6, n)).astype(np.float32)
     refs = rng.uniform(0.05, 0.6, (12, 6))
-    g1, s1 = GvmiKernel(lanes=1, rt=rt)(refl, 1, 2), SamClassifier(refs, lanes=1, rt=rt).classify(refl)
+    g1, s1 = GvmiKernel(rt, lanes=1)(refl, 1, 2), SamClassifier(rt, refs, lanes=1).classify(refl)
     gvmi, sam = {}, {}
     for w in WIDTHS:
-        g, s = GvmiKernel(lanes=w, rt=rt), SamClassifier(refs, lanes=w, rt=rt)
+        g, s = GvmiKernel(rt, lanes=w), SamClassifier(rt, refs, lanes=w)
         check(bool(np.array_equal(g(refl, 1, 2).gvmi, g1.gvmi)), f"GVMI at {w} lanes differs from one lane")
         check(bool(np.array_equal(s.classify(refl).reference, s1.reference)), f"SAM at {w} lanes differs")
         gvmi[w] = (lambda g=g: g(refl, 1, 2))
         sam[w] = (lambda s=s: s.classify(refl))
-    return {"gvmi": (gvmi, n, "pixels", GvmiKernel(rt=rt).types.lanes),
-            "sam": (sam, n, "pixels", SamClassifier(refs, rt=rt).types.lanes)}
+    return {"gvmi": (gvmi, n, "pixels", GvmiKernel(rt).types.lanes),
+            "sam": (sam, n, "pixels", SamClassifier(rt, refs).types.lanes)}
 
 
 def _resample(rt: Runtime, n: int) -> Runs:

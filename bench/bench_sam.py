@@ -19,6 +19,7 @@ import numpy as np
 
 from bench.chain import Context
 from bench.common import check, comparison_rows, machine_info, median_time, print_comparison, write_json
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference import stages as ref
 from s2cl.retrieve.sam import SamClassifier
 
@@ -56,14 +57,13 @@ def spy_sam(pix: np.ndarray, refs: np.ndarray) -> Callable[[], tuple[np.ndarray,
 
 
 def kernel_launcher(sam: SamClassifier, pix: np.ndarray) -> Callable[[], None]:
-    """The SAM kernel alone (pixels on the device, outputs left there), with the arguments
-    :meth:`SamClassifier.classify` binds; ``pix.shape[1]`` must be a multiple of the lanes."""
-    rt, T, n = sam.rt, sam.types, pix.shape[1]
-    bufs = [rt.empty(4 * n), rt.empty(n * T.dtype.itemsize), rt.empty(n), rt.to_device(pix), sam._refs_d]
+    """The SAM kernel alone (pixels on the device, outputs left there), through the launch
+    :meth:`SamClassifier.classify` makes."""
+    v = sam.buffers(pix)
 
     def launch() -> None:
-        sam.kernel(rt.queue, (n // T.lanes,), None, *bufs, T.dtype.type(sam.cos_min), np.int32(n))
-        rt.finish()
+        sam.enqueue(v)
+        sam.rt.finish()
 
     return launch
 
@@ -80,7 +80,7 @@ def sam_baseline(ctx: Context, n: int, bands: int, refs: int) -> dict[str, Any]:
     """SAM of ``n`` pixels (a multiple of 16) on ``bands`` bands against ``refs`` references: s2cl
     (with transfers; the kernel alone), SPy and numpy, each checked on 20,000 pixels first."""
     references, _, pix = scene(n, bands, refs)
-    sam, part = SamClassifier(references), pix[:, :CHECKED]
+    sam, part = SamClassifier(get_runtime(), references), pix[:, :CHECKED]
     best, angle, _ = ref.sam_classify(part, references)
     got = sam.classify(part)
     agree = _check("s2cl SAM", got.reference, got.angle, (best, angle))
@@ -106,7 +106,7 @@ def main() -> None:
     cases = [sam_baseline(ctx, args.n, nb, nr) for nb, nr in CASES]
     for case in cases:
         print_comparison(case)
-    rt = SamClassifier(np.ones((1, 2))).rt
+    rt = get_runtime()
     print("wrote", write_json("sam.json", {"benchmark": "sam", "machine": machine_info(rt), "cases": cases}))
 
 

@@ -39,6 +39,7 @@ from unittest import mock
 
 from bench.common import RESULTS, ROOT, load_average, load_note, machine_info, median_and_times, write_json
 from bench.sweep_check import spread, validate_sweep
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference.sweep import evaluate
 from s2cl.retrieve.metrics import regression_metrics
 from s2cl.scene.scene import Scene
@@ -196,7 +197,7 @@ def main() -> None:
     args = ap.parse_args()
 
     job = plan_sweep(Scene.load(MAIN_SCENE))
-    kernel = SweepKernel(job.tables, job.analysis, precision=job.precision)
+    kernel = SweepKernel(job.tables, job.analysis, get_runtime(), precision=job.precision)
     machine = machine_info(kernel.rt)
     result: dict[str, Any] = {"benchmark": "sweep", "machine": machine,
                               "load_average_start": machine["load_average"], "scene": MAIN_SCENE,
@@ -208,7 +209,7 @@ def main() -> None:
     print("opencl:", result["opencl"], flush=True)
     result["lanes"] = {}
     for lanes in sorted({int(v) for v in args.lanes.split(",") if v}):
-        other = SweepKernel(job.tables, job.analysis, precision=job.precision, lanes=lanes)
+        other = SweepKernel(job.tables, job.analysis, get_runtime(), precision=job.precision, lanes=lanes)
         validate_sweep(job, other)
         lo, hi = _kernel_block(job)
         result["lanes"][lanes] = (hi - lo) * job.tables.n_pixels / kernel_rate(job, other)[0]

@@ -20,6 +20,7 @@ import numpy as np
 
 from bench.common import check, interleaved_medians, max_rel_error
 from s2cl import Scene, Simulator, SpectralLibrary
+from s2cl.cl.runtime import get_runtime
 from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample, toa_radiance
 from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
@@ -33,7 +34,7 @@ REFERENCE_FIT = IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12)
 #: the all-accurate chain: float64 kernels, 1 nm grid, the SRF model on ± 3 FWHM (the widest the
 #: 400-2500 nm grid holds for B8; the super-Gaussian is at its 1e-4 floor beyond ± 0.77 FWHM),
 #: exact LUT nodes (the paper's standard atmosphere sits on the LUT's nodes), converged float64 fits
-REFERENCE_OVERRIDES: dict[str, Any] = {"output.precision": "float64", "grid.step_nm": 1.0, "sensor.support": 3.0}
+REFERENCE_OVERRIDES: dict[str, Any] = {"compute.precision": "float64", "grid.step_nm": 1.0, "sensor.support": 3.0}
 REFERENCE_FIT_REAL = "float64"
 
 
@@ -150,8 +151,8 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
     t0 = time.perf_counter()
     scene = ctx.scene(**{"surface.copies": copies, **(overrides or {})})
     lib = ctx.library_slice(scene, library)
-    sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
-    fitter = IgrmFitter(len(BANDS), fit or IgrmSettings(), real_t=fit_real)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    fitter = IgrmFitter(get_runtime(), len(BANDS), fit or IgrmSettings(), real_t=fit_real)
     rows, centres, target = analysis_bands(scene, lib, copies)
     setup = time.perf_counter() - t0
 
@@ -166,7 +167,7 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
 
     res, r = once()
     n = ctx.time_pixels
-    dtype = np.float64 if scene.spec.output.precision == "float64" else np.float32
+    dtype = np.float64 if scene.run.precision == "float64" else np.float32
     pixels = np.ascontiguousarray(np.resize(lib.spectra, (ctx.block, lib.spectra.shape[1])), dtype=dtype)
 
     def image() -> None:
@@ -228,14 +229,14 @@ def validate_reference(ctx: Context) -> None:
     lib = ctx.library_slice(scene, first=12)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the reference scene has no atmosphere")
-    sim = Simulator.for_scene(scene, atmosphere=terms)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
     weights = sim.plan.weights
     err = max_rel_error(sim.band_radiance(lib.spectra), oracle_band_radiance(lib.spectra, terms, weights))
     check(err < 1e-10, f"float64 chain band radiance disagrees with the numpy oracle: max rel {err:.2e}")
     rows, centres, _ = analysis_bands(scene, lib, 1)
     refl = resample(lib.spectra, [weights[k] for k in rows])
-    dlp = reference_vs_scipy(IgrmFitter(len(BANDS), REFERENCE_FIT, real_t="float64").fit(refl, centres), refl,
-                             centres)
+    reference = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t="float64").fit(refl, centres)
+    dlp = reference_vs_scipy(reference, refl, centres)
     ctx.cache["validation"] = {"reference_band_radiance_max_rel_vs_numpy": err, "reference_lp_vs_scipy_nm": dlp}
 
 
@@ -267,7 +268,8 @@ def slice_reflectance(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     validated(ctx)
     scene = ctx.scene(**{"surface.copies": copies})
     lib = ctx.library_slice(scene)
-    res = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene)).run_library(lib, copies=copies, seed=SEED)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    res = sim.run_library(lib, copies=copies, seed=SEED)
     check(res.reflectance is not None, "the default scene does not correct to reflectance")
     rows, centres, target = analysis_bands(scene, lib, copies)
     return np.ascontiguousarray(res.reflectance[rows].reshape(len(rows), -1)), centres, target

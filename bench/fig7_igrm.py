@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.common import RESULTS, save_figure, write_json
+from s2cl.cl.runtime import get_runtime
 from s2cl.grid import DEFAULT_GRID
 from s2cl.libraries.registry import load_library
 from s2cl.retrieve.igrm import IgrmFitter
@@ -43,7 +44,7 @@ def fit_windows(spectra: np.ndarray, cab: np.ndarray) -> tuple[list[dict], list[
     for lo, hi in WINDOWS_NM:
         wl = np.arange(lo, hi + 1.0)
         y = spectra[:, lo - 400:hi - 400 + 1].T
-        r = IgrmFitter(len(wl), real_t="float64").fit(y, wl)
+        r = IgrmFitter(get_runtime(), len(wl), real_t="float64").fit(y, wl)
         score = score_igrm(r, cab)
         fits.append((lo, hi, r, score))
         rows.append({"window_nm": [lo, hi], "n_bands": int(wl.size), "r2": score.r2, "rms_ug_cm2": score.rms,

@@ -37,8 +37,9 @@ from bench.chain import (
 )
 from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
-from s2cl.atmos.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensions, by name
+from s2cl.atmos.atmosphere import ARRAY_DIMS as LUT_DIMS
 from s2cl.atmos.scene_terms import scene_lut, true_state
+from s2cl.cl.runtime import get_runtime
 from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample
 from s2cl.retrieve.igrm import IgrmFitter
@@ -75,8 +76,8 @@ def knob_precision(ctx: Context) -> KnobResult:
     """float32 vs float64 in the kernels (forward chain and IGRM fit), default fit settings."""
     ref = reference_run(ctx)
     f32 = default_run(ctx)
-    f64_32 = run_chain(ctx, "f64/f32", {"output.precision": "float64"})
-    f64 = run_chain(ctx, "f64/f64", {"output.precision": "float64"}, fit_real="float64")
+    f64_32 = run_chain(ctx, "f64/f32", {"compute.precision": "float64"})
+    f64 = run_chain(ctx, "f64/f64", {"compute.precision": "float64"}, fit_real="float64")
     time_runs(ctx, ref, f32, f64_32, f64)
     rows = []
     for label, run, default in (("float32 kernels + float32 fit", f32, True),
@@ -124,7 +125,7 @@ def knob_lm(ctx: Context, population: int) -> KnobResult:
     from s2cl.reference.igrm import _normalise, initial_guess
 
     refl, centres, target, pixels = _fit_rows(ctx, population)
-    ref_fit = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t=REFERENCE_FIT_REAL)
+    ref_fit = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t=REFERENCE_FIT_REAL)
     ref = ref_fit.fit(refl.astype(np.float64), centres)
     ref_score = score_igrm(ref, target)
     check(ref.fitted().mean() > 0.99, "reference fits fail on the slice")
@@ -158,7 +159,7 @@ def knob_lm(ctx: Context, population: int) -> KnobResult:
     settings += [(f"tol {t:g}", IgrmSettings(tol=t)) for t in (1e-2, 1e-3, 1e-4, 1e-7)]
     settings += [("grid initial guess (6×6)", IgrmSettings(init="grid"))]
     for label, st in settings:
-        fitter = IgrmFitter(len(BANDS), st)
+        fitter = IgrmFitter(get_runtime(), len(BANDS), st)
         r = fitter.fit(refl, centres)
         timers.append(lambda f=fitter: f.fit(pixels, centres))
         default = st == IgrmSettings()
@@ -271,8 +272,8 @@ def knob_copies(ctx: Context, seeds: int) -> KnobResult:
     for copies in (10, 100, 1000):
         scene = ctx.scene(**{"surface.copies": copies})
         lib = scene_library(scene)  # the whole Lib1 (120 spectra), as the default scene runs it
-        sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
-        fitter = IgrmFitter(len(BANDS))
+        sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+        fitter = IgrmFitter(get_runtime(), len(BANDS))
         slots, centres, target = analysis_bands(scene, lib, copies)
         rms, times = [], []
         for seed in seed_list:

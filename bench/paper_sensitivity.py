@@ -205,7 +205,7 @@ def main() -> None:
         out["variants"][f"noise-x{k:g}"] = variant_entry(f"noise-x{k:g}", {"sigma_scale": k}, rows,
                                                          time.perf_counter() - t0)
     # RMS of the shipped fit per background and per LAI (each subset regressed alone), Lib1 and Lib2
-    from s2cl.sweep.engine import evaluator
+    from s2cl.sweep.engine import kernel_evaluator as evaluator
 
     for lib_name, (scene, job) in jobs.items():
         raw = evaluator(job)(0, job.n_configs)

@@ -20,6 +20,7 @@ from bench.chain import BANDS, REFERENCE_FIT, Context, oracle_band_radiance
 from bench.common import ROOT, check, max_rel_error, median_time
 from bench.sweep_check import validate_sweep
 from s2cl import Simulator
+from s2cl.cl.runtime import get_runtime
 from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.retrieve.igrm import IgrmFitter
 
@@ -49,7 +50,7 @@ def forward_vs_pixels(ctx: Context, block: int) -> dict[str, Any]:
     lib = scene_library(scene)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the default scene has no atmosphere")
-    sim = Simulator.for_scene(scene, atmosphere=terms)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
     sizes = [1_000, 10_000, 100_000, 1_000_000]
     spectra = np.ascontiguousarray(np.resize(lib.spectra, (min(block, max(sizes)), lib.spectra.shape[1])),
                                    dtype=np.float32)
@@ -78,10 +79,11 @@ def fits_vs_pixels(ctx: Context) -> dict[str, Any]:
     y, _ = prosail_population(max(sizes), BANDS, noise=0.003, seed=1)
     y = np.ascontiguousarray(y, dtype=np.float32)
     wl = band_centres(BANDS)
-    fitter = IgrmFitter(len(BANDS))
+    fitter = IgrmFitter(get_runtime(), len(BANDS))
     from bench.bench_igrm import at_optimum
 
-    ref = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t="float64").fit(y[:, :5000].astype(np.float64), wl)
+    ref = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t="float64").fit(
+        y[:, :5000].astype(np.float64), wl)
     ok = float(at_optimum(fitter.fit(y[:, :5000], wl), ref).mean())
     check(ok > 0.99, f"only {ok:.2%} of float32 fits at the float64 optimum")
     seconds = [median_time(lambda n=n: fitter.fit(y[:, :n], wl), ctx.repeat, warmup=1) for n in sizes]

@@ -66,7 +66,7 @@ def validate_sweep(job: Any, kernel: Callable[[int, int], Any] | None = None) ->
     :func:`s2cl.sweep.engine.evaluate_chunk` runs it) against the float64 numpy evaluator on a few
     configurations of the regression sweep ``job`` (see the module's criterion). Returns what was
     measured (JSON), or raises :class:`bench.common.BenchValidationError`."""
-    from s2cl.sweep.engine import evaluator
+    from s2cl.sweep.engine import kernel_evaluator as evaluator
 
     if job.analysis.kind == "sam":
         raise ValueError("validate_sweep compares RMS: it needs a regression sweep (igrm, gvmi)")

@@ -12,6 +12,8 @@ import pytest
 import xarray as xr
 from sweep_fixtures import SMALL_SWEEP_TOML
 
+from s2cl.scene.scene import find_scene
+
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "s2cl", *args], cwd=cwd, capture_output=True, text=True,
@@ -90,11 +92,17 @@ def test_paper_scene_prints_the_papers_values(tmp_path) -> None:
      (["sweep", "count", "default", "--bogus"], "No such option"),
      (["optimise", "bad.toml"], "effects.bits"),
      (["srf", "B99"], "no band 'B99'"),
-     (["simulate", "--device", "no-such-device"], "no OpenCL device matches")],
+     (["simulate", "--device", "no-such-device"], "no OpenCL device matches"),
+     (["simulate", "device.toml"], "no OpenCL device matches"),
+     (["sweep", "run", "device.toml"], "no OpenCL device matches")],
 )
 def test_errors_are_one_line_with_exit_code(tmp_path, args: list[str], message: str) -> None:
     (tmp_path / "bad.toml").write_text('[scene]\nname = "b"\n[surface]\nlibrary = "builtin:lib1"\n'
                                        "[effects]\nbits = 40\n")
+    # [compute] device is the scene's choice of device: refused before anything is made, like --device
+    default = find_scene("default").read_text(encoding="utf-8")
+    assert '# device = "pocl"' in default
+    (tmp_path / "device.toml").write_text(default.replace('# device = "pocl"', 'device = "no-such-device"'))
     out = run(*args, cwd=tmp_path)
     assert out.returncode == 2
     assert message in out.stderr

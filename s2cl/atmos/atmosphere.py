@@ -283,7 +283,8 @@ def _regrid(native: dict, lut_wl: np.ndarray, grid: SpectralGrid, source: str) -
     )
 
 
-_SHAPES = {
+#: dimensions of each LUT array, by axis name
+ARRAY_DIMS = {
     "path_reflectance_scattering": ("p", "sza", "aot", "wl"),
     "t_down": ("p", "sza", "aot", "wl"),
     "t_up": ("p", "aot", "wl"),
@@ -333,8 +334,8 @@ def _check_provenance(arrays: dict[str, np.ndarray], source: str) -> dict:
 
 
 def _check_arrays(arrays: dict[str, np.ndarray], source: str) -> None:
-    """Every array present, float, of the shape its axes give (:data:`_SHAPES`), finite; axes increasing."""
-    missing = [k for k in (*AXIS_KEYS, *SCATTERING_KEYS, *ALBEDO_KEYS, *_SHAPES) if k not in arrays]
+    """Every array present, float, of the shape its axes give (:data:`ARRAY_DIMS`), finite; axes increasing."""
+    missing = [k for k in (*AXIS_KEYS, *SCATTERING_KEYS, *ALBEDO_KEYS, *ARRAY_DIMS) if k not in arrays]
     if missing:
         raise InputError(f"missing arrays: {', '.join(missing)}", source=source)
     sizes = {
@@ -344,7 +345,7 @@ def _check_arrays(arrays: dict[str, np.ndarray], source: str) -> None:
         "wv": arrays["water_vapour"].size,
         "wl": arrays["wavelength_nm"].size,
     }
-    for key, dims in _SHAPES.items():
+    for key, dims in ARRAY_DIMS.items():
         expected = tuple(sizes[d] for d in dims)
         arr = arrays[key]
         if arr.shape != expected or arr.dtype.kind != "f":

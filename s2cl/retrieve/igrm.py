@@ -210,14 +210,25 @@ class IgrmFitter:
         return IgrmResult(*(np.concatenate([getattr(p, f.name) for p in parts])
                             for f in dataclasses.fields(IgrmResult)))
 
-    def _fit_chunk(self, refl: np.ndarray, wl: np.ndarray) -> IgrmResult:
-        n = refl.shape[1]
+    def buffers(self, refl: np.ndarray, wl: np.ndarray) -> dict[str, Any]:
+        """One launch's arguments, named as :attr:`args`: ``refl`` (n_bands, n_pixels) padded to whole lanes
+        and uploaded with the centres ``wl`` (nm), the outputs allocated (7 parameter rows: the six
+        parameters and the condition estimate), ``pitch`` the padded pixel count."""
         T, rt = self.types, self.rt
         host, pitch = pad_pixels(refl, T.lanes, T.dtype)
-        v = {"params": rt.alloc(7 * pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
-             "iterations": rt.alloc(pitch * self.iter_dtype.itemsize), "bounds": rt.alloc(pitch),
-             "refl": rt.upload_new(host), "wavelength": rt.upload_new(wl.astype(T.dtype)), "pitch": pitch}
-        self.kernel(rt.queue, (pitch // T.lanes,), None, *bind(self.args, v, T))
+        return {"params": rt.alloc(7 * pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
+                "iterations": rt.alloc(pitch * self.iter_dtype.itemsize), "bounds": rt.alloc(pitch),
+                "refl": rt.upload_new(host), "wavelength": rt.upload_new(wl.astype(T.dtype)), "pitch": pitch}
+
+    def enqueue(self, v: dict[str, Any]) -> None:
+        """Queue the fit on the arguments ``v`` (:meth:`buffers`); returns at once."""
+        self.kernel(self.rt.queue, (v["pitch"] // self.types.lanes,), None, *bind(self.args, v, self.types))
+
+    def _fit_chunk(self, refl: np.ndarray, wl: np.ndarray) -> IgrmResult:
+        n, T, rt = refl.shape[1], self.types, self.rt
+        v = self.buffers(refl, wl)
+        self.enqueue(v)
+        pitch = v["pitch"]
         params = rt.fetch(v["params"], (7, pitch), T.dtype)[:, :n]
         return IgrmResult(
             *params[:6],

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -103,17 +104,27 @@ class SamClassifier:
         i, j = np.nonzero(np.triu(np.arccos(cos) <= tol_rad, k=1))
         return list(zip(i.tolist(), j.tolist(), strict=True))
 
+    def buffers(self, refl: np.ndarray) -> dict[str, Any]:
+        """One launch's arguments, named as the kernel's: ``refl`` (n_bands, n_pixels) padded to whole
+        lanes and uploaded, the outputs allocated, ``pitch`` the padded pixel count."""
+        T, rt = self.types, self.rt
+        host, pitch = pad_pixels(refl, T.lanes, T.dtype)
+        return {"best": rt.alloc(4 * pitch), "angle": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
+                "refl": rt.upload_new(host), "refs": self._refs_d, "cos_min": self.cos_min, "pitch": pitch}
+
+    def enqueue(self, v: dict[str, Any]) -> None:
+        """Queue the classification on the arguments ``v`` (:meth:`buffers`); returns at once."""
+        self.kernel(self.rt.queue, (v["pitch"] // self.types.lanes,), None, *bind(ARGS, v, self.types))
+
     def classify(self, refl: np.ndarray) -> SamResult:
         """Classify every pixel of ``refl`` (n_bands, n_pixels)."""
         refl = np.asarray(refl)
         if refl.ndim != 2 or refl.shape[0] != self.n_bands:
             raise InputError(f"must have shape ({self.n_bands}, n_pixels), got {refl.shape}", key="reflectance")
-        n = refl.shape[1]
-        T, rt = self.types, self.rt
-        host, pitch = pad_pixels(refl, T.lanes, T.dtype)
-        v = {"best": rt.alloc(4 * pitch), "angle": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
-             "refl": rt.upload_new(host), "refs": self._refs_d, "cos_min": self.cos_min, "pitch": pitch}
-        self.kernel(rt.queue, (pitch // T.lanes,), None, *bind(ARGS, v, T))
+        n, T, rt = refl.shape[1], self.types, self.rt
+        v = self.buffers(refl)
+        self.enqueue(v)
+        pitch = v["pitch"]
         best = rt.fetch(v["best"], (pitch,), np.int32)[:n]
         label = np.where(best >= 0, self.classes[np.maximum(best, 0)], -1).astype(np.int32)
         return SamResult(best, label, rt.fetch(v["angle"], (pitch,), T.dtype)[:n],
