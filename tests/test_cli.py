@@ -37,6 +37,12 @@ def test_simulate_default_scene(tmp_path) -> None:
     assert summary["analysis"]["kind"] == "igrm" and 0 < summary["analysis"]["rms"] < 30
     ds = xr.open_dataset(tmp_path / "sim" / "simulation.nc", engine="h5netcdf")
     assert ds["dn"].shape == (13, 120, 100) and ds["reflectance"].shape == (13, 120, 100)
+    # CF-1.10: the convention, units everywhere, standard names where the CF table has them
+    assert ds.attrs["Conventions"] == "CF-1.10"
+    assert ds["noisy"].attrs["standard_name"] == "toa_outgoing_radiance_per_unit_wavelength"
+    assert ds["reflectance"].attrs["standard_name"] == "surface_bidirectional_reflectance"
+    assert ds["centre_nm"].attrs["standard_name"] == "sensor_band_central_radiation_wavelength"
+    assert all("units" in ds[v].attrs for v in ("noisy", "dn", "calibrated", "reflectance", "band_radiance"))
     assert not list((tmp_path / "sim").glob(".*.tmp"))
 
 

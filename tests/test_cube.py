@@ -70,6 +70,9 @@ def test_netcdf_cube_in_and_out(rt, tmp_path) -> None:
     path = write_netcdf(tmp_path / "out" / "simulation.nc", out)
     back = xr.open_dataset(path, engine="h5netcdf")
     assert back["dn_B4"].dtype == np.uint16 and back["dn_B12"].shape == (6, 6)
+    assert back.attrs["Conventions"] == "CF-1.10"
+    assert back["noisy_B4"].attrs["standard_name"] == "toa_outgoing_radiance_per_unit_wavelength"
+    assert back["flags_B4"].attrs["flag_meanings"].split()[0] == "below_lmin"
     assert not list((tmp_path / "out").glob(".*tmp"))
 
 

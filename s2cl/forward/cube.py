@@ -20,7 +20,7 @@ from s2cl import __version__
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
-from s2cl.forward.dataset import RADIANCE_UNITS, band_attrs
+from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
@@ -155,7 +155,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wav
     if progress:
         progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
-    ds = xr.Dataset(attrs={"scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
+    ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
                            "effects": scene.effects.describe(), "seed": scene.run.seed,
                            "input_gsd_m": gsd_in, "psf": s.spatial.psf})
     bands = scene.sensor.bands
@@ -198,15 +198,15 @@ def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], ima
     for j, k in enumerate(ids):
         attrs = band_attrs(bands[k], scene.sensor.bits)
         name = bands[k].name
-        ds[f"radiance_{name}"] = ((ydim, xdim), images[j], {**attrs, "units": RADIANCE_UNITS,
-                                                             "long_name": "noise-free band radiance"})
+        ds[f"radiance_{name}"] = ((ydim, xdim), images[j],
+                                  {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
         if result is None:
             continue
-        for var, units in (("noisy", RADIANCE_UNITS), ("dn", "1"), ("calibrated", RADIANCE_UNITS),
-                           ("reflectance", "1")):
+        for var, units, long_name in PIXEL_VARIABLES:
             arr = getattr(result, var)
             if arr is not None:
-                ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx), {**attrs, "units": units})
+                ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx),
+                                       {**attrs, **pixel_attrs(var, units, long_name)})
         if result.clipped is not None:
             ds[f"radiance_{name}"].attrs.update(clipped_below_lmin=int(result.clipped[0, j]),
                                                clipped_above_lmax=int(result.clipped[1, j]))

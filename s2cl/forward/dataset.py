@@ -1,4 +1,5 @@
-"""Simulation results as xarray Datasets (band metadata as attributes, CF-style units)."""
+"""Simulation results as xarray Datasets: band metadata as attributes, CF-1.10 conventions (units,
+``standard_name`` where the CF standard-name table has one, flag attributes)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,13 @@ from s2cl.errors import InputError
 from s2cl.sensor.sensor import Band
 
 RADIANCE_UNITS = "W m-2 sr-1 um-1"
+#: global attribute of every NetCDF file s2cl writes
+CONVENTIONS = {"Conventions": "CF-1.10"}
+#: CF standard names (CF standard-name table, version 84) of the variables that have one
+_RADIANCE = "toa_outgoing_radiance_per_unit_wavelength"
+STANDARD_NAMES = {"band_radiance": _RADIANCE, "radiance": _RADIANCE, "noisy": _RADIANCE, "calibrated": _RADIANCE,
+                  "reflectance": "surface_bidirectional_reflectance",
+                  "centre_nm": "sensor_band_central_radiation_wavelength"}
 
 
 def band_attrs(band: Band, bits: int) -> dict[str, Any]:
@@ -57,7 +65,7 @@ def image_layout(n_spectra: int, copies: int, layout: str) -> np.ndarray:
     return out
 
 
-#: per-pixel image variables of a library simulation: (name, units, long name)
+#: per-pixel image variables of a simulation: (name, units, long name)
 PIXEL_VARIABLES = (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
                    ("dn", "1", "digital numbers"),
                    ("flags", "1", "radiometric pixel flags"),
@@ -86,11 +94,15 @@ def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
 
 
 def pixel_attrs(name: str, units: str, long_name: str) -> dict[str, Any]:
-    """Attributes of a per-pixel variable; ``flags`` gets CF flag attributes (:class:`s2cl.status.PixelFlag`)."""
+    """CF attributes of a per-pixel variable: units, long name, standard name where CF has one;
+    ``flags`` gets CF flag attributes (:class:`s2cl.status.PixelFlag`)."""
     if name == "flags":
         return {"long_name": long_name, "flag_masks": np.array([1, 2, 4], np.uint8),
                 "flag_meanings": "below_lmin above_lmax_saturated no_data_nan_radiance"}
-    return {"units": units, "long_name": long_name}
+    attrs = {"units": units, "long_name": long_name}
+    if name in STANDARD_NAMES:
+        attrs["standard_name"] = STANDARD_NAMES[name]
+    return attrs
 
 
 def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int, layout: str,
@@ -104,12 +116,14 @@ def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int
         coords[f"param_{key}"] = ("spectrum", np.asarray(values))
     data: dict[str, Any] = {
         "band_radiance": (("band", "spectrum"), band_radiance,
-                          {"units": RADIANCE_UNITS, "long_name": "noise-free band radiance"}),
+                          pixel_attrs("band_radiance", RADIANCE_UNITS, "noise-free band radiance")),
     }
     if clipped is not None:
         data["clipped"] = (("limit", "band"), clipped, {"long_name": "pixels below Lmin / above Lmax"})
         coords["limit"] = ["below_lmin", "above_lmax"]
     ds = xr.Dataset(data, coords=coords)
+    ds["centre_nm"].attrs.update(units="nm", standard_name=STANDARD_NAMES["centre_nm"])
+    ds.attrs.update(CONVENTIONS)
     ds.attrs.update({k: str(v) for k, v in attrs.items()})
     ds.attrs.update(sensor=sensor.name, bits=sensor.bits, copies=copies, layout=layout,
                     library_source=lib.source, quantity=lib.quantity)

@@ -1,6 +1,8 @@
 """The user cache directory and atomic writes of ``.npz`` data files.
 
-The cache lives in ``$S2CL_CACHE`` when that variable is set, else ``~/.cache/s2cl``.
+The cache lives in ``$S2CL_CACHE`` when that variable is set, else in the platform's user cache folder
+(:func:`platformdirs.user_cache_dir`: ``$XDG_CACHE_HOME/s2cl`` or ``~/.cache/s2cl`` on Linux,
+``~/Library/Caches/s2cl`` on macOS, ``%LOCALAPPDATA%\\s2cl\\Cache`` on Windows).
 Files are written to a temporary name in the target directory and moved into place with
 :func:`os.replace`, so a reader never sees a half-written file and a killed writer leaves
 at most a stray ``*.tmp`` file behind.
@@ -16,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import platformdirs
 
 from s2cl.errors import InputError
 from s2cl.io.output import atomic_path
@@ -24,9 +27,9 @@ CACHE_ENV = "S2CL_CACHE"
 
 
 def cache_dir(*parts: str) -> Path:
-    """The cache directory (``$S2CL_CACHE`` or ``~/.cache/s2cl``) joined with ``parts``, created."""
+    """The cache directory (``$S2CL_CACHE`` or the platform's user cache folder) joined with ``parts``, created."""
     root = os.environ.get(CACHE_ENV)
-    base = Path(root).expanduser() if root else Path.home() / ".cache" / "s2cl"
+    base = Path(root).expanduser() if root else Path(platformdirs.user_cache_dir("s2cl", appauthor=False))
     path = base.joinpath(*parts)
     try:
         path.mkdir(parents=True, exist_ok=True)
