@@ -70,21 +70,21 @@ def _sweep(rt: Runtime) -> Runs:
 
 
 def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Runs]:
-    from s2cl.retrieve.gvmi import GvmiKernel
+    from s2cl.retrieve.index_kernel import IndexKernel
     from s2cl.retrieve.sam import SamClassifier
 
     rng = np.random.default_rng(3)
     refl = rng.uniform(0.02, 0.6, (6, n)).astype(np.float32)
     refs = rng.uniform(0.05, 0.6, (12, 6))
-    g1, s1 = GvmiKernel(rt, lanes=1)(refl, 1, 2), SamClassifier(rt, refs, lanes=1).classify(refl)
+    g1, s1 = IndexKernel(rt, "gvmi", lanes=1)(refl, 1, 2), SamClassifier(rt, refs, lanes=1).classify(refl)
     gvmi, sam = {}, {}
     for w in WIDTHS:
-        g, s = GvmiKernel(rt, lanes=w), SamClassifier(rt, refs, lanes=w)
-        check(bool(np.array_equal(g(refl, 1, 2).gvmi, g1.gvmi)), f"GVMI at {w} lanes differs from one lane")
+        g, s = IndexKernel(rt, "gvmi", lanes=w), SamClassifier(rt, refs, lanes=w)
+        check(bool(np.array_equal(g(refl, 1, 2).index, g1.index)), f"GVMI at {w} lanes differs from one lane")
         check(bool(np.array_equal(s.classify(refl).reference, s1.reference)), f"SAM at {w} lanes differs")
         gvmi[w] = (lambda g=g: g(refl, 1, 2))
         sam[w] = (lambda s=s: s.classify(refl))
-    return {"gvmi": (gvmi, n, "pixels", GvmiKernel(rt).types.lanes),
+    return {"gvmi": (gvmi, n, "pixels", IndexKernel(rt, "gvmi").types.lanes),
             "sam": (sam, n, "pixels", SamClassifier(rt, refs).types.lanes)}
 
 

@@ -3,7 +3,7 @@ sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end 
   gather noise-free band radiance and sigma of the configuration's variants (tables of
   s2cl/sweep_tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
   -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
-  GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
+  a normalised-difference index such as GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
 Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
 gets the same verdict on both paths (tests/test_one_rule.py). The spectral integral is not here: it
 ran once per (variant, spectrum) on the host.
@@ -18,11 +18,12 @@ Template variables
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
   lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
   noise, quantise            bools
-  kind       "igrm" | "gvmi" | "sam";  nir, swir (gvmi slots); n_classes, cos_min (sam; below -1:
+  kind       "igrm" | "sam" | an index of s2cl.retrieve.indices;  nd (that index: offsets),
+             slot_a, slot_b (its bands' slots); n_classes, cos_min (sam; below -1:
              no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
   max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
 Arguments (s2cl.sweep.kernel.ARGS)
-  index     out [n_configs][pitch] real   igrm: lp (nm); gvmi: GVMI; sam: class (n_classes: none)
+  index     out [n_configs][pitch] real   igrm: lp (nm); index: its value; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
   bounds    out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako); else 0
   condition out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 240 = the cap of 12
@@ -77,8 +78,8 @@ ${st.quantise(T)}
 ${st.calibrate(T)}
 % endif
 ${st.correct(T)}
-% if kind == "gvmi":
-${st.gvmi(T, max_abs)}
+% if nd is not None:
+${st.normalised_difference(T, nd, max_abs)}
 % elif kind == "sam":
 ${st.sam(T, n_slots, n_classes, max_abs)}
 % endif
@@ -119,9 +120,9 @@ __kernel void sweep_configs(
     }
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
-% if kind == "gvmi":
+% if nd is not None:
     ${T.M} st;
-    ${vstore(f"s2_gvmi_{T.suffix}(rho[{nir}], rho[{swir}], &st)", "(index + at)")}
+    ${vstore(f"s2_{nd.kind}_{T.suffix}(rho[{slot_a}], rho[{slot_b}], &st)", "(index + at)")}
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
     bounds[at + ${l}] = 0;

@@ -89,7 +89,8 @@ def test_confusion_and_omission() -> None:
 
 def test_gvmi_and_sam_twins_hard_cases() -> None:
     """The numpy twins' rules (the kernels' rules, kernels/common/stages.mako)."""
-    index, status = stages.gvmi(np.array([0.4, np.nan, -0.2, 0.01 - 0.1]), np.array([0.2, 0.1, -0.1, -0.0099 - 0.02]))
+    index, status = stages.normalised_difference(np.array([0.4, np.nan, -0.2, 0.01 - 0.1]),
+                                                 np.array([0.2, 0.1, -0.1, -0.0099 - 0.02]))
     assert index[0] == pytest.approx((0.5 - 0.22) / (0.5 + 0.22))
     assert status.tolist() == [Status.OK, Status.INVALID, Status.INVALID, Status.INVALID]  # last: "GVMI 199"
     refs = np.array([[1.0, 0.0], [0.0, 1.0]])

@@ -18,8 +18,9 @@ from s2cl.cli.ranking import report_sweep
 def sweep() -> None:
     """Band-optimisation sweeps: count, run (resumable, local or Dask), report.
 
-    A sweep scene has a [sweep] section (which bands move, and where) and an [analysis]
-    section (igrm, gvmi or sam); see scenes/default.toml. `s2cl optimise` runs and reports in one go.
+    A sweep scene has a [sweep] section (which bands move, and where) and an [analysis] section (an
+    IGRM fit, a normalised-difference index such as GVMI, or SAM); see scenes/default.toml. `s2cl
+    optimise` runs and reports in one go.
     """
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from s2cl.reference import stages
 from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.indices import INDICES
 from s2cl.retrieve.metrics import condition_code
 from s2cl.status import Status
 from s2cl.sweep.raw import RawChunk, variant_indices
@@ -45,8 +46,8 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
     shape = rhos[0].shape
     bounds = np.zeros(shape, np.uint8)
     condition = np.zeros(shape, np.uint8)
-    if a.kind == "gvmi":
-        index, status = stages.gvmi(rhos[a.nir_slot], rhos[a.swir_slot])
+    if a.kind in INDICES:
+        index, status = stages.normalised_difference(rhos[a.slots[0]], rhos[a.slots[1]], INDICES[a.kind].offsets)
     elif a.kind == "sam":
         idx = variant_indices(t, start, stop)
         refs = np.stack([t.references[k][idx[:, k]] for k in range(t.n_slots)], axis=-1)  # (n_cfg, n_cls, n_slots)

@@ -8,7 +8,8 @@ a sweep never ranks a design that the direct API refuses.
   least four *distinct* centres. Two bands on one centre (different widths or not) give one
   abscissa, and the fit has no unique solution (the minimum cost is reached along a whole curve
   of parameters: scipy finds lp anywhere in a 2 nm range from different starts).
-- **GVMI** needs its NIR and SWIR bands to differ (one band in both roles gives a constant index).
+- **A normalised-difference index** (GVMI, ...: :mod:`s2cl.retrieve.indices`) needs its two bands to
+  differ (one band in both roles gives a constant index).
 - **SAM** needs at least two distinct bands (with one direction every pixel has the same angle
   to every class).
 
@@ -23,6 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.retrieve.indices import INDICES
 from s2cl.sensor.variants import SweepSpace
 
 IGRM_PARAMETERS = 4
@@ -31,7 +33,7 @@ SAME_CENTRE_NM = 1e-6
 
 
 def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], widths: Sequence[float], *,
-                   nir_slot: int = 0, swir_slot: int = 1) -> str | None:
+                   slots: tuple[int, int] = (0, 1)) -> str | None:
     """Why the retrieval ``kind`` cannot fit the design ``names`` (centres and widths in nm), or None."""
     c = np.asarray(centres, dtype=np.float64)
     w = np.asarray(widths, dtype=np.float64)
@@ -42,10 +44,12 @@ def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], wi
             return (f"underdetermined: the IGRM fits {IGRM_PARAMETERS} parameters but the bands give only "
                     f"{distinct} distinct centres ({shared}); move the bands apart")
         return None
-    if kind == "gvmi":
-        if abs(c[nir_slot] - c[swir_slot]) <= SAME_CENTRE_NM and w[nir_slot] == w[swir_slot]:
-            return (f"underdetermined: the GVMI's NIR band {names[nir_slot]} and SWIR band {names[swir_slot]} "
-                    f"are the same band ({c[nir_slot]:g}/{w[nir_slot]:g} nm)")
+    if kind in INDICES:
+        a, b = slots
+        if abs(c[a] - c[b]) <= SAME_CENTRE_NM and w[a] == w[b]:
+            role_a, role_b = INDICES[kind].roles
+            return (f"underdetermined: the {kind.upper()}'s {role_a} band {names[a]} and {role_b} band {names[b]} "
+                    f"are the same band ({c[a]:g}/{w[a]:g} nm)")
         return None
     if kind == "sam":
         pairs = {(round(float(a), 6), float(b)) for a, b in zip(c, w, strict=True)}
@@ -56,15 +60,15 @@ def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], wi
 
 
 def check_design(kind: str, names: Sequence[str], centres: Sequence[float], widths: Sequence[float], *,
-                 source: str | None = None, key: str = "analysis.bands", **slots: int) -> None:
+                 source: str | None = None, key: str = "analysis.bands", slots: tuple[int, int] = (0, 1)) -> None:
     """:class:`InputError` (one line, naming file and key) when :func:`design_problem` finds one."""
-    problem = design_problem(kind, names, centres, widths, **slots)
+    problem = design_problem(kind, names, centres, widths, slots=slots)
     if problem:
         raise InputError(problem, source=source, key=key)
 
 
-def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *, nir_slot: int = 0,
-                    swir_slot: int = 1) -> np.ndarray:
+def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *,
+                    slots: tuple[int, int] = (0, 1)) -> np.ndarray:
     """:func:`design_problem` for many configurations at once: ``centres``, ``widths`` ``(n_configs,
     n_slots)`` in nm; True where the design cannot be fitted."""
     c = np.asarray(centres, dtype=np.float64)
@@ -73,8 +77,9 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *, nir_s
         s = np.sort(c, axis=1)
         distinct = 1 + np.count_nonzero(np.diff(s, axis=1) > SAME_CENTRE_NM, axis=1)
         return distinct < IGRM_PARAMETERS
-    if kind == "gvmi":
-        return (np.abs(c[:, nir_slot] - c[:, swir_slot]) <= SAME_CENTRE_NM) & (w[:, nir_slot] == w[:, swir_slot])
+    if kind in INDICES:
+        a, b = slots
+        return (np.abs(c[:, a] - c[:, b]) <= SAME_CENTRE_NM) & (w[:, a] == w[:, b])
     if kind == "sam":
         same = (np.abs(c - c[:, :1]) <= SAME_CENTRE_NM) & (w == w[:, :1])
         return same.all(axis=1)
@@ -85,13 +90,13 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *, nir_s
 MAX_LISTED_VARIANTS = 1_000_000
 
 
-def count_underdetermined(kind: str, space: SweepSpace, *, nir_slot: int = 0, swir_slot: int = 1,
+def count_underdetermined(kind: str, space: SweepSpace, *, slots: tuple[int, int] = (0, 1),
                           limit: int = 10_000_000) -> int | None:
     """How many configurations of ``space`` cannot be fitted, without enumerating the configurations;
     None when a band has more than :data:`MAX_LISTED_VARIANTS` variants (its counts are computed, so
     nothing is listed) or the distinct values that decide it exceed ``limit``.
 
-    Validity depends on centres only (and, for GVMI/SAM, widths of the bands involved), so it is
+    Validity depends on centres only (and, for indices and SAM, widths of the bands involved), so it is
     evaluated once per combination of distinct values and weighted by how many variants share them.
     """
     if max(space.counts) > MAX_LISTED_VARIANTS:
@@ -106,7 +111,7 @@ def count_underdetermined(kind: str, space: SweepSpace, *, nir_slot: int = 0, sw
     for start in range(0, combos, block):
         idx = np.unravel_index(np.arange(start, min(start + block, combos)), [len(g) for g in grids])
         values = np.stack([grids[k][i] for k, i in enumerate(idx)], axis=1)  # (n, n_slots, 2)
-        bad = underdetermined(kind, values[..., 0], values[..., 1], nir_slot=nir_slot, swir_slot=swir_slot)
+        bad = underdetermined(kind, values[..., 0], values[..., 1], slots=slots)
         mult = np.prod(np.stack([weights[k][i] for k, i in enumerate(idx)], axis=1), axis=1)
         total += int(mult[bad].sum())
     return total

@@ -1,5 +1,6 @@
-"""The scene's analysis on a simulation with the sensor's own bands (``s2cl simulate``): IGRM,
-GVMI or SAM on the corrected band reflectances, scored with the same metrics as a sweep row."""
+"""The scene's analysis on a simulation with the sensor's own bands (``s2cl simulate``): IGRM, a
+normalised-difference index (GVMI, ...) or SAM on the corrected band reflectances, scored with the same
+metrics as a sweep row."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import numpy as np
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.simulate import LibrarySimulation
-from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.analysis import AnalysisSettings, index_bands
 from s2cl.retrieve.design import check_design
+from s2cl.retrieve.indices import INDICES
 from s2cl.retrieve.metrics import classification_metrics, condition_code, regression_metrics
 from s2cl.scene.scene import Scene
 
@@ -27,8 +29,8 @@ def analysis_bands(scene: Scene) -> list[str]:
         return list(scene.spec.sweep.bands)
     if a.kind == "igrm":
         return RED_EDGE
-    if a.kind == "gvmi":
-        return [a.nir or "B8", a.swir or "B11"]
+    if a.kind in INDICES:
+        return index_bands(a.kind, a.roles)
     return list(scene.sensor.band_names)
 
 
@@ -39,14 +41,14 @@ def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
     settings = AnalysisSettings.from_scene(scene, bands)
     shapes = [scene.sensor.band(b) for b in bands]
     check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                 source=scene.source, key="analysis.bands", nir_slot=settings.nir_slot, swir_slot=settings.swir_slot)
+                 source=scene.source, key="analysis.bands", slots=settings.slots)
     return bands, settings
 
 
 @dataclass
 class PixelResults:
     """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
-    (:class:`s2cl.reference.sweep.RawChunk`): ``index`` (λp nm, GVMI, or SAM class with
+    (:class:`s2cl.reference.sweep.RawChunk`): ``index`` (λp nm, the index, or SAM class with
     ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
     (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
     the simulated pixels analysed (SAM: those of the chosen classes)."""
@@ -97,10 +99,10 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
         r = fit.fit(refl[order], centres[order])
         return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
                             everything)
-    from s2cl.retrieve.gvmi import GvmiKernel
+    from s2cl.retrieve.index_kernel import IndexKernel
 
-    g = GvmiKernel(rt, real_t=real_t, lanes=lanes)(refl, settings.nir_slot, settings.swir_slot)
-    return PixelResults(settings, bands, g.gvmi, g.status, np.zeros_like(g.status), None, target, everything)
+    g = IndexKernel(rt, settings.kind, real_t=real_t, lanes=lanes)(refl, *settings.slots)
+    return PixelResults(settings, bands, g.index, g.status, np.zeros_like(g.status), None, target, everything)
 
 
 def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:

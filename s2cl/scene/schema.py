@@ -9,9 +9,10 @@ import difflib
 import re
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from s2cl.errors import InputError, key_token, token
+from s2cl.retrieve.indices import INDICES, ROLE_KEYS
 from s2cl.sensor.srf import DEFAULT_SUPPORT
 
 UINT32_MAX = 2**32 - 1
@@ -126,13 +127,17 @@ class SweepSpec(_Section):
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
 
 
+#: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), SAM
+ANALYSIS_KINDS = ("igrm", *INDICES, "sam")
+
+
 class AnalysisSpec(_Section):
-    kind: Literal["igrm", "gvmi", "sam"]
+    kind: Literal[ANALYSIS_KINDS]  # type: ignore[valid-type]
     bands: list[str] | None = Field(None, min_length=2, description="bands analysed by `s2cl simulate` (default: the "
-                                    "swept bands, else B4 B5 B6 B7 for igrm, nir+swir for gvmi, all for sam)")
+                                    "swept bands, else B4 B5 B6 B7 for igrm, an index's role bands, all for sam)")
     parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
-    nir: str | None = Field(None, description="gvmi: the NIR band")
-    swir: str | None = Field(None, description="gvmi: the SWIR band")
+    roles: dict[str, str] = Field(default_factory=dict, description="an index's band of each role, written as keys of "
+                                  "[analysis] (gvmi: nir = 'B8', swir = 'B11'; s2cl.retrieve.indices)")
     classes: list[str] | None = Field(None, description="sam: library groups to tell apart (default: all)")
     angle_threshold_deg: float | None = Field(None, gt=0, le=90, description="sam: larger angles are unclassified")
     igrm: dict[str, Any] = Field(default_factory=dict, description="IGRM fit settings (see s2cl.retrieve.igrm)")
@@ -140,6 +145,15 @@ class AnalysisSpec(_Section):
         ["converged", "stalled", "iteration_limit"], min_length=1,
         description="IGRM fit statuses whose lp enters the regression (degenerate and invalid fits never do; "
         "the summary counts the pixels left out)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gather_roles(cls, data: Any) -> Any:
+        """Band-role keys (``nir = "B8"``) of any registered index go into :attr:`roles`."""
+        if isinstance(data, dict) and any(k in data for k in ROLE_KEYS):
+            data = dict(data)
+            data["roles"] = {k: data.pop(k) for k in ROLE_KEYS if k in data}
+        return data
 
 
 class SpatialSpec(_Section):
@@ -200,6 +214,8 @@ def input_error(err: ValidationError, source: str) -> InputError:
     """The first validation problem as one line: file, dotted key, what is allowed."""
     e = err.errors()[0]
     loc = [str(x) for x in e["loc"]]
+    if loc[:2] == ["analysis", "roles"]:  # role keys are written as keys of [analysis]
+        loc = ["analysis", *loc[2:]]
     key = ".".join(key_token(x) for x in loc)
     if e["type"] == "extra_forbidden":
         allowed = _allowed_keys(loc[:-1])
@@ -249,6 +265,8 @@ def _field(loc: list[str]) -> Any:
 def _allowed_keys(loc: list[str]) -> list[str]:
     if not loc:
         return list(SceneSpec.model_fields)
+    if loc == ["analysis"]:
+        return [k for k in AnalysisSpec.model_fields if k != "roles"] + list(ROLE_KEYS)
     info = _field(loc)
     fields = getattr(_unwrap_optional(getattr(info, "annotation", None)), "model_fields", None)
     return list(fields) if fields else []

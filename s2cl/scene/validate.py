@@ -21,6 +21,7 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats
 from s2cl.scene.scene import Scene
+from s2cl.scene.schema import ANALYSIS_KINDS
 from s2cl.sensor.variants import SweepSpace
 
 
@@ -47,8 +48,7 @@ def check_simulate(scene: Scene) -> Checked:
         analysis = _analysis(scene, bands, library)
         shapes = [scene.sensor.band(b) for b in bands]
         check_design(analysis.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                     source=scene.source, key="analysis.bands", nir_slot=analysis.nir_slot,
-                     swir_slot=analysis.swir_slot)
+                     source=scene.source, key="analysis.bands", slots=analysis.slots)
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
@@ -72,12 +72,11 @@ def check_sweep(scene: Scene) -> Checked:
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
     """Refuse a sweep in which no configuration can be fitted (:mod:`s2cl.retrieve.design`; e.g. a fixed design
     with two IGRM bands on one centre), in one line naming the bands."""
-    bad = count_underdetermined(analysis.kind, space, nir_slot=analysis.nir_slot,
-                                swir_slot=analysis.swir_slot)
+    bad = count_underdetermined(analysis.kind, space, slots=analysis.slots)
     if bad is not None and bad == space.size:
         first = space.shapes(0, 1)[0]
         check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
-                     nir_slot=analysis.nir_slot, swir_slot=analysis.swir_slot)
+                     slots=analysis.slots)
 
 
 def _surface(scene: Scene) -> SpectralLibrary | None:
@@ -156,8 +155,8 @@ def check_sweep_sections(scene: Scene) -> None:
         raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
                          source=scene.source, key="sweep")
     if scene.spec.analysis is None:
-        raise InputError("a sweep needs an [analysis] section (igrm, gvmi or sam)", source=scene.source,
-                         key="analysis")
+        raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(ANALYSIS_KINDS)})",
+                         source=scene.source, key="analysis")
     if not (scene.effects.atmosphere and scene.effects.correct):
         raise InputError("a sweep runs the whole chain: set effects.atmosphere = true and effects.correct = true",
                          source=scene.source, key="effects")

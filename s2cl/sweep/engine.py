@@ -122,7 +122,7 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
         rows[f"{b}_centre_nm"] = centres[:, k]
         rows[f"{b}_width_nm"] = widths[:, k]
     a = job.analysis
-    rows["underdetermined"] = underdetermined(a.kind, centres, widths, nir_slot=a.nir_slot, swir_slot=a.swir_slot)
+    rows["underdetermined"] = underdetermined(a.kind, centres, widths, slots=a.slots)
     if a.kind == "sam":
         m = classification_metrics(raw.index.astype(np.int64), raw.status, t.target.astype(np.int64),
                                    len(t.class_names))

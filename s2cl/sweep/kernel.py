@@ -10,6 +10,7 @@ from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError
 from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.indices import INDICES
 from s2cl.status import MAX_ABS_REFLECTANCE
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
@@ -41,8 +42,9 @@ class SweepKernel:
         variables = dict(T=self.T, T1=VecTypes(precision, 1), n_slots=t.n_slots, counts=counts, strides=strides,
                          row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
-                         noise=t.noise, quantise=t.quantise, kind=analysis.kind, nir=analysis.nir_slot,
-                         swir=analysis.swir_slot, n_classes=len(t.class_names), cos_min=self._cos_min(),
+                         noise=t.noise, quantise=t.quantise, kind=analysis.kind, nd=INDICES.get(analysis.kind),
+                         slot_a=analysis.slots[0], slot_b=analysis.slots[1], n_classes=len(t.class_names),
+                         cos_min=self._cos_min(),
                          max_abs=MAX_ABS_REFLECTANCE, args=ARGS, signature=signature)
         variables.update(self._igrm_variables(precision))
         self.source = render(TEMPLATE, **variables)

@@ -45,8 +45,7 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None,
 def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
     """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.retrieve.design`), counted without
     enumerating them; None when there are too many distinct centres to count."""
-    return count_underdetermined(analysis.kind, space, nir_slot=analysis.nir_slot,
-                                 swir_slot=analysis.swir_slot)
+    return count_underdetermined(analysis.kind, space, slots=analysis.slots)
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
