@@ -47,6 +47,8 @@ INDICES: dict[str, NormalisedDifference] = {
         NormalisedDifference("gvmi", "Global Vegetation Moisture Index (Ceccato et al. 2002; Segl et al. 2012 eq. 3)",
                              roles=("nir", "swir"), offsets=(0.1, 0.02), default_bands=("B8", "B11"),
                              parameter="ewt"),
+        NormalisedDifference("ndvi", "Normalised Difference Vegetation Index (Rouse et al. 1974)",
+                             roles=("nir", "red"), offsets=(0.0, 0.0), default_bands=("B8", "B4"), parameter="lai"),
     )
 }
 
