@@ -36,7 +36,7 @@ BASE: dict[str, Any] = {
         "B5": {"centres": [705.0, 710.0], "widths": [15.0, 20.0]},
         "B6": {"centre": 740.0, "width": 15.0},
         "B7": {"centre": 783.0, "width": 20.0}}},
-    "output": {"precision": "float32"},
+    "compute": {"precision": "float32", "lanes": 8},
 }
 
 HOSTILE = st.one_of(

@@ -44,7 +44,7 @@ def _scene(kind: str, bands: dict[str, tuple[float, float]] | None = None, **sen
         "effects": {"atmosphere": True, "correct": True, "seed": 5},
         "sweep": {"bands": list(bands), "ranges": {b: {"centre": c, "width": w} for b, (c, w) in bands.items()}},
         "analysis": analysis,
-        "output": {"precision": "float64"},
+        "compute": {"precision": "float64"},
         **({"grid": GRID[kind]} if kind in GRID else {}),
     })
 
