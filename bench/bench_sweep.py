@@ -1,6 +1,6 @@
 """Sweep throughput: configuration-pixel evaluations per second (noise → quantise → calibrate →
 correct → IGRM fit, and the per-configuration metrics) of the fused OpenCL kernel against the same
-sweep written as vectorised float64 numpy (s2cl.reference.sweep, ``backend="numpy"``), in the same
+sweep written as vectorised float64 numpy (s2cl.reference.sweep, the twin the tests use), in the same
 process on the same tables; Dask local workers 1 vs 2 on a smaller sweep; the whole of Table 3 end
 to end with peak memory.
 

@@ -4,7 +4,7 @@ index.cl.mako: a normalised-difference index (s2cl.retrieve.indices), T.lanes pi
 e.g. GVMI (Segl et al. 2012, eq. 3): a = NIR, b = SWIR, offsets 0.1 and 0.02.
 
 Template variables
-  T        s2cl.vectypes.VecTypes (precision, lanes)
+  T        s2cl.cl.vectypes.VecTypes (precision, lanes)
   nd       s2cl.retrieve.indices.NormalisedDifference (kind, offsets)
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid
 The index and its validity rule: s2_<nd.kind>_<T.suffix> of common/stages.mako (the sweep kernel runs

@@ -2,7 +2,7 @@
 resample.cl.mako: spectra -> band radiance through each band's sparse SRF support.
 
 Template variables
-  args          list of s2cl.kernel_args.Arg, the kernel's parameters (host binds the same list)
+  args          list of s2cl.cl.kernel_args.Arg, the kernel's parameters (host binds the same list)
   signature     function rendering args
   bands         list of dict(name, start, length, offset): grid index of the first support sample,
                 number of support samples, offset of the band's weights in `weights`
@@ -13,7 +13,7 @@ Template variables
                 L = Lp + G rho / (1 - S rho) before weighting (arrays path_radiance, ground_term,
                 spherical_albedo on the grid)
 Defines: none (the precision comes from T).
-Arguments (in order; see s2cl/resample.py)
+Arguments (in order; see s2cl/forward/resample.py)
   out      [n_bands x n_pixels]  real     band radiance, W m-2 sr-1 um-1 (pixels contiguous)
   spectra  [n_pixels x n_wl]     real     radiance (or reflectance when atmosphere) per pixel row
   weights  [sum of lengths]      real     normalised SRF weights, band after band

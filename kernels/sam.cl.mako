@@ -4,7 +4,7 @@ spectral angle to the pixel, if that angle is within the threshold.
 The classification and its status: s2_sam_<T.suffix>_<n_bands>_<n_refs> of common/stages.mako (the
 sweep kernel runs the same function); this kernel adds the angle in radians for the output.
 Template variables
-  T        s2cl.vectypes.VecTypes (precision, lanes)
+  T        s2cl.cl.vectypes.VecTypes (precision, lanes)
   n_bands  number of bands (unrolled)
   n_refs   number of reference spectra
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid

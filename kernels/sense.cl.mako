@@ -4,7 +4,7 @@ sense.cl.mako: the radiometric stage of the sensor, per pixel and band:
   -> (atmospheric correction to band reflectance)
 
 Template variables
-  args       list of s2cl.kernel_args.Arg (host binds the same list)
+  args       list of s2cl.cl.kernel_args.Arg (host binds the same list)
   signature  function rendering args
   n_bands    number of bands (unrolled)
   band_ids   global index of each band: its noise is lane (id & 3) of Philox counter group (id >> 2),
@@ -15,7 +15,7 @@ Template variables
              of the shared stage functions (common/stages.mako: quantise, calibrate, correct, the same
              code the sweep kernel runs; common/random.mako: the noise)
 Defines: none.
-Arguments (in order; see s2cl/sense.py)
+Arguments (in order; see s2cl/forward/sense.py)
   (noise)     noisy       [n_bands x n_pixels] real  radiance with noise
   (quantise)  dn          [n_bands x n_pixels] ushort  digital numbers
   (quantise)  flags       [n_bands x n_pixels] uchar   S2_FLAG_LOW / _HIGH / _NODATA (common/s2_status.clh)

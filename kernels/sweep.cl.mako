@@ -1,7 +1,7 @@
 <%doc>
 sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end to end:
   gather noise-free band radiance and sigma of the configuration's variants (tables of
-  s2cl/sweep_tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
+  s2cl/sweep/tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
   -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
   a normalised-difference index such as GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
 Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
@@ -9,7 +9,7 @@ gets the same verdict on both paths (tests/test_one_rule.py). The spectral integ
 ran once per (variant, spectrum) on the host.
 
 Template variables
-  T          s2cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
+  T          s2cl.cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
   n_slots    number of band slots;  counts[k], strides[k]: mixed-radix decoding of the
              configuration number (last slot fastest): v_k = (cfg / strides[k]) % counts[k]
   row0[k]    first row of slot k in radiance/sigma (rows: variants, columns: spectra)
@@ -36,7 +36,7 @@ Arguments (s2cl.sweep.kernel.ARGS)
   config_start uint, n_configs uint
 Global size: (pitch / T.lanes, n_configs).
 IGRM: the bands of a configuration are sorted by centre before the fit (a stable sorting network on
-the scalar centres), as the direct API (s2cl.igrm.IgrmFitter) requires increasing wavelengths.
+the scalar centres), as the direct API (s2cl.retrieve.igrm.IgrmFitter) requires increasing wavelengths.
 No builtin math in the hot path (shared/notes/pocl-performance.md).
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>

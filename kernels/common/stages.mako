@@ -6,7 +6,7 @@ functions written once and spliced by every kernel that runs them: the standalon
 between `s2cl simulate` and a sweep. Status codes and pixel flags: common/s2_status.clh.
 numpy twins (float64): s2cl/reference/stages.py.
 
-Every def takes T (s2cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 gives scalar code)
+Every def takes T (s2cl.cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 gives scalar code)
 and emits functions named with T.suffix, each guarded so that a kernel may splice a def twice.
 No builtin math in the per-pixel path (PoCL does not inline it, shared/notes/pocl-performance.md).
 

@@ -16,7 +16,9 @@ from s2cl.errors import OutputError
 
 def _umask() -> int:
     """The process's file-creation mask: from /proc (Linux) where it can be read without changing
-    it, else by setting and restoring it (a brief window in which other threads see 0o022)."""
+    it, else by setting and restoring it (a brief window in which other threads see 0o022). psutil,
+    which gives free memory portably (:mod:`s2cl.io.budget`), has no umask; Python reads it only by
+    changing it, hence /proc first."""
     try:
         for line in Path("/proc/self/status").read_text().splitlines():
             if line.startswith("Umask:"):

@@ -1,4 +1,4 @@
-"""Oracles and baselines for the IGRM fit (``s2cl/igrm.py``, ``kernels/common/igrm_lm.mako``).
+"""Oracles and baselines for the IGRM fit (``s2cl/retrieve/igrm.py``, ``kernels/common/igrm_lm.mako``).
 
 * :func:`fit_scipy`: the oracle: ``scipy.optimize.least_squares`` (trust-region reflective,
   analytic Jacobian) per pixel, float64, same bounds, loss and initial guess as the kernel.

@@ -48,7 +48,7 @@ def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
 @dataclass
 class PixelResults:
     """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
-    (:class:`s2cl.reference.sweep.RawChunk`): ``index`` (λp nm, the index, or SAM class with
+    (:class:`s2cl.sweep.raw.RawChunk`): ``index`` (λp nm, the index, or SAM class with
     ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
     (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
     the simulated pixels analysed (SAM: those of the chosen classes)."""

@@ -8,6 +8,9 @@ A warning is a :class:`Caveat` (scene key + sentence); commands log it through t
   samples; a step above half its FWHM leaves one or two samples inside the band and its radiance
   is wrong by tens of percent (an error); fewer than :data:`SAMPLES_PER_FWHM` samples per FWHM
   moves band radiance by about a noise level (a warning; the 1 nm default resolves every band).
+- **Tabulated SRFs in a sweep** (``sensor.srf``): a measured or tabulated SRF describes the band at
+  its own centre and width only; every swept variant, and the reference row with it (so that the
+  ranking compares like with like), uses the model SRF (Segl et al. 2012 eq. 1).
 - **Quantisation against noise** (``effects.bits``): when the quantisation step's own noise
   (step / √12) exceeds the sensor noise at Lref, quantisation dominates the signal and retrievals
   degrade or fail (1 bit: every IGRM fit fails).
@@ -36,6 +39,16 @@ class Caveat:
 
     def __str__(self) -> str:
         return f"{self.key}: {self.message}"
+
+
+def srf_caveats(scene: Any, swept: list[str]) -> list[Caveat]:
+    """Warn when swept bands have a tabulated SRF, which a sweep replaces by the model SRF."""
+    tabulated = [b for b in swept if scene.sensor.band(b).tabulated is not None]
+    if not tabulated:
+        return []
+    return [Caveat("sensor.srf", f"the sweep uses the model SRF (Segl et al. 2012 eq. 1) for every variant of "
+                                 f"{', '.join(tabulated)}, and for the reference row: the tabulated SRF describes "
+                                 "only the band's own centre and width")]
 
 
 def grid_caveats(scene: Any, widths: dict[str, float]) -> list[Caveat]:

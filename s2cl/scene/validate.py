@@ -19,7 +19,7 @@ from s2cl.errors import InputError, key_token, token
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
-from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats
+from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats, srf_caveats
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import ANALYSIS_KINDS
 from s2cl.sensor.variants import SweepSpace
@@ -66,7 +66,8 @@ def check_sweep(scene: Scene) -> Checked:
     analysis = _analysis(scene, space.bands, library)
     check_fittable(scene, space, analysis)
     _atmosphere(scene)
-    return Checked(scene, library, space, analysis, list(space.bands), _caveats(scene, space, space.bands))
+    caveats = _caveats(scene, space, space.bands) + srf_caveats(scene, list(space.bands))
+    return Checked(scene, library, space, analysis, list(space.bands), caveats)
 
 
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:

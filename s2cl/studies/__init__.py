@@ -2,8 +2,9 @@
 
 Each study is a scene ``scenes/study-NAME.toml`` with a [study] section (what varies besides the
 bands) and a [sweep] section (the band variants, :mod:`s2cl.sensor.variants`), and a module here with a
-``run(setup) -> StudyResult``. :func:`run_study` loads the scene, runs the study and writes
-``NAME.json`` and ``NAME.png`` atomically.
+``run(setup) -> StudyResult`` that computes only. :func:`run_study` loads the scene, runs the study and writes
+``NAME.json`` and ``NAME.png`` atomically; the figure is drawn from the JSON's ``data`` alone
+(:mod:`s2cl.studies.plots`), so :func:`replot` redraws it from a saved ``NAME.json``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from s2cl.io.output import write_json
 from s2cl.scene.scene import Scene
 from s2cl.studies import aerosol, cirrus, methane, ozone, water_vapour
 from s2cl.studies.common import StudyResult, StudySetup, load_study
+from s2cl.studies.plots import replot
 
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
     "cirrus": cirrus.run,
@@ -25,7 +27,7 @@ STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
     "methane": methane.run,
 }
 
-__all__ = ["STUDIES", "StudyResult", "run_study", "study_scene"]
+__all__ = ["STUDIES", "StudyResult", "replot", "run_study", "study_scene"]
 
 
 def study_scene(name: str) -> Scene:
@@ -38,7 +40,8 @@ def study_scene(name: str) -> Scene:
 
 
 def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> tuple[StudyResult, Path, Path]:
-    """Run study ``name`` and write ``DIR/NAME.json`` and ``DIR/NAME.png``.
+    """Run study ``name`` and write ``DIR/NAME.json`` and ``DIR/NAME.png`` (drawn from the JSON as written,
+    :func:`replot`).
 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
@@ -53,8 +56,8 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     result = STUDIES[setup.study.kind](setup)
     stem = setup.study.kind
     with claim(out):
-        png = result.plot(out / f"{stem}.png")
         payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick,
                    "s2cl_version": __version__}
         js = write_json(out / f"{stem}.json", payload)
+        png = replot(js, out / f"{stem}.png")
     return result, js, png

@@ -17,12 +17,9 @@ blue role to test B1's centre/width tolerance. Error: relative RMS of AOT550 (%)
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere, toa
-from s2cl.io.plots import pyplot, save_png
 from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 # "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
@@ -153,29 +150,8 @@ def run(setup: StudySetup) -> StudyResult:
             "factor_red_swir": c_rs_true.tolist(),
             "factor_blue_red": to_red[I_BLUE].tolist()}
 
-    def plot(path: Path) -> Path:
-        plt = pyplot()
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
-        ax = axes[0]
-        ax.plot(100 * eps_arr, curve, "o-", label="s2cl: correlation-factor error")
-        ax.axhline(cal_rms, color="tab:orange", ls="--", label=f"s2cl: calibration gain {gain:g}")
-        ax.axvline(100 * PAPER_DOMINANT_ABOVE, color="tab:red", ls=":", label="paper: dominates above 10 %")
-        ax.set_xlabel("correlation-factor error (%)")
-        ax.set_ylabel("AOT550 relative RMS (%)")
-        ax.set_title("DDV aerosol retrieval (blue B2, red B4, B12)", fontsize=9)
-        ax.legend(fontsize=7)
-        ax = axes[1]
-        x = np.arange(len(b1_rms))
-        ax.bar(x, b1_rms, 0.6)
-        ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in b1_variants], fontsize=7, rotation=45)
-        ax.set_ylabel("AOT550 relative RMS (%)")
-        ax.set_title("B1 as blue band: centre/width (paper: not critical)", fontsize=9)
-        fig.tight_layout()
-        return save_png(fig, path)
-
     return StudyResult(
         title="Aerosol (DDV): relative RMS and bias of retrieved AOT550 (%)",
         columns=["case", "blue band", "rel. RMS %", "bias %"], rows=rows, key_figures=figures, data=data,
-        plot=plot,
         notes=[f"true AOT550 {', '.join(f'{a:g}' for a in truth)}; {len(names)} DDV spectra × {pixels} noisy "
                "pixels; 6S continental aerosol (the paper does not name its DDV aerosol model)."])

@@ -6,21 +6,20 @@ clear-sky radiance, the better. Key figure: the change of the 30 nm band radianc
 moves from 1375 to 1380 nm (paper, MODTRAN4: −15 % at WV 0.4 cm and −34 % at WV 1 cm).
 Radiances W m⁻² sr⁻¹ µm⁻¹.
 
-The same with 6S's isolated transmittance spikes removed: :mod:`s2cl.studies.cirrus_spikes`; the table,
-key figures and figure: :mod:`s2cl.studies.cirrus_report`.
+The same with 6S's isolated transmittance spikes removed: :mod:`s2cl.studies.cirrus_spikes`; the table
+and key figures: :mod:`s2cl.studies.cirrus_report`; the figure (from the JSON data): :mod:`s2cl.studies.plots`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from s2cl.grid import SpectralGrid
 from s2cl.sensor.srf import BandWeights
-from s2cl.studies.cirrus_report import key_figures, plot_cirrus, removed_text, table_row
+from s2cl.studies.cirrus_report import key_figures, removed_text, table_row
 from s2cl.studies.cirrus_spikes import CASES, SPIKE_DIP, SPIKE_REGION_NM, SPIKE_RULE, Spikes, spike_nodes, spikes_of
 from s2cl.studies.common import StudyResult, StudySetup, apply
 
@@ -76,17 +75,12 @@ def run(setup: StudySetup) -> StudyResult:
     rows = [table_row(wv, case, s.radiance[case], b.srfs, b.change, b.variants, b.bands[case][wv], b.wl)
             for wv, s in b.spikes.items() for case in CASES]
 
-    def plot(path: Path) -> Path:
-        return plot_cirrus(path, b.wl[b.window], {k: s.radiance["as_6s"][b.window] for k, s in b.spikes.items()},
-                           {k: s.radiance["spikes_removed"][b.window] for k, s in b.spikes.items()}, b.variants,
-                           b.bands["as_6s"], b.change)
-
     removed = {wv: s.removed_nm() for wv, s in b.spikes.items()}
     return StudyResult(
         title=f"B10 cirrus: TOA radiance over ρ = {b.rho:g} (W m⁻² sr⁻¹ µm⁻¹); change = 1380/30 vs 1375/30",
         columns=["WV g/cm²", "6S H₂O samples", "L 1375 nm (1 nm)", "L 1375/30", "L 1380/30", "change %",
                  "Gaussian SRF %", "paper %", "darkest centre/width"],
-        rows=rows, key_figures=key_figures(setup.study.water_vapour, b.change), data=_data(setup, b), plot=plot,
+        rows=rows, key_figures=key_figures(setup.study.water_vapour, b.change), data=_data(setup, b),
         notes=["6S gas absorption is on a 2.5 nm grid in 10 cm⁻¹ intervals (aliased near 1375 nm); "
                "the paper used MODTRAN4 with rural aerosol.",
                f"spikes removed: {removed_text(removed)}; rule: {SPIKE_RULE}."])

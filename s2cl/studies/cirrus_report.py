@@ -1,16 +1,13 @@
-"""The B10 cirrus study's table rows, key figures, notes and figure (paper Fig. 4 beside s2cl's), from the
-results :func:`s2cl.studies.cirrus.run` computes. Radiances W m⁻² sr⁻¹ µm⁻¹, changes in %."""
+"""The B10 cirrus study's table rows, key figures and notes, from the results :func:`s2cl.studies.cirrus.run`
+computes (its figure: :func:`s2cl.studies.plots.plot_cirrus`). Radiances W m⁻² sr⁻¹ µm⁻¹, changes in %."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from s2cl.io.plots import pyplot, save_png
-from s2cl.studies.cirrus_spikes import CASES, SINGLE_SPIKE_NM, spike_nodes
+from s2cl.studies.cirrus_spikes import CASES
 from s2cl.studies.common import KeyFigure, apply
 
 PAPER_CHANGE_PCT = {0.4: -15.0, 1.0: -34.0}  # Segl et al. 2012, Sec. 3.3: 1380/30 vs 1375/30
@@ -50,54 +47,3 @@ def removed_text(removed: dict[float, list[float]]) -> str:
     if len(lists) == 1:
         return "6S samples at " + ", ".join(f"{x:g}" for x in next(iter(lists))) + " nm"
     return "; ".join(f"WV {wv:g}: " + ", ".join(f"{x:g}" for x in v) + " nm" for wv, v in removed.items())
-
-
-def plot_cirrus(path: Path, wl: np.ndarray, spectra: dict, despiked: dict, variants: np.ndarray, bands: dict,
-                change: dict) -> Path:
-    """One panel per water column (1 nm spectrum, without spikes, band radiances per width) and a bar chart
-    of the change beside the paper's; written to ``path`` (PNG)."""
-    plt = pyplot()
-    n = len(spectra)
-    fig, axes = plt.subplots(1, n + 1, figsize=(4.2 * (n + 1), 4), dpi=110)
-    for ax, (wv, L) in zip(axes[:n], spectra.items(), strict=True):
-        _spectrum_panel(ax, wl, L, despiked[wv], variants, bands[wv])
-        ax.set_title(f"s2cl (6S): WV {wv:g} g/cm²", fontsize=9)
-    _change_panel(axes[n], list(spectra), change)
-    fig.tight_layout()
-    return save_png(fig, path)
-
-
-def _spectrum_panel(ax: Any, wl: np.ndarray, L: np.ndarray, despiked: np.ndarray, variants: np.ndarray,
-                    bands: np.ndarray) -> None:
-    """One water column: the 1 nm radiance, the same without 6S's spikes, and the band radiance per width."""
-    markers = {10.0: "D", 20.0: "^", 30.0: "s"}
-    nodes = spike_nodes()
-    span = (wl >= nodes[0]) & (wl <= nodes[-1])
-    ax.plot(wl, L, "-", color="0.3", lw=0.8, label="1 nm")
-    ax.plot(wl[span], despiked[span], "--", color="C3", lw=0.8, label="1 nm, 6S spikes removed")
-    for w in sorted(set(variants[:, 1].tolist())):
-        sel = variants[:, 1] == w
-        ax.plot(variants[sel, 0], bands[sel], "-", marker=markers.get(w, "o"), ms=3, lw=0.8, label=f"{w:g} nm")
-    ax.set_xlabel("centre wavelength (nm)")
-    ax.set_ylabel("TOA radiance (W m⁻² sr⁻¹ µm⁻¹)")
-    ax.set_xlim(wl[0], wl[-1])
-    ax.legend(fontsize=7)
-
-
-def _change_panel(ax: Any, wvs: list[float], change: dict) -> None:
-    """The 1380/30 vs 1375/30 change per water column: s2cl's cases beside the paper's (bars)."""
-    x = np.arange(len(wvs))
-    series = [("s2cl (6S), eq. 1 SRF", change["eq1"]["as_6s"]),
-              (f"{SINGLE_SPIKE_NM:g} nm removed", change["eq1"]["single_removed"]),
-              ("spikes removed", change["eq1"]["spikes_removed"]),
-              ("spikes removed, Gaussian SRF", change["gaussian"]["spikes_removed"]),
-              ("paper (MODTRAN4, Fig. 4)", {w: PAPER_CHANGE_PCT.get(w, np.nan) for w in wvs})]
-    width = 0.8 / len(series)
-    for j, (label, values) in enumerate(series):
-        ax.bar(x + (j - (len(series) - 1) / 2) * width, [values[w] for w in wvs], width, label=label)
-    ax.set_xticks(x, [f"{w:g}" for w in wvs])
-    ax.set_xlabel("water vapour (g/cm²)")
-    ax.set_ylabel("1380/30 vs 1375/30 band radiance (%)")
-    ax.axhline(0, color="k", lw=0.6)
-    ax.set_title("paper vs s2cl", fontsize=9)
-    ax.legend(fontsize=6)

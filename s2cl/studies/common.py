@@ -6,9 +6,8 @@ Radiances are W m⁻² sr⁻¹ µm⁻¹, reflectances unitless, wavelengths nm, 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,14 +43,14 @@ class KeyFigure:
 
 @dataclass
 class StudyResult:
-    """What a study produced: a table (rows of cells), key figures, JSON data and a plot function."""
+    """What a study produced: a table (rows of cells), key figures and JSON data. ``data`` is JSON-serialisable
+    and holds all that the study's figure shows (:func:`s2cl.studies.plots.plot_study` draws it)."""
 
     title: str
     columns: list[str]
     rows: list[list[Any]]
     key_figures: list[KeyFigure]
     data: dict[str, Any]
-    plot: Callable[[Path], Path]
     notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
