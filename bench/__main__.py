@@ -6,7 +6,9 @@
     python -m bench --report bench/results/RESULT.json   # re-render Markdown/plots (and docs) from a JSON
     python -m bench --list
 
-Writes ``bench/results/<machine>-<date>[-quick].json`` and ``.md`` with PNG plots beside them
+The parts are the families declared in :mod:`bench.registry` (name, sizes, columns, plot); this
+command and :mod:`bench.report` only iterate over them. Writes
+``bench/results/<machine>-<date>[-quick].json`` and ``.md`` with PNG plots beside them
 (``-pareto.png``, ``-scaling.png``), atomically. Every part validates a slice against its float64
 reference before timing and stops the suite (exit 1) if it disagrees; a part that fails otherwise
 is recorded in the report and the exit code is 1. The docs are regenerated (unless ``--docs`` or
@@ -22,48 +24,74 @@ import datetime as _dt
 import sys
 import time
 import traceback
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from bench.common import RESULTS, BenchValidationError, load_average, machine_info, machine_name, write_json
 
-GROUPS = ("knobs", "scaling", "baselines")
 CONTEXT_KEYS = ("repeat", "spectra", "copies", "block", "loops", "time_pixels")
-
-
-def registry() -> dict[str, tuple[str, str, Callable[..., dict[str, Any]]]]:
-    """name -> (group, key in the group, function)."""
-    from bench.baselines import BASELINES
-    from bench.knobs import KNOBS
-    from bench.scaling import SCALING
-
-    out: dict[str, tuple[str, str, Callable[..., dict[str, Any]]]] = {}
-    out.update({k: ("knobs", k, f) for k, f in KNOBS.items()})
-    out.update({k: ("scaling", k, f) for k, f in SCALING.items()})
-    out.update({f"vs-{k}": ("baselines", k, f) for k, f in BASELINES.items()})
-    return out
-
-
-def select(only: list[str] | None, names: dict[str, tuple[str, str, Any]]) -> list[str]:
-    if not only:
-        return list(names)
-    wanted: list[str] = []
-    for item in (x.strip() for part in only for x in part.split(",")):
-        if item in GROUPS:
-            wanted += [n for n, (g, _, _) in names.items() if g == item]
-        elif item in names:
-            wanted.append(item)
-        else:
-            raise SystemExit(f"bench: unknown part {item!r}; choose from {', '.join((*GROUPS, *names))}")
-    return list(dict.fromkeys(wanted))
 
 
 def _docs_default(results: dict[str, Any]) -> bool:
     """Whether a run's results regenerate docs/bench.md by default: a full, complete run (every
     part, full sizes, none failed)."""
-    return (not results.get("quick") and results.get("parts") == list(registry())
-            and not any("error" in part for group in GROUPS for part in results.get(group, {}).values()))
+    from bench.registry import FAMILIES, GROUPS
+
+    return (not results.get("quick") and results.get("parts") == [f.name for f in FAMILIES]
+            and not any("error" in part for g in GROUPS for part in results.get(g.key, {}).values()))
+
+
+def _list() -> None:
+    """Every part: name, group, title, the sizes of the full and the quick run, its columns."""
+    from bench.registry import FAMILIES
+
+    for f in FAMILIES:
+        sizes = "".join(f"; {k}: {f.full[k]} (quick {f.quick.get(k)})" for k in f.full)
+        print(f"{f.name:12s} {f.group.key:10s} {f.title}{sizes}")
+        print(f"{'':23s} columns: {', '.join(c.key for c in f.columns)}")
+
+
+def _run_part(f: Any, ctx: Any, results: dict[str, Any]) -> bool:
+    """Run one family into ``results``; a validation failure stops the suite (exit 1). Returns
+    whether it failed otherwise (recorded in the results)."""
+    t0 = time.perf_counter()
+    print(f"[bench] {f.name} ...", flush=True)
+    failed = False
+    try:
+        results[f.group.key][f.key] = f.run(ctx, **results["sizes"][f.name])
+    except BenchValidationError as err:
+        print(f"[bench] {f.name}: VALIDATION FAILED: {err}", file=sys.stderr)
+        raise SystemExit(1) from err
+    except Exception as err:
+        failed = True
+        traceback.print_exc()
+        results[f.group.key][f.key] = {"error": f"{type(err).__name__}: {err}"}
+    results["seconds"][f.name] = time.perf_counter() - t0
+    print(f"[bench] {f.name}: {results['seconds'][f.name]:.1f} s", flush=True)
+    return failed
+
+
+def _validations(ctx: Any, results: dict[str, Any]) -> dict[str, Any]:
+    """Every check run before timing: the chain's, and each part's ``validation*`` keys."""
+    from bench.registry import GROUPS
+
+    out = {f"chain: {k}": v for k, v in ctx.cache.get("validation", {}).items()}
+    for g in GROUPS:
+        for key, part in results[g.key].items():
+            out.update({f"{key}: {k}": v for k, v in part.items() if k.startswith("validation")})
+    return out
+
+
+def _report(path: Path, docs: bool | None) -> int:
+    """Re-render the Markdown, plots (and docs) of an earlier run's JSON."""
+    import json
+
+    from bench.report import write_reports
+
+    results = json.loads(path.read_text(encoding="utf-8"))
+    for p in write_reports(results, path.parent, path.stem, docs=docs if docs is not None else _docs_default(results)):
+        print(f"[bench] wrote {p}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,62 +108,33 @@ def main(argv: list[str] | None = None) -> int:
                         help="only rewrite the Markdown, plots (and docs) from an earlier run's JSON")
     args = parser.parse_args(argv)
     if args.report:
-        import json
-
-        from bench.report import write_reports
-
-        results = json.loads(args.report.read_text(encoding="utf-8"))
-        docs = args.docs if args.docs is not None else _docs_default(results)
-        for p in write_reports(results, args.report.parent, args.report.stem, docs=docs):
-            print(f"[bench] wrote {p}")
-        return 0
-
-    names = registry()
+        return _report(args.report, args.docs)
     if args.list:
-        for n, (g, _, f) in names.items():
-            doc = " ".join((f.__doc__ or "").split())
-            print(f"{n:12s} {g:10s} {doc[:100]}")
+        _list()
         return 0
-    parts = select(args.only, names)
-
     from bench.chain import Context
-    from s2cl.runtime import get_runtime
+    from bench.registry import GROUPS, select
+    from s2cl.cl.runtime import get_runtime
 
+    parts = select(args.only)
     ctx = Context.make(args.quick)
     t_start = time.perf_counter()
     machine = machine_info(get_runtime())
-    results: dict[str, Any] = {"benchmark": "s2cl suite", "quick": args.quick, "parts": parts, "machine": machine,
-                               "load_average": {"before": machine["load_average"]},
+    results: dict[str, Any] = {"benchmark": "s2cl suite", "quick": args.quick, "parts": [f.name for f in parts],
+                               "machine": machine, "load_average": {"before": machine["load_average"]},
                                "context": {k: getattr(ctx, k) for k in CONTEXT_KEYS},
-                               "knobs": {}, "scaling": {}, "baselines": {}, "seconds": {}}
-    failed = False
-    for name in parts:
-        group, key, fn = names[name]
-        t0 = time.perf_counter()
-        print(f"[bench] {name} ...", flush=True)
-        try:
-            results[group][key] = fn(ctx)
-        except BenchValidationError as err:
-            print(f"[bench] {name}: VALIDATION FAILED: {err}", file=sys.stderr)
-            raise SystemExit(1) from err
-        except Exception as err:
-            failed = True
-            traceback.print_exc()
-            results[group][key] = {"name": name, "error": f"{type(err).__name__}: {err}"}
-        results["seconds"][name] = time.perf_counter() - t0
-        print(f"[bench] {name}: {results['seconds'][name]:.1f} s", flush=True)
+                               "sizes": {f.name: f.sizes(args.quick) for f in parts},
+                               **{g.key: {} for g in GROUPS}, "seconds": {}}
+    failed = [f.name for f in parts if _run_part(f, ctx, results)]
     results["seconds_total"] = time.perf_counter() - t_start
     results["load_average"]["after"] = load_average()
-    results["validation"] = {f"chain: {k}": v for k, v in ctx.cache.get("validation", {}).items()}
-    for group in GROUPS:
-        for key, part in results[group].items():
-            results["validation"].update({f"{key}: {k}": v for k, v in part.items() if k.startswith("validation")})
+    results["validation"] = _validations(ctx, results)
 
     from bench.report import write_reports
 
     stem = f"{machine_name()}-{_dt.date.today().isoformat()}" + ("-quick" if args.quick else "")
     if args.only:
-        stem += "-" + "-".join(parts)[:60]
+        stem += "-" + "-".join(results["parts"])[:60]
     written = [write_json(args.out / f"{stem}.json", results)]
     docs = args.docs if args.docs is not None else _docs_default(results)
     written += write_reports(results, args.out, stem, docs=docs)

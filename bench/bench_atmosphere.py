@@ -32,12 +32,13 @@ def main() -> None:
     parser.add_argument("--check", type=int, default=500, help="pixels validated against the float64 oracle")
     args = parser.parse_args()
 
-    from s2cl.atmosphere import AtmosphereLUT, AtmosphereState
+    from s2cl.atmos.atmosphere import AtmosphereLUT
+    from s2cl.atmos.state import AtmosphereState
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference.forward import resample as ref_resample
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.runtime import get_runtime
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     rt = get_runtime()
     sensor = Sensor.sentinel2()

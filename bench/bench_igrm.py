@@ -9,11 +9,13 @@ B4-B7 (4 bands) or B4-B8a (6 bands):
 Reference: converged float64 fits (the kernel's float64 build with tol 1e-10, 255 iterations),
 itself checked against scipy on a sample before timing.
 
-Contenders: s2cl OpenCL float32 (fast: explicit lanes + own exp; plain: one pixel per work-item
-+ builtin exp), the same LM vectorised in numpy (float32, 64k-pixel chunks, one thread), and
+Contenders: s2cl OpenCL float32 (fast: explicit lanes + own exp, with transfers and the kernel
+alone; plain: one pixel per work-item + builtin exp), the same LM vectorised in numpy (float32,
+64k-pixel chunks, one thread; on ``--n-numpy`` pixels, extrapolated), and
 scipy.optimize.least_squares per pixel (timed on a sample, extrapolated). A fit is "at the float64
 optimum" when its status class matches and l0, s, lp agree within 0.05 nm and rmax, rmin within
-5e-4 reflectance. Writes bench/results/igrm.json.
+5e-4 reflectance. :func:`igrm_baseline` is the measurement; the suite (``python -m bench``, part
+``vs-igrm``, B4 B5 B6 B8) runs the same function. Writes bench/results/igrm.json.
 
     python -m bench.bench_igrm            # 10^6 pixels (a few minutes on 2 cores)
     python -m bench.bench_igrm --n 100000 # quicker
@@ -22,17 +24,20 @@ optimum" when its status class matches and l0, s, lp agree within 0.05 nm and rm
 from __future__ import annotations
 
 import argparse
-import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from bench.common import check, machine_info, median_time, write_json
-from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
+from bench.chain import REFERENCE_FIT, Context, reference_vs_scipy
+from bench.common import comparison_rows, machine_info, median_time, print_comparison, write_json
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, prosail_population, synthetic
+from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
 
-REFERENCE_SETTINGS = IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12)
 TOL_NM, TOL_RHO = 0.05, 5e-4
+POPULATIONS = {"prosail": "noisy PROSAIL canopies", "synthetic": "noisy synthetic IGRM curves"}
 
 
 def at_optimum(r: IgrmResult, ref: IgrmResult) -> np.ndarray:
@@ -44,11 +49,11 @@ def at_optimum(r: IgrmResult, ref: IgrmResult) -> np.ndarray:
     return same_class & np.where(ref.fitted(), close, r.status == ref.status)
 
 
-def differences(r: IgrmResult, ref: IgrmResult) -> dict:
+def differences(r: IgrmResult, ref: IgrmResult) -> dict[str, Any]:
     """Distribution of |float32 - float64| over the pixels both fitted."""
     both = r.fitted() & ref.fitted()
     q = [0.5, 0.9, 0.99, 0.999, 1.0]
-    out = {}
+    out: dict[str, Any] = {}
     for key in ("lp", "l0", "s", "rmin", "rmax"):
         d = np.abs(getattr(r, key)[both].astype(np.float64) - getattr(ref, key)[both])
         out[key] = dict(zip(["p50", "p90", "p99", "p99.9", "max"], np.quantile(d, q).tolist(), strict=True))
@@ -56,93 +61,84 @@ def differences(r: IgrmResult, ref: IgrmResult) -> dict:
     return out
 
 
-def kernel_only_rate(fitter: IgrmFitter, y: np.ndarray, wl: np.ndarray) -> float:
-    """Fits/s of the kernel alone (inputs on the device, outputs left there)."""
-    rt, T = fitter.rt, fitter.types
-    n = y.shape[1] // T.lanes * T.lanes
-    bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
-            rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
+def kernel_launcher(fitter: IgrmFitter, y: np.ndarray, wl: np.ndarray) -> tuple[Callable[[], None], int]:
+    """The IGRM kernel alone on the first multiple of 16 pixels of ``y`` (inputs on the device,
+    outputs left there), through the launch :meth:`IgrmFitter.fit` makes; and the number of pixels."""
+    n = y.shape[1] // 16 * 16
+    v = fitter.buffers(y[:, :n], wl)
 
     def launch() -> None:
-        fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
-        rt.finish()
+        fitter.enqueue(v)
+        fitter.rt.finish()
 
-    launch()
-    return n / median_time(launch, 3)
-
-
-def entry(name: str, seconds: float, n: int, r: IgrmResult, ref: IgrmResult, **extra) -> dict:
-    ok = at_optimum(r, ref)
-    return {"name": name, "fits_per_s": n / seconds, "seconds": seconds, "n": n,
-            "frac_at_f64_optimum": float(ok.mean()), "mean_iterations": float(r.iterations.mean()),
-            "status_counts": r.counts(), **extra}
+    return launch, n
 
 
-def run(names: tuple[str, ...], n: int, n_scipy: int, population: str) -> dict:
-    wl = band_centres(names)
-    if population == "prosail":
-        y64, _ = prosail_population(n, names, noise=0.003, seed=1)
+def population(kind: str, n: int, bands: tuple[str, ...]) -> np.ndarray:
+    """``n`` pixels (bands, n) float32 of the population ``kind`` (see the module)."""
+    if kind == "prosail":
+        y64, _ = prosail_population(n, bands, noise=0.003, seed=1)
     else:
-        y64, _ = synthetic(n, wl, noise=0.003, seed=1)
-    y = y64.astype(np.float32)
-    print(f"--- {population}: {len(names)} bands {names}, {n} pixels")
-    ref = IgrmFitter(len(names), REFERENCE_SETTINGS, real_t="float64").fit(y.astype(np.float64), wl)
-    # validate the reference on a sample against scipy before timing anything
-    sample = np.linspace(0, n - 1, n_scipy).astype(int)
-    t = time.perf_counter()
-    sp = fit_scipy(y[:, sample].astype(np.float64), wl, REFERENCE_SETTINGS)
-    t_scipy = time.perf_counter() - t
-    both = sp.fitted() & ref.fitted()[sample]
-    ref_vs_scipy = float(np.max(np.abs(sp.lp[both] - ref.lp[sample][both])))
-    print(f"reference vs scipy on {n_scipy} pixels: max |d lp| = {ref_vs_scipy:.2e} nm")
-    check(ref_vs_scipy < 1e-2, f"float64 reference disagrees with scipy: max |d lp| {ref_vs_scipy:.2e} nm")
+        y64, _ = synthetic(n, band_centres(bands), noise=0.003, seed=1)
+    return np.ascontiguousarray(y64, dtype=np.float32)
 
-    out = {"population": population, "bands": list(names), "wavelengths_nm": wl.tolist(), "n_pixels": n,
-           "reference_vs_scipy_max_dlp_nm": ref_vs_scipy, "contenders": []}
-    fast = IgrmFitter(len(names))
-    r_fast = fast.fit(y, wl)
-    t_fast = median_time(lambda: fast.fit(y, wl), 3)
-    out["contenders"].append(entry("s2cl OpenCL float32 fast (lanes, own exp)", t_fast, n, r_fast, ref,
-                                   kernel_only_fits_per_s=kernel_only_rate(fast, y, wl)))
-    plain = IgrmFitter(len(names), lanes=1, exp="builtin")
-    r_plain = plain.fit(y, wl)
-    out["contenders"].append(entry("s2cl OpenCL float32 plain (1 lane, builtin exp)",
-                                   median_time(lambda: plain.fit(y, wl), 1), n, r_plain, ref))
-    r_np = fit_numpy_lm(y, wl)
-    out["contenders"].append(entry("numpy vectorised LM float32 (64k chunks, 1 thread)",
-                                   median_time(lambda: fit_numpy_lm(y, wl), 1), n, r_np, ref))
-    sub_ref = ref.take(sample)
-    sp_default = fit_scipy(y[:, sample].astype(np.float64), wl, IgrmSettings())
-    t_sp = median_time(lambda: fit_scipy(y[:, sample].astype(np.float64), wl, IgrmSettings()), 1)
-    scipy_entry = entry(f"scipy least_squares trf per pixel (sample of {n_scipy}, extrapolated)",
-                        t_sp, n_scipy, sp_default, sub_ref, tight_tolerance_seconds=t_scipy)
-    scipy_entry["mean_iterations"] = float(sp_default.iterations.mean())  # function evaluations
-    out["contenders"].append(scipy_entry)
-    base = out["contenders"][2]["fits_per_s"]
-    for c in out["contenders"]:
-        c["ratio_vs_numpy_lm"] = c["fits_per_s"] / base
-    out["float32_vs_float64"] = differences(r_fast, ref)
-    for c in out["contenders"]:
-        print(f"{c['name']:<68} {c['fits_per_s']:>12.4g} fits/s  x{c['ratio_vs_numpy_lm']:<7.3g} "
-              f"at f64 optimum {c['frac_at_f64_optimum']:.4%}  iters {c['mean_iterations']:.2f}")
-    print(f"kernel only: {out['contenders'][0]['kernel_only_fits_per_s']:.4g} fits/s")
-    print("float32 - float64 |d lp| quantiles (nm):", out["float32_vs_float64"]["lp"])
-    return out
+
+def _timed(fit: Callable[[np.ndarray], IgrmResult], y: np.ndarray, ref: IgrmResult, repeat: int
+           ) -> tuple[float, dict[str, Any], IgrmResult]:
+    """Fits/s of ``fit`` on ``y`` (after one untimed call), its accuracy against ``ref`` and its result."""
+    r = fit(y)
+    accuracy = {"frac_at_float64_optimum": float(at_optimum(r, ref).mean()),
+                "mean_iterations": float(r.iterations.mean()), "status_counts": r.counts()}
+    return y.shape[1] / median_time(lambda: fit(y), repeat), accuracy, r
+
+
+def igrm_baseline(ctx: Context, n: int, n_scipy: int, n_numpy: int, bands: tuple[str, ...] | None = None,
+                  kind: str = "prosail") -> dict[str, Any]:
+    """IGRM fits of ``n`` pixels of population ``kind`` on ``bands`` (default: the suite's B4 B5
+    B6 B8): s2cl fast (with transfers; the kernel alone), s2cl plain, numpy LM on ``n_numpy``
+    pixels and scipy on ``n_scipy``, each scored against the float64 optimum."""
+    bands = bands or ("B4", "B5", "B6", "B8")
+    wl, y = band_centres(bands), population(kind, n, bands)
+    ref = IgrmFitter(get_runtime(), len(bands), REFERENCE_FIT, real_t="float64").fit(y.astype(np.float64), wl)
+    sample = np.linspace(0, n - 1, n_scipy).astype(int)
+    dlp = reference_vs_scipy(ref.take(sample), y[:, sample], wl)
+    fast, plain = IgrmFitter(get_runtime(), len(bands)), IgrmFitter(get_runtime(), len(bands), lanes=1, exp="builtin")
+    launch, n_kernel = kernel_launcher(fast, y, wl)
+    s2cl_, scipy_ = "s2cl OpenCL float32 (lanes, own exp)", "scipy least_squares trf per pixel (sampled, extrapolated)"
+    measured = {s2cl_: _timed(lambda v: fast.fit(v, wl), y, ref, ctx.repeat),
+                "s2cl OpenCL float32 kernel alone (data on the device)":
+                    (n_kernel / median_time(launch, ctx.repeat, warmup=1), {}, None),
+                "s2cl OpenCL float32 plain (1 lane, builtin exp)": _timed(lambda v: plain.fit(v, wl), y, ref, 1),
+                "numpy vectorised LM float32 (same algorithm, 1 thread)":
+                    _timed(lambda v: fit_numpy_lm(v, wl), y[:, :n_numpy], ref.take(slice(0, n_numpy)), 1),
+                scipy_: _timed(lambda v: fit_scipy(v.astype(np.float64), wl, IgrmSettings()), y[:, sample],
+                               ref.take(sample), 1)}
+    rows = comparison_rows({k: v[0] for k, v in measured.items()}, scipy_, {k: v[1] for k, v in measured.items()})
+    return {"title": f"IGRM fits, {POPULATIONS[kind]}, {len(bands)} bands ({' '.join(bands)})", "unit": "fits/s",
+            "n": n, "bands": list(bands), "population": kind, "samples": {"numpy": n_numpy, "scipy": n_scipy},
+            "validation_reference_vs_scipy_nm": dlp, "float32_vs_float64": differences(measured[s2cl_][2], ref),
+            "rows": rows}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1_000_000)
     ap.add_argument("--n-scipy", type=int, default=1000)
-    ap.add_argument("--populations", nargs="+", default=["prosail", "synthetic"], choices=["prosail", "synthetic"])
+    ap.add_argument("--n-numpy", type=int, help="pixels the numpy LM fits (default: all)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--populations", nargs="+", default=list(POPULATIONS), choices=list(POPULATIONS))
     args = ap.parse_args()
-    fast = IgrmFitter(4)
+    ctx = Context.make(quick=False, repeat=args.repeat)
+    fast = IgrmFitter(get_runtime(), 4)
     result = {"benchmark": "igrm", "machine": machine_info(fast.rt), "settings": IgrmSettings().__dict__,
               "accuracy_tolerance": {"nm": TOL_NM, "reflectance": TOL_RHO},
               "igrm_lanes_float32": fast.types.lanes, "cases": []}
-    for population in args.populations:
+    for kind in args.populations:
         for names in (BANDS_4, BANDS_6):
-            result["cases"].append(run(names, args.n, args.n_scipy, population))
+            case = igrm_baseline(ctx, args.n, args.n_scipy, args.n_numpy or args.n, names, kind)
+            print_comparison(case)
+            print("float32 - float64 |d lp| quantiles (nm):", case["float32_vs_float64"]["lp"])
+            result["cases"].append(case)
     print("wrote", write_json("igrm.json", result))
 
 

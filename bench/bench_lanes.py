@@ -1,10 +1,11 @@
 """Pixels per work-item: each vectorised kernel at 4, 8 and 16 lanes on this machine's device.
 
 The runtime's default is the device's native vector width (PoCL: 16 floats with AVX-512, 8 with
-AVX2; :func:`s2cl.runtime.choose_lanes`). This script measures whether that is the right choice
+AVX2; :func:`s2cl.cl.devices.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
 resampler's vector-load width. Every width is first checked bit-identical to one pixel per
-work-item (the resampler: against its float64 oracle), then all widths are timed in interleaved
+work-item (the resampler: against its float64 oracle; the one-lane sweep kernel itself by
+:func:`bench.sweep_check.validate_sweep`), then all widths are timed in interleaved
 rounds (medians). Widths above the native one are capped by the runtime and not timed.
 Writes bench/results/lanes-<machine>-<date>.json.
 
@@ -20,88 +21,78 @@ from typing import Any
 import numpy as np
 
 from bench.common import check, interleaved_medians, load_average, load_note, machine_info, write_result
-from s2cl.runtime import Runtime, get_runtime
+from s2cl.cl.runtime import Runtime, get_runtime
 
 WIDTHS = (4, 8, 16)
 
 
-Family = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, items per run, unit, default
+Runs = tuple[dict[int, Callable[[], Any]], int, str, int]  # runs by width, items per run, unit, default
 
 
-def _igrm(rt: Runtime, n: int) -> Family:
-    from s2cl.igrm import IgrmFitter
+def _igrm(rt: Runtime, n: int) -> Runs:
+    from bench.bench_igrm import kernel_launcher
     from s2cl.reference.igrm_cases import BANDS_4, band_centres, prosail_population
+    from s2cl.retrieve.igrm import IgrmFitter
 
     wl = band_centres(BANDS_4)
     y = prosail_population(n, BANDS_4, noise=0.003, seed=1)[0].astype(np.float32)
-    one = IgrmFitter(4, lanes=1, rt=rt).fit(y[:, :4096], wl)
+    one = IgrmFitter(rt, 4, lanes=1).fit(y[:, :4096], wl)
     runs = {}
     for w in WIDTHS:
-        f = IgrmFitter(4, lanes=w, rt=rt)
+        f = IgrmFitter(rt, 4, lanes=w)
         r = f.fit(y[:, :4096], wl)
         check(bool(np.array_equal(r.lp, one.lp) and np.array_equal(r.status, one.status)),
               f"IGRM at {w} lanes differs from one lane")
-        runs[w] = _kernel_launcher(f, y, wl)
-    return runs, n, "fits", IgrmFitter(4, rt=rt).types.lanes
+        runs[w] = kernel_launcher(f, y, wl)[0]
+    return runs, y.shape[1] // 16 * 16, "fits", IgrmFitter(rt, 4).types.lanes
 
 
-def _kernel_launcher(fitter: Any, y: np.ndarray, wl: np.ndarray) -> Callable[[], None]:
-    """The IGRM kernel alone, inputs already on the device."""
-    rt, T = fitter.rt, fitter.types
-    n = y.shape[1] // 16 * 16
-    bufs = [rt.empty(6 * n * T.dtype.itemsize), rt.empty(n), rt.empty(n * fitter.iter_dtype.itemsize), rt.empty(n),
-            rt.to_device(np.ascontiguousarray(y[:, :n], dtype=T.dtype)), rt.to_device(wl.astype(T.dtype))]
-
-    def launch() -> None:
-        fitter.kernel(rt.queue, (n // T.lanes,), None, *bufs, np.int32(n))
-        rt.finish()
-
-    return launch
-
-
-def _sweep(rt: Runtime) -> Family:
-    from s2cl.optimise import plan_sweep
-    from s2cl.scene import Scene
-    from s2cl.sweep_kernel import SweepKernel
+def _sweep(rt: Runtime) -> Runs:
+    from bench.sweep_check import validate_sweep
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.kernel import SweepKernel
+    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(Scene.load("default"))
     lo, hi = job.n_configs // 3, job.n_configs // 3 + 48
-    one = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=1)(lo, lo + 4)
+    one_lane = SweepKernel(job.tables, job.analysis, rt, lanes=1)
+    validate_sweep(job, one_lane)  # against the float64 evaluator; every width then against one lane
+    one = one_lane(lo, lo + 4)
     runs = {}
     for w in WIDTHS:
-        k = SweepKernel(job.tables, job.analysis, runtime=rt, lanes=w)
+        k = SweepKernel(job.tables, job.analysis, rt, lanes=w)
         got = k(lo, lo + 4)
         check(bool(np.array_equal(got.index, one.index) and np.array_equal(got.status, one.status)),
               f"sweep kernel at {w} lanes differs from one lane")
         runs[w] = (lambda k=k: k(lo, hi))
-    default = SweepKernel(job.tables, job.analysis, runtime=rt).T.lanes
+    default = SweepKernel(job.tables, job.analysis, rt).T.lanes
     return runs, (hi - lo) * job.tables.n_pixels, "configuration-pixels", default
 
 
-def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Family]:
-    from s2cl.gvmi import GvmiKernel
-    from s2cl.sam import SamClassifier
+def _gvmi_sam(rt: Runtime, n: int) -> dict[str, Runs]:
+    from s2cl.retrieve.index_kernel import IndexKernel
+    from s2cl.retrieve.sam import SamClassifier
 
     rng = np.random.default_rng(3)
     refl = rng.uniform(0.02, 0.6, (6, n)).astype(np.float32)
     refs = rng.uniform(0.05, 0.6, (12, 6))
-    g1, s1 = GvmiKernel(lanes=1, rt=rt)(refl, 1, 2), SamClassifier(refs, lanes=1, rt=rt).classify(refl)
+    g1, s1 = IndexKernel(rt, "gvmi", lanes=1)(refl, 1, 2), SamClassifier(rt, refs, lanes=1).classify(refl)
     gvmi, sam = {}, {}
     for w in WIDTHS:
-        g, s = GvmiKernel(lanes=w, rt=rt), SamClassifier(refs, lanes=w, rt=rt)
-        check(bool(np.array_equal(g(refl, 1, 2).gvmi, g1.gvmi)), f"GVMI at {w} lanes differs from one lane")
+        g, s = IndexKernel(rt, "gvmi", lanes=w), SamClassifier(rt, refs, lanes=w)
+        check(bool(np.array_equal(g(refl, 1, 2).index, g1.index)), f"GVMI at {w} lanes differs from one lane")
         check(bool(np.array_equal(s.classify(refl).reference, s1.reference)), f"SAM at {w} lanes differs")
         gvmi[w] = (lambda g=g: g(refl, 1, 2))
         sam[w] = (lambda s=s: s.classify(refl))
-    return {"gvmi": (gvmi, n, "pixels", GvmiKernel(rt=rt).types.lanes),
-            "sam": (sam, n, "pixels", SamClassifier(refs, rt=rt).types.lanes)}
+    return {"gvmi": (gvmi, n, "pixels", IndexKernel(rt, "gvmi").types.lanes),
+            "sam": (sam, n, "pixels", SamClassifier(rt, refs).types.lanes)}
 
 
-def _resample(rt: Runtime, n: int) -> Family:
+def _resample(rt: Runtime, n: int) -> Runs:
+    from s2cl.forward.resample import ResamplePlan, Resampler
     from s2cl.grid import DEFAULT_GRID
     from s2cl.reference import forward as ref
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.sensor import Sensor
+    from s2cl.sensor.sensor import Sensor
 
     bands = Sensor.sentinel2().bands
     plan = ResamplePlan(tuple(b.name for b in bands), tuple(b.weights(DEFAULT_GRID) for b in bands), DEFAULT_GRID.size)

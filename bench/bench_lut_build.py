@@ -26,10 +26,12 @@ import time
 from pathlib import Path
 
 from bench.common import RESULTS, check, write_json
-from s2cl.atmosphere import PAPER_AOT550, AtmosphereLUT, AtmosphereState
-from s2cl.lut_build import LUTAxes, build_lut
-from s2cl.lut_validate import sixs_input_for, validate
-from s2cl.sixs import SixSInput, describe, run_many
+from s2cl.atmos.atmosphere import AtmosphereLUT
+from s2cl.atmos.lut_axes import LUTAxes
+from s2cl.atmos.lut_build import build_lut
+from s2cl.atmos.lut_validate import sixs_input_for, validate
+from s2cl.atmos.sixs import SixSInput, describe, run_many
+from s2cl.atmos.state import PAPER_AOT550, AtmosphereState
 
 RESULT = RESULTS / "lut_build.json"
 BRUTE_OZONE_NODES = 5

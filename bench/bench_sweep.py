@@ -1,11 +1,12 @@
 """Sweep throughput: configuration-pixel evaluations per second (noise → quantise → calibrate →
 correct → IGRM fit, and the per-configuration metrics) of the fused OpenCL kernel against the same
-sweep written as vectorised float64 numpy (s2cl.reference.sweep, ``backend="numpy"``), in the same
+sweep written as vectorised float64 numpy (s2cl.reference.sweep, the twin the tests use), in the same
 process on the same tables; Dask local workers 1 vs 2 on a smaller sweep; the whole of Table 3 end
 to end with peak memory.
 
-The numpy evaluator is validated against the kernel on a slice of configurations first, then timed
-on a sample of configurations and extrapolated to the whole sweep. Timings are medians; the machine
+The kernel is validated against the numpy evaluator first (:func:`bench.sweep_check.validate_sweep`,
+the one check every sweep benchmark runs); the numpy evaluator is then timed on a sample of
+configurations and extrapolated to the whole sweep. Timings are medians; the machine
 may be shared (see ``machine`` and ``load_average_*`` in the output). Nothing here asserts a timing.
 A validation failure raises :class:`bench.common.BenchValidationError` before anything is timed.
 
@@ -36,60 +37,22 @@ from pathlib import Path
 from typing import Any
 from unittest import mock
 
-import numpy as np
-
-from bench.common import (
-    RESULTS,
-    ROOT,
-    check,
-    load_average,
-    load_note,
-    machine_info,
-    max_rel_error,
-    median_and_times,
-    write_json,
-)
-from s2cl.metrics import regression_metrics
-from s2cl.optimise import plan_sweep
+from bench.common import RESULTS, ROOT, load_average, load_note, machine_info, median_and_times, write_json
+from bench.sweep_check import spread, validate_sweep
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference.sweep import evaluate
-from s2cl.scene import Scene
-from s2cl.sweep import SweepJob, evaluate_chunk, run_sweep
-from s2cl.sweep_kernel import SweepKernel
+from s2cl.retrieve.metrics import regression_metrics
+from s2cl.scene.scene import Scene
+from s2cl.sweep.engine import SweepJob, evaluate_chunk, run_sweep
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.plan import plan_sweep
 
 OUTPUT = RESULTS / "sweep.json"
 MAIN_SCENE = "table3-lib1-b4567"  # 43,056 configurations × 12,000 pixels
 DASK_SCENE = "table3-lib1-b4568"  # 3,312 configurations
 TABLE3 = tuple(f"table3-{lib}-b{bands}" for lib in ("lib1", "lib2") for bands in ("4567", "4568", "4568a"))
-VALIDATE_CONFIGS = 6
 NUMPY_SAMPLE = 24
 KERNEL_BLOCK = 666
-
-
-def spread(n_configs: int, k: int) -> list[int]:
-    """``k`` configuration numbers spread over the sweep (the ends included)."""
-    return sorted({int(x) for x in np.rint(np.linspace(0, n_configs - 1, k))})
-
-
-def validate(job: SweepJob, kernel: SweepKernel) -> dict[str, Any]:
-    """The numpy evaluator against the kernel on a few configurations: statuses, λp, metrics."""
-    t, a = job.tables, job.analysis
-    same, dlp, rms_ref, rms_got = [], [], [], []
-    for c in spread(t.n_configs, VALIDATE_CONFIGS):
-        ref = evaluate(t, a, c, c + 1)
-        got = kernel(c, c + 1)
-        s = got.status == ref.status
-        same.append(s.mean())
-        ok = s & (ref.status == 0)
-        dlp.append(np.abs(got.index - ref.index)[ok])
-        rms_ref.append(regression_metrics(ref.index, ref.status, ref.bounds, t.target)["rms"][0])
-        rms_got.append(regression_metrics(got.index, got.status, got.bounds, t.target)["rms"][0])
-    d = np.concatenate(dlp)
-    out = {"configurations": spread(t.n_configs, VALIDATE_CONFIGS), "same_status_fraction": float(np.mean(same)),
-           "lp_abs_diff_nm": {"p50": float(np.median(d)), "p99": float(np.percentile(d, 99)), "max": float(d.max())},
-           "rms_rel_diff_max": max_rel_error(rms_got, rms_ref),
-           "what": "float32 kernel against the float64 numpy evaluator, same noise draws"}
-    check(out["same_status_fraction"] >= 0.99 and out["rms_rel_diff_max"] <= 0.01, f"validation failed: {out}")
-    return out
 
 
 def _kernel_block(job: SweepJob) -> tuple[int, int]:
@@ -143,9 +106,8 @@ def time_dask(scene: str) -> dict[str, Any]:
 
     job = plan_sweep(Scene.load(scene))
     out: dict[str, Any] = {"scene": scene, "configurations": job.n_configs, "pixels": job.tables.n_pixels,
-                           "chunk": job.chunk, "chunks": len(job.chunks())}
+                           "chunk": job.chunk, "chunks": len(job.chunks()), "validation": validate_sweep(job)}
     with tempfile.TemporaryDirectory() as tmp:
-        evaluate_chunk(job, 0, 1)  # this process's kernel built once, as the workers' warm runs
         t0 = time.perf_counter()
         run_sweep(job, Path(tmp) / "in_process")
         out["in_process_s"] = time.perf_counter() - t0
@@ -196,6 +158,7 @@ def table3_run() -> dict[str, Any]:
     runs = {}
     with tempfile.TemporaryDirectory() as tmp:
         for scene in TABLE3:
+            checked = validate_sweep(plan_sweep(Scene.load(scene)))  # the kernel those runs build, checked here
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "s2cl", "optimise", scene, "-q", "-o", str(Path(tmp) / scene)],
@@ -204,7 +167,8 @@ def table3_run() -> dict[str, Any]:
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
             # ru_maxrss of children is the largest child so far: exact for the first, an upper bound later
-            runs[scene] = {"wall_s": wall, "peak_rss_mb": after.ru_maxrss / 1024, "cpu_percent": 100 * cpu / wall}
+            runs[scene] = {"wall_s": wall, "peak_rss_mb": after.ru_maxrss / 1024, "cpu_percent": 100 * cpu / wall,
+                           "validation_rms_rel_diff_max": checked["rms_rel_diff_max"]}
     return _table3_summary(runs, "run by this script (s2cl optimise in subprocesses)")
 
 
@@ -216,7 +180,7 @@ def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, An
 
 
 def plan_config_count(scene: str) -> int:
-    from s2cl.sweep_tables import sweep_space
+    from s2cl.sweep.tables import sweep_space
 
     return int(sweep_space(Scene.load(scene)).size)
 
@@ -233,20 +197,20 @@ def main() -> None:
     args = ap.parse_args()
 
     job = plan_sweep(Scene.load(MAIN_SCENE))
-    kernel = SweepKernel(job.tables, job.analysis, precision=job.precision)
+    kernel = SweepKernel(job.tables, job.analysis, get_runtime(), precision=job.precision)
     machine = machine_info(kernel.rt)
     result: dict[str, Any] = {"benchmark": "sweep", "machine": machine,
                               "load_average_start": machine["load_average"], "scene": MAIN_SCENE,
                               "configurations": job.n_configs, "pixels": job.tables.n_pixels,
                               "evaluation": "noise + quantise + calibrate + correct + IGRM fit (+ metrics)"}
-    result["validation"] = validate(job, kernel)
+    result["validation"] = validate_sweep(job, kernel)
     print("validated:", result["validation"], flush=True)
     result["opencl"] = time_kernel(job, kernel)
     print("opencl:", result["opencl"], flush=True)
     result["lanes"] = {}
     for lanes in sorted({int(v) for v in args.lanes.split(",") if v}):
-        other = SweepKernel(job.tables, job.analysis, precision=job.precision, lanes=lanes)
-        validate(job, other)
+        other = SweepKernel(job.tables, job.analysis, get_runtime(), precision=job.precision, lanes=lanes)
+        validate_sweep(job, other)
         lo, hi = _kernel_block(job)
         result["lanes"][lanes] = (hi - lo) * job.tables.n_pixels / kernel_rate(job, other)[0]
     if result["lanes"]:

@@ -1,8 +1,8 @@
 """The end-to-end chain the accuracy knobs are measured on: a Lib1 slice through the default scene
 (PROSAIL canopies → 6S atmosphere → SRFs → noise → 12-bit DN → calibration → correction → IGRM
 chlorophyll on B4 B5 B6 B8), built from ``scenes/default.toml`` with overrides, through s2cl's
-public API (:class:`s2cl.Scene`, :class:`s2cl.Simulator`, :class:`s2cl.igrm.IgrmFitter`,
-:func:`s2cl.quantify.score_igrm`).
+public API (:class:`s2cl.Scene`, :class:`s2cl.Simulator`, :class:`s2cl.retrieve.igrm.IgrmFitter`,
+:func:`s2cl.retrieve.quantify.score_igrm`).
 """
 
 from __future__ import annotations
@@ -20,12 +20,13 @@ import numpy as np
 
 from bench.common import check, interleaved_medians, max_rel_error
 from s2cl import Scene, Simulator, SpectralLibrary
-from s2cl.igrm import IgrmFitter, IgrmResult, IgrmSettings
-from s2cl.quantify import RetrievalScore, score_igrm
+from s2cl.cl.runtime import get_runtime
+from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample, toa_radiance
-from s2cl.scene import find_scene
-from s2cl.simulate import scene_atmosphere, scene_library
-from s2cl.srf import BandWeights
+from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
+from s2cl.retrieve.quantify import RetrievalScore, score_igrm
+from s2cl.scene.scene import find_scene
+from s2cl.sensor.srf import BandWeights
 
 BANDS = ("B4", "B5", "B6", "B8")  # the default scene's analysis (and sweep) bands, in wavelength order
 #: converged float64 fits: the reference every fit setting is scored against
@@ -33,7 +34,7 @@ REFERENCE_FIT = IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12)
 #: the all-accurate chain: float64 kernels, 1 nm grid, the SRF model on ± 3 FWHM (the widest the
 #: 400-2500 nm grid holds for B8; the super-Gaussian is at its 1e-4 floor beyond ± 0.77 FWHM),
 #: exact LUT nodes (the paper's standard atmosphere sits on the LUT's nodes), converged float64 fits
-REFERENCE_OVERRIDES: dict[str, Any] = {"output.precision": "float64", "grid.step_nm": 1.0, "sensor.support": 3.0}
+REFERENCE_OVERRIDES: dict[str, Any] = {"compute.precision": "float64", "grid.step_nm": 1.0, "sensor.support": 3.0}
 REFERENCE_FIT_REAL = "float64"
 
 
@@ -50,9 +51,10 @@ class Context:
     cache: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def make(cls, quick: bool) -> Context:
-        return cls(quick=quick, repeat=7 if quick else 9, spectra=60 if quick else 120, copies=50 if quick else 200,
-                   block=20_000, loops=5 if quick else 10)
+    def make(cls, quick: bool, repeat: int | None = None) -> Context:
+        """The suite's sizes (``--quick``: reduced); ``repeat`` overrides its number of timed repeats."""
+        return cls(quick=quick, repeat=repeat or (7 if quick else 9), spectra=60 if quick else 120,
+                   copies=50 if quick else 200, block=20_000, loops=5 if quick else 10)
 
     @property
     def time_pixels(self) -> int:
@@ -149,8 +151,8 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
     t0 = time.perf_counter()
     scene = ctx.scene(**{"surface.copies": copies, **(overrides or {})})
     lib = ctx.library_slice(scene, library)
-    sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
-    fitter = IgrmFitter(len(BANDS), fit or IgrmSettings(), real_t=fit_real)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    fitter = IgrmFitter(get_runtime(), len(BANDS), fit or IgrmSettings(), real_t=fit_real)
     rows, centres, target = analysis_bands(scene, lib, copies)
     setup = time.perf_counter() - t0
 
@@ -165,7 +167,7 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
 
     res, r = once()
     n = ctx.time_pixels
-    dtype = np.float64 if scene.spec.output.precision == "float64" else np.float32
+    dtype = np.float64 if scene.run.precision == "float64" else np.float32
     pixels = np.ascontiguousarray(np.resize(lib.spectra, (ctx.block, lib.spectra.shape[1])), dtype=dtype)
 
     def image() -> None:
@@ -206,27 +208,35 @@ def validated(ctx: Context) -> None:
         validate_reference(ctx)
 
 
+def reference_vs_scipy(ours: IgrmResult, refl: np.ndarray, centres: np.ndarray) -> float:
+    """The float64 kernel's converged fits ``ours`` of ``refl`` (bands, n) against
+    scipy.optimize.least_squares at the same settings (:data:`REFERENCE_FIT`): at least 90 % fitted
+    by both and lp within 1e-2 nm; returns the max |d lp| (nm)."""
+    from s2cl.reference.igrm import fit_scipy
+
+    theirs = fit_scipy(np.asarray(refl, dtype=np.float64), centres, REFERENCE_FIT)
+    both = ours.fitted() & theirs.fitted()
+    check(both.mean() > 0.9, f"float64 IGRM reference fits fail on {1 - both.mean():.1%} of the pixels")
+    dlp = float(np.max(np.abs(ours.lp[both] - theirs.lp[both])))
+    check(dlp < 1e-2, f"float64 IGRM reference disagrees with scipy least_squares: max |d lp| {dlp:.2e} nm")
+    return dlp
+
+
 def validate_reference(ctx: Context) -> None:
     """Before timing anything: the reference chain's kernels against the numpy float64 oracles on
     a small slice (TOA band radiance, and the IGRM fit against scipy.optimize.least_squares)."""
-    from s2cl.reference.igrm import fit_scipy
-
     scene = ctx.scene(**REFERENCE_OVERRIDES)
     lib = ctx.library_slice(scene, first=12)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the reference scene has no atmosphere")
-    sim = Simulator.for_scene(scene, atmosphere=terms)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
     weights = sim.plan.weights
     err = max_rel_error(sim.band_radiance(lib.spectra), oracle_band_radiance(lib.spectra, terms, weights))
     check(err < 1e-10, f"float64 chain band radiance disagrees with the numpy oracle: max rel {err:.2e}")
     rows, centres, _ = analysis_bands(scene, lib, 1)
     refl = resample(lib.spectra, [weights[k] for k in rows])
-    ours = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t="float64").fit(refl, centres)
-    theirs = fit_scipy(refl, centres, REFERENCE_FIT)
-    both = ours.fitted() & theirs.fitted()
-    check(both.mean() > 0.9, "reference IGRM fits fail on noise-free Lib1 spectra")
-    dlp = float(np.max(np.abs(ours.lp[both] - theirs.lp[both])))
-    check(dlp < 1e-2, f"float64 IGRM reference disagrees with scipy least_squares: max |d lp| {dlp:.2e} nm")
+    reference = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t="float64").fit(refl, centres)
+    dlp = reference_vs_scipy(reference, refl, centres)
     ctx.cache["validation"] = {"reference_band_radiance_max_rel_vs_numpy": err, "reference_lp_vs_scipy_nm": dlp}
 
 
@@ -258,7 +268,8 @@ def slice_reflectance(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     validated(ctx)
     scene = ctx.scene(**{"surface.copies": copies})
     lib = ctx.library_slice(scene)
-    res = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene)).run_library(lib, copies=copies, seed=SEED)
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    res = sim.run_library(lib, copies=copies, seed=SEED)
     check(res.reflectance is not None, "the default scene does not correct to reflectance")
     rows, centres, target = analysis_bands(scene, lib, copies)
     return np.ascontiguousarray(res.reflectance[rows].reshape(len(rows), -1)), centres, target

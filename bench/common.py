@@ -9,6 +9,7 @@ ratios against the reference setting or the baseline run in the same process.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
 import platform
 import re
@@ -39,6 +40,44 @@ def max_rel_error(got: Any, want: Any) -> float:
 
     want = np.asarray(want, dtype=np.float64)
     return float(np.max(np.abs(np.asarray(got, dtype=np.float64) - want) / np.abs(want)))
+
+
+def fmt_number(v: Any, digits: int = 3) -> str:
+    """A table cell: ``digits`` significant digits (scientific below 1e-3 and from 1e5), integers
+    with thousands separators, booleans as "yes" or empty, None as "–", NaN as "n/a"."""
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else ""
+    if isinstance(v, int):
+        return f"{v:,}"
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "n/a"
+        if v == 0:
+            return "0"
+        if abs(v) >= 1e5 or abs(v) < 1e-3:
+            return f"{v:.{digits - 1}e}"
+        return f"{v:.{digits}g}"
+    return str(v)
+
+
+def comparison_rows(rates: dict[str, float], baseline: str, extra: dict[str, dict[str, Any]] | None = None
+                    ) -> list[dict[str, Any]]:
+    """Rows of a side-by-side comparison (the first of ``rates`` is s2cl's): ``method``, ``per_s``,
+    ``ratio_s2cl_over_this``, ``baseline`` (the method a user would otherwise run) and ``extra[method]``."""
+    first = rates[next(iter(rates))]
+    return [{"method": k, "per_s": v, "ratio_s2cl_over_this": first / v, "baseline": k == baseline,
+             **(extra or {}).get(k, {})} for k, v in rates.items()]
+
+
+def print_comparison(result: dict[str, Any]) -> None:
+    """A comparison's rows on the terminal (the standalone scripts)."""
+    print(f"--- {result['title']} ({result['n']:,} items)")
+    for r in result["rows"]:
+        mark = " (baseline)" if r["baseline"] else ""
+        print(f"{r['method'] + mark:68s} {r['per_s']:14,.0f} {result['unit']}"
+              f"  s2cl ÷ this {r['ratio_s2cl_over_this']:8.3g}")
 
 
 def load_average() -> tuple[float, float, float]:
@@ -163,7 +202,7 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
 
 def write_json(name: str | Path, data: dict[str, Any]) -> Path:
     """Write JSON atomically: ``name`` relative to ``bench/results/`` or a path."""
-    from s2cl.output import write_json as _write
+    from s2cl.io.output import write_json as _write
 
     path = Path(name)
     return _write(path if path.is_absolute() or path.parent != Path() else RESULTS / path, data)
@@ -177,6 +216,6 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure atomically (temporary file in the same folder + rename)."""
-    from s2cl.output import write_atomic
+    from s2cl.io.output import write_atomic
 
     return write_atomic(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))

@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from bench.common import RESULTS, save_figure, write_json
+from s2cl.cl.runtime import get_runtime
 from s2cl.grid import DEFAULT_GRID
-from s2cl.igrm import IgrmFitter
-from s2cl.libraries import load_library
-from s2cl.quantify import score_igrm
+from s2cl.libraries.registry import load_library
+from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.retrieve.quantify import score_igrm
 
 WINDOWS_NM = ((650, 800), (670, 780))
 PAPER = {"r2": 0.98, "rms_ug_cm2": 3.8}
@@ -28,7 +29,7 @@ def default_soil_canopies() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     mean of its dry and wet soil spectra) instead of the iron-bearing backgrounds: 40 spectra."""
     import prosail
 
-    from s2cl.vegetation import LIB1, simulate
+    from s2cl.libraries.vegetation import LIB1, simulate
 
     soil = prosail.spectral_lib.soil
     background = 0.5 * soil.rsoil1 + 0.5 * soil.rsoil2
@@ -43,7 +44,7 @@ def fit_windows(spectra: np.ndarray, cab: np.ndarray) -> tuple[list[dict], list[
     for lo, hi in WINDOWS_NM:
         wl = np.arange(lo, hi + 1.0)
         y = spectra[:, lo - 400:hi - 400 + 1].T
-        r = IgrmFitter(len(wl), real_t="float64").fit(y, wl)
+        r = IgrmFitter(get_runtime(), len(wl), real_t="float64").fit(y, wl)
         score = score_igrm(r, cab)
         fits.append((lo, hi, r, score))
         rows.append({"window_nm": [lo, hi], "n_bands": int(wl.size), "r2": score.r2, "rms_ug_cm2": score.rms,

@@ -22,10 +22,11 @@ from typing import Any
 import numpy as np
 
 from bench.common import load_average, load_note, machine_info, write_result
-from s2cl.optimise import plan_sweep
-from s2cl.scene import Scene
+from s2cl.cl.runtime import get_runtime
+from s2cl.scene.scene import Scene
 from s2cl.status import Status
-from s2cl.sweep_kernel import SweepKernel
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.plan import plan_sweep
 
 SCENES = {"Lib1": "default", "Lib2": "table3-lib2-b4568"}
 TIGHT = {"tol": 1e-10, "max_iter": 1000, "residual_floor": 1e-12}
@@ -44,8 +45,8 @@ def measure(scene: str, n_configs: int, seed: int = 0) -> dict[str, Any]:
     job = plan_sweep(Scene.load(scene))
     t = job.tables
     tight = replace(job.analysis, igrm=tuple(sorted({**dict(job.analysis.igrm), **TIGHT}.items())))
-    k32 = SweepKernel(t, job.analysis, precision="float32")
-    k64 = SweepKernel(t, tight, precision="float64")
+    k32 = SweepKernel(t, job.analysis, get_runtime(), precision="float32")
+    k64 = SweepKernel(t, tight, get_runtime(), precision="float64")
     configs = np.sort(np.random.default_rng(seed).choice(t.n_configs, size=min(n_configs, t.n_configs),
                                                          replace=False))
     errs, status32, ok64 = [], [], []
@@ -70,7 +71,6 @@ def main() -> None:
     ap.add_argument("--configs", type=int, default=24, help="configurations sampled per library")
     args = ap.parse_args()
     start = load_average()
-    from s2cl.runtime import get_runtime
 
     result: dict[str, Any] = {"benchmark": "igrm_accuracy", "machine": machine_info(get_runtime()),
                               "reference": {"precision": "float64", **TIGHT}, "libraries": {}}

@@ -1,9 +1,10 @@
 """What accuracy costs in time: one knob at a time from the default scene, each row timed and
 scored against a reference (see bench/chain.py for the chain and the all-accurate reference).
 
-Every family returns ``{"name", "title", "reference", "primary_error", "error_label", "rows"}``;
-a row holds ``setting``, ``default`` (the shipped setting), ``seconds`` (median), ``speedup``
-(reference seconds / seconds) and the errors against the family's reference.
+Every knob returns ``{"reference", "primary_error", "error_label", "rows"}`` (its name, title and
+columns are declared in :mod:`bench.registry`); a row holds ``setting``, ``default`` (the shipped
+setting), ``seconds`` (median), ``speedup`` (reference seconds / seconds) and the errors against
+the knob's reference.
 """
 
 from __future__ import annotations
@@ -36,21 +37,23 @@ from bench.chain import (
 )
 from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
-from s2cl.atmosphere import _SHAPES as LUT_DIMS  # the LUT arrays' dimensions, by name
-from s2cl.igrm import IgrmFitter, IgrmSettings, kernel_config
-from s2cl.quantify import score_igrm, score_retrieval
+from s2cl.atmos.atmosphere import ARRAY_DIMS as LUT_DIMS
+from s2cl.atmos.scene_terms import scene_lut, true_state
+from s2cl.cl.runtime import get_runtime
+from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample
-from s2cl.scene_atmosphere import scene_lut, true_state
-from s2cl.simulate import scene_atmosphere, scene_library
+from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
+from s2cl.retrieve.quantify import score_igrm, score_retrieval
 
-Family = dict[str, Any]
+KnobResult = dict[str, Any]
 RADIANCE_ERROR = ("err_radiance_ner_max", "max band-radiance error / NER")
 
 
-def _family(name: str, title: str, reference: str, rows: list[dict[str, Any]], primary: tuple[str, str],
-            **extra: Any) -> Family:
-    return {"name": name, "title": title, "reference": reference, "primary_error": primary[0],
-            "error_label": primary[1], "rows": rows, **extra}
+def _result(reference: str, rows: list[dict[str, Any]], primary: tuple[str, str], **extra: Any) -> KnobResult:
+    """A knob's result: what its rows are scored against, its rows and its primary error (the
+    Pareto plot's y axis: row key and label)."""
+    return {"reference": reference, "primary_error": primary[0], "error_label": primary[1], "rows": rows, **extra}
 
 
 def _with_reference(ref: ChainRun, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -59,22 +62,22 @@ def _with_reference(ref: ChainRun, rows: list[dict[str, Any]]) -> list[dict[str,
 
 # -- computational knobs: the same physics, computed more or less exactly ------------------------
 
-def knob_grid(ctx: Context) -> Family:
+def knob_grid(ctx: Context) -> KnobResult:
     """Spectral grid step: library, atmosphere and SRFs on a 1, 2, 5 or 10 nm grid."""
     ref = reference_run(ctx)
     runs = {step: default_run(ctx) if step == 1 else run_chain(ctx, f"{step} nm", {"grid.step_nm": float(step)})
             for step in (1, 2, 5, 10)}
     time_runs(ctx, ref, *runs.values())
     rows = [knob_row(f"{step} nm", run, ref, default=step == 1) for step, run in runs.items()]
-    return _family("grid", "Spectral grid step", "all-accurate chain", _with_reference(ref, rows), RADIANCE_ERROR)
+    return _result("all-accurate chain", _with_reference(ref, rows), RADIANCE_ERROR)
 
 
-def knob_precision(ctx: Context) -> Family:
+def knob_precision(ctx: Context) -> KnobResult:
     """float32 vs float64 in the kernels (forward chain and IGRM fit), default fit settings."""
     ref = reference_run(ctx)
     f32 = default_run(ctx)
-    f64_32 = run_chain(ctx, "f64/f32", {"output.precision": "float64"})
-    f64 = run_chain(ctx, "f64/f64", {"output.precision": "float64"}, fit_real="float64")
+    f64_32 = run_chain(ctx, "f64/f32", {"compute.precision": "float64"})
+    f64 = run_chain(ctx, "f64/f64", {"compute.precision": "float64"}, fit_real="float64")
     time_runs(ctx, ref, f32, f64_32, f64)
     rows = []
     for label, run, default in (("float32 kernels + float32 fit", f32, True),
@@ -85,13 +88,13 @@ def knob_precision(ctx: Context) -> Family:
                              extra={"precision_radiance_rel_max": same["err_radiance_rel_max"],
                                     "precision_radiance_ner_max": same["err_radiance_ner_max"],
                                     "precision_lp_rms_nm": same["err_lp_rms_nm"]}))
-    return _family("precision", "float32 vs float64", "all-accurate chain", _with_reference(ref, rows),
+    return _result("all-accurate chain", _with_reference(ref, rows),
                    ("err_lp_rms_nm", "RMS lp error vs reference [nm]"),
                    note="precision_* columns in the JSON: the same settings in float64 as the reference, i.e. what "
                         "the precision alone changes")
 
 
-def knob_srf(ctx: Context) -> Family:
+def knob_srf(ctx: Context) -> KnobResult:
     """SRF support cut-off (± 1, 1.5, 2 FWHM of the eq. 1 model) and the measured S2A responses."""
     ref = reference_run(ctx)
     runs: list[tuple[str, ChainRun, dict[str, Any]]] = []
@@ -107,27 +110,26 @@ def knob_srf(ctx: Context) -> Family:
         skipped.append({"setting": f"measured S2A SRF: unavailable ({type(err).__name__}: {err})", "skipped": True})
     time_runs(ctx, ref, *(r for _, r, _ in runs))
     rows = [knob_row(label, run, ref, **kw) for label, run, kw in runs] + skipped
-    return _family("srf", "SRF support and model vs measured SRF", "all-accurate chain",
+    return _result("all-accurate chain",
                    _with_reference(ref, rows), RADIANCE_ERROR)
 
 
-def _fit_rows(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Fit-knob input: the slice's reflectance for accuracy, tiled to a larger population for time."""
+def _fit_rows(ctx: Context, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Fit-knob input: the slice's reflectance for accuracy, tiled to ``n`` pixels for time."""
     refl, centres, target = slice_reflectance(ctx)
-    n = 200_000 if ctx.quick else 1_000_000
     return refl, centres, target, np.ascontiguousarray(np.resize(refl, (refl.shape[0], n)))
 
 
-def knob_lm(ctx: Context) -> Family:
+def knob_lm(ctx: Context, population: int) -> KnobResult:
     """IGRM fit: iteration limit and tolerance, incl. the closed-form initial guess alone."""
     from s2cl.reference.igrm import _normalise, initial_guess
 
-    refl, centres, target, population = _fit_rows(ctx)
-    ref_fit = IgrmFitter(len(BANDS), REFERENCE_FIT, real_t=REFERENCE_FIT_REAL)
+    refl, centres, target, pixels = _fit_rows(ctx, population)
+    ref_fit = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t=REFERENCE_FIT_REAL)
     ref = ref_fit.fit(refl.astype(np.float64), centres)
     ref_score = score_igrm(ref, target)
     check(ref.fitted().mean() > 0.99, "reference fits fail on the slice")
-    population64 = population.astype(np.float64)
+    pixels64 = pixels.astype(np.float64)
 
     def row(setting: str, lp: np.ndarray, fitted: np.ndarray, rms: float, *, default: bool = False, **extra: Any
             ) -> dict[str, Any]:
@@ -138,7 +140,7 @@ def knob_lm(ctx: Context) -> Family:
                 "frac_at_optimum": float(np.mean(np.abs(d) <= 0.05) * both.mean()), "rms_cab": rms,
                 "err_rms_cab": abs(rms - ref_score.rms), "default": default, **extra}
 
-    timers: list[Any] = [lambda: ref_fit.fit(population64, centres)]
+    timers: list[Any] = [lambda: ref_fit.fit(pixels64, centres)]
     rows = [row("reference: float64, tol 1e-10, max_iter 255", ref.lp, ref.fitted(), ref_score.rms, reference=True)]
     # the closed-form (data) initial guess alone, in float32 numpy: what zero iterations give
     c = kernel_config(IgrmSettings(), len(BANDS), "float32")
@@ -152,30 +154,29 @@ def knob_lm(ctx: Context) -> Family:
     fitted0 = np.ones(lp0.shape, bool)
     rms0 = score_retrieval(lp0.astype(np.float64), target).rms
     rows.append(row("initial guess only (numpy, no LM step)", lp0, fitted0, rms0))
-    timers.append(lambda: guess(population))
+    timers.append(lambda: guess(pixels))
     settings = [(f"max_iter {m}", IgrmSettings(max_iter=m)) for m in (1, 2, 3, 5, 10, 20, 50, 255)]
     settings += [(f"tol {t:g}", IgrmSettings(tol=t)) for t in (1e-2, 1e-3, 1e-4, 1e-7)]
     settings += [("grid initial guess (6×6)", IgrmSettings(init="grid"))]
     for label, st in settings:
-        fitter = IgrmFitter(len(BANDS), st)
+        fitter = IgrmFitter(get_runtime(), len(BANDS), st)
         r = fitter.fit(refl, centres)
-        timers.append(lambda f=fitter: f.fit(population, centres))
+        timers.append(lambda f=fitter: f.fit(pixels, centres))
         default = st == IgrmSettings()
         rows.append(row(label + (" (default: tol 1e-5)" if default else ""), r.lp, r.fitted(),
                         score_igrm(r, target).rms, default=default, mean_iterations=float(r.iterations.mean()),
                         frac_iteration_limit=float(np.mean(r.status == 1))))
     for r, sec in zip(rows, interleaved_medians(timers, ctx.repeat, warmup=1), strict=True):
-        r["seconds"], r["pixels_per_s"] = sec, population.shape[1] / sec
+        r["seconds"], r["pixels_per_s"] = sec, pixels.shape[1] / sec
     for r in rows:
         r["speedup"] = rows[0]["seconds"] / r["seconds"]
-    return _family("lm", "IGRM fit: iterations, tolerance, initial guess (float32 kernel)",
-                   "float64 fit, tol 1e-10, 255 iterations, same input", rows,
+    return _result("float64 fit, tol 1e-10, 255 iterations, same input", rows,
                    ("err_lp_rms_nm", "RMS lp error vs converged fit [nm]"),
-                   timed=f"Time: fitting {population.shape[1]:,} pixels (the slice's reflectance tiled); accuracy "
+                   timed=f"Time: fitting {pixels.shape[1]:,} pixels (the slice's reflectance tiled); accuracy "
                          "on the slice itself")
 
 
-#: LUT axis (its array in the .npz) -> the dimension's name in s2cl.atmosphere's array layout
+#: LUT axis (its array in the .npz) -> the dimension's name in s2cl.atmos.atmosphere's array layout
 LUT_AXIS_DIM = {"aot550": "aot", "solar_zenith": "sza", "water_vapour": "wv"}
 
 
@@ -193,13 +194,13 @@ def _thin(arrays: dict[str, np.ndarray], axis: str, state_node: int) -> dict[str
     return out
 
 
-def knob_lut(ctx: Context) -> Family:
+def knob_lut(ctx: Context) -> KnobResult:
     """Atmosphere LUT: linear vs nearest interpolation, and every other node of an axis dropped.
 
     The paper's standard atmosphere (AOT 0.2347, SZA 40°, 1.5 g/cm² H2O) lies on nodes of the
     shipped LUT, so the full LUT gives its exact terms; thinning drops exactly those nodes, so
     interpolation has to bridge the widest gap it would meet."""
-    from s2cl.atmosphere import AtmosphereLUT, default_lut_path
+    from s2cl.atmos.atmosphere import AtmosphereLUT, default_lut_path
 
     validated(ctx)
     scene = ctx.scene()
@@ -253,7 +254,7 @@ def knob_lut(ctx: Context) -> Family:
     t_ref = rows[0]["seconds"]  # every node, linear: the shipped setting and, on nodes, exact
     for r in rows:
         r["speedup"] = t_ref / r["seconds"]
-    return _family("lut", "Atmosphere LUT interpolation and node density", "exact LUT nodes (shipped LUT)", rows,
+    return _result("exact LUT nodes (shipped LUT)", rows,
                    RADIANCE_ERROR, timed="Time: the LUT terms for one state on the 1 nm grid (host, once per scene)",
                    note="lp and Cab errors: the whole chain (simulation and correction) on the thinned LUT, against "
                         "the default chain")
@@ -261,21 +262,21 @@ def knob_lut(ctx: Context) -> Family:
 
 # -- physics knobs: what an effect or a sample size changes --------------------------------------
 
-def knob_copies(ctx: Context) -> Family:
+def knob_copies(ctx: Context, seeds: int) -> KnobResult:
     """Noise copies per spectrum: the confidence interval of the chlorophyll RMS each buys."""
     from s2cl import Simulator
 
     validated(ctx)
-    seeds = range(1, (10 if ctx.quick else 30) + 1)
+    seed_list = range(1, seeds + 1)
     rows = []
     for copies in (10, 100, 1000):
         scene = ctx.scene(**{"surface.copies": copies})
         lib = scene_library(scene)  # the whole Lib1 (120 spectra), as the default scene runs it
-        sim = Simulator.for_scene(scene, atmosphere=scene_atmosphere(scene))
-        fitter = IgrmFitter(len(BANDS))
+        sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+        fitter = IgrmFitter(get_runtime(), len(BANDS))
         slots, centres, target = analysis_bands(scene, lib, copies)
         rms, times = [], []
-        for seed in seeds:
+        for seed in seed_list:
             t0 = time.perf_counter()
             res = sim.run_library(lib, copies=copies, seed=seed)
             check(res.reflectance is not None, "the default scene does not correct to reflectance")
@@ -289,13 +290,13 @@ def knob_copies(ctx: Context) -> Family:
     ref = rows[-1]["seconds"]
     for r in rows:
         r["speedup"] = ref / r["seconds"]
-    return _family("copies", "Noise copies per spectrum", f"spread over {len(seeds)} noise seeds (vs 1000 copies)",
+    return _result(f"spread over {seeds} noise seeds (vs 1000 copies)",
                    rows, ("ci95_halfwidth", "95 % half-width of the Cab RMS [ug/cm2]"),
                    timed="Whole Lib1 (120 spectra); time: one seed, simulate the library with its copies and fit "
                          "(compiled chain)")
 
 
-def knob_bits(ctx: Context) -> Family:
+def knob_bits(ctx: Context) -> KnobResult:
     """Quantisation bits, against the same noisy chain without quantisation."""
     ref = run_chain(ctx, "float", {"effects.quantise": False, "effects.calibrate": False})
     runs = {bits: default_run(ctx) if bits == 12 else run_chain(ctx, f"{bits}", {"effects.bits": bits})
@@ -303,11 +304,11 @@ def knob_bits(ctx: Context) -> Family:
     time_runs(ctx, ref, *runs.values())
     rows = [knob_row("no quantisation (reference)", ref, ref, extra={"reference": True})]
     rows += [knob_row(f"{bits} bits", run, ref, default=bits == 12) for bits, run in runs.items()]
-    return _family("bits", "Quantisation bits", "noisy chain without quantisation", rows,
+    return _result("noisy chain without quantisation", rows,
                    ("err_lp_rms_nm", "RMS lp change vs unquantised [nm]"))
 
 
-def knob_atmosphere(ctx: Context) -> Family:
+def knob_atmosphere(ctx: Context) -> KnobResult:
     """Atmosphere effect on (6S LUT, band-effective correction) vs off (TOA radiance ρ·E0·cos θs/π,
     no path radiance, no transmittance losses; reflectance = radiance / band-effective E0·cos θs/π)."""
     on = default_run(ctx)
@@ -324,18 +325,5 @@ def knob_atmosphere(ctx: Context) -> Family:
     time_runs(ctx, on, off)
     rows = [knob_row("atmosphere on (6S LUT + correction)", on, on, default=True, extra={"reference": True}),
             knob_row("atmosphere off (exo-atmospheric sun, no correction)", off, on)]
-    return _family("atmosphere", "Atmosphere effect on/off", "atmosphere on", rows,
+    return _result("atmosphere on", rows,
                    ("err_rms_cab", "Cab RMS change (abs) [ug/cm2]"))
-
-
-KNOBS = {
-    "grid": knob_grid,
-    "precision": knob_precision,
-    "srf": knob_srf,
-    "lm": knob_lm,
-    "lut": knob_lut,
-    "copies": knob_copies,
-    "bits": knob_bits,
-    "atmosphere": knob_atmosphere,
-}
-

@@ -62,14 +62,10 @@ STUDIES = {"sensitivity": ("bench.paper_sensitivity", "bench/results/paper_sensi
 def source_fingerprint(scene: str) -> str:
     """SHA-256 of the s2cl sources a run depends on: the imported package (``.py`` and data),
     its kernels and the scene file."""
-    import s2cl
-    from s2cl.resources import kernel_dir
-    from s2cl.scene import find_scene
+    from s2cl.resources import code_fingerprint
+    from s2cl.scene.scene import find_scene
 
-    h = hashlib.sha256()
-    for root in (Path(s2cl.__file__).resolve().parent, kernel_dir()):
-        for p in sorted(q for q in root.rglob("*") if q.is_file() and "__pycache__" not in q.parts):
-            h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes())
+    h = hashlib.sha256(code_fingerprint().encode())
     h.update(find_scene(scene).read_bytes())
     return h.hexdigest()
 
@@ -125,7 +121,7 @@ def run_study(name: str) -> float:
 def b5_b6_apart(folder: Path) -> dict[str, Any] | None:
     """Among the ranked configurations of a Table 3 sweep, those whose B5 and B6 FWHM intervals do
     not overlap (|c6 - c5| >= (w5 + w6) / 2): how many, and the best of them."""
-    from s2cl.report import load, rankable
+    from s2cl.sweep.report import load, rankable
 
     df, meta = load(folder)
     return best_apart(rankable(df, meta))
@@ -335,7 +331,7 @@ def _rms(v: float) -> str:
 
 def sensitivity_markdown(sens: dict[str, Any]) -> str:
     """The Table 4 variants (the paper's row first), the per-subset RMS, and the SWIR variants."""
-    from s2cl.report import paper_results
+    from s2cl.sweep.report import paper_results
 
     paper = paper_results()["table4"]
     j, centres = paper["widths"].index(30), paper["centres"]

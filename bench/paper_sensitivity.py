@@ -42,12 +42,12 @@ from typing import Any
 import numpy as np
 
 from bench.common import RESULTS, ROOT, machine_info, save_figure, write_json
-from s2cl.metrics import regression_metrics
-from s2cl.optimise import plan_sweep
+from s2cl.forward.simulate import scene_library
 from s2cl.reference.sweep import band_reflectance, variant_indices
-from s2cl.scene import Scene, find_scene
-from s2cl.simulate import scene_library
-from s2cl.sweep import SweepJob, evaluate_chunk
+from s2cl.retrieve.metrics import regression_metrics
+from s2cl.scene.scene import Scene, find_scene
+from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.plan import plan_sweep
 
 RESULT = RESULTS / "paper_sensitivity.json"
 FIGURE = ROOT / "docs" / "paper" / "table4_sensitivity.png"
@@ -138,10 +138,10 @@ def fit_variant(job: SweepJob, name: str) -> dict[str, np.ndarray]:
 def variant_entry(name: str, change: dict[str, Any], rows: dict[str, np.ndarray], seconds: float,
                   columns: tuple[str, ...] = COLUMNS) -> dict[str, Any]:
     """One Table 4 variant's result: its rows summarised, and each of ``columns`` as a B4 centre ×
-    width grid (s2cl.report.centre_width_grid; one configuration per pair here); printed."""
+    width grid (s2cl.sweep.report.centre_width_grid; one configuration per pair here); printed."""
     import pandas as pd
 
-    from s2cl.report import centre_width_grid
+    from s2cl.sweep.report import centre_width_grid
 
     entry = {"change": change, **summarise(rows), "seconds": seconds}
     df = pd.DataFrame(rows)
@@ -205,7 +205,7 @@ def main() -> None:
         out["variants"][f"noise-x{k:g}"] = variant_entry(f"noise-x{k:g}", {"sigma_scale": k}, rows,
                                                          time.perf_counter() - t0)
     # RMS of the shipped fit per background and per LAI (each subset regressed alone), Lib1 and Lib2
-    from s2cl.sweep import evaluator
+    from s2cl.sweep.engine import kernel_evaluator as evaluator
 
     for lib_name, (scene, job) in jobs.items():
         raw = evaluator(job)(0, job.n_configs)
@@ -225,7 +225,7 @@ def swir() -> dict[str, Any]:
     """Tables 5 and 6 under one-key changes: the best cell, its value, and the value at the paper's best."""
     import pandas as pd
 
-    from s2cl.report import centre_width_grid
+    from s2cl.sweep.report import centre_width_grid
 
     out: dict[str, Any] = {}
     for scene_name, (band, metric) in SWIR.items():
@@ -255,7 +255,7 @@ def plot(out: dict[str, Any]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from s2cl.report import paper_results
+    from s2cl.sweep.report import paper_results
 
     paper = paper_results()["table4"]
     j = paper["widths"].index(30)

@@ -11,17 +11,18 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bench.chain import BANDS, Context, oracle_band_radiance
+from bench.chain import BANDS, REFERENCE_FIT, Context, oracle_band_radiance
 from bench.common import ROOT, check, max_rel_error, median_time
+from bench.sweep_check import validate_sweep
 from s2cl import Simulator
-from s2cl.igrm import IgrmFitter
-from s2cl.simulate import scene_atmosphere, scene_library
+from s2cl.cl.runtime import get_runtime
+from s2cl.forward.simulate import scene_atmosphere, scene_library
+from s2cl.retrieve.igrm import IgrmFitter
 
 
 def slope(x: list[float], t: list[float]) -> float:
@@ -29,11 +30,11 @@ def slope(x: list[float], t: list[float]) -> float:
     return float(np.polyfit(np.log(x), np.log(t), 1)[0])
 
 
-def _series(name: str, x_label: str, xs: list[int], seconds: list[float], per: str, *, scale: int = 1,
-            **extra: Any) -> dict[str, Any]:
+def _series(x_label: str, xs: list[int], seconds: list[float], per: str, *, scale: int = 1, **extra: Any
+            ) -> dict[str, Any]:
     """Points (x, seconds, rate = x · scale / seconds) and the log–log slope of time against x."""
-    return {"name": name, "x": x_label, "points": [{"x": x, "seconds": s, "rate_per_s": x * scale / s}
-                                                  for x, s in zip(xs, seconds, strict=True)],
+    return {"x": x_label, "points": [{"x": x, "seconds": s, "rate_per_s": x * scale / s}
+                                     for x, s in zip(xs, seconds, strict=True)],
             "slope": slope(xs, seconds), "rate_unit": per, **extra}
 
 
@@ -42,18 +43,17 @@ def _full_scene(ctx: Context, **overrides: Any) -> Any:
     return ctx.scene(all_bands=True, **overrides)
 
 
-def forward_vs_pixels(ctx: Context) -> dict[str, Any]:
+def forward_vs_pixels(ctx: Context, block: int) -> dict[str, Any]:
     """Forward chain (6S atmosphere + SRFs of 13 bands + noise, DN, calibration, correction) on
     distinct spectra, float32, in blocks of at most 10^5 spectra (each block resampled anew)."""
     scene = _full_scene(ctx)
     lib = scene_library(scene)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the default scene has no atmosphere")
-    sim = Simulator.for_scene(scene, atmosphere=terms)
-    block_n = 100_000 if not ctx.quick else 50_000
+    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
     sizes = [1_000, 10_000, 100_000, 1_000_000]
-    block = np.ascontiguousarray(np.resize(lib.spectra, (min(block_n, max(sizes)), lib.spectra.shape[1])),
-                                 dtype=np.float32)
+    spectra = np.ascontiguousarray(np.resize(lib.spectra, (min(block, max(sizes)), lib.spectra.shape[1])),
+                                   dtype=np.float32)
     err = max_rel_error(sim.band_radiance(lib.spectra.astype(np.float32)),
                         oracle_band_radiance(lib.spectra, terms, sim.plan.weights))
     check(err < 1e-4, f"float32 forward chain disagrees with the float64 oracle: max rel {err:.2e}")
@@ -61,13 +61,13 @@ def forward_vs_pixels(ctx: Context) -> dict[str, Any]:
     def chain(n: int) -> None:
         done = 0
         while done < n:
-            m = min(block.shape[0], n - done)
-            out = sim.sense(sim.band_radiance(block[:m]), seed=1, pixel_offset=done)
+            m = min(spectra.shape[0], n - done)
+            out = sim.sense(sim.band_radiance(spectra[:m]), seed=1, pixel_offset=done)
             check(out is not None, "the default scene does not sense")
             done += m
 
     seconds = [median_time(lambda n=n: chain(n), ctx.repeat if n < 1_000_000 else 2, warmup=1) for n in sizes]
-    return _series("forward chain", "pixels", sizes, seconds, "pixels/s", bands=13, precision="float32",
+    return _series("pixels", sizes, seconds, "pixels/s", bands=13, precision="float32",
                    validation_max_rel_vs_float64=err)
 
 
@@ -79,41 +79,29 @@ def fits_vs_pixels(ctx: Context) -> dict[str, Any]:
     y, _ = prosail_population(max(sizes), BANDS, noise=0.003, seed=1)
     y = np.ascontiguousarray(y, dtype=np.float32)
     wl = band_centres(BANDS)
-    fitter = IgrmFitter(len(BANDS))
-    from bench.bench_igrm import REFERENCE_SETTINGS, at_optimum
+    fitter = IgrmFitter(get_runtime(), len(BANDS))
+    from bench.bench_igrm import at_optimum
 
-    ref = IgrmFitter(len(BANDS), REFERENCE_SETTINGS, real_t="float64").fit(y[:, :5000].astype(np.float64), wl)
+    ref = IgrmFitter(get_runtime(), len(BANDS), REFERENCE_FIT, real_t="float64").fit(
+        y[:, :5000].astype(np.float64), wl)
     ok = float(at_optimum(fitter.fit(y[:, :5000], wl), ref).mean())
     check(ok > 0.99, f"only {ok:.2%} of float32 fits at the float64 optimum")
     seconds = [median_time(lambda n=n: fitter.fit(y[:, :n], wl), ctx.repeat, warmup=1) for n in sizes]
-    return _series("IGRM fit (4 bands, float32)", "pixels", sizes, seconds, "fits/s",
+    return _series("pixels", sizes, seconds, "fits/s",
                    validation_frac_at_float64_optimum=ok)
 
 
-def resample_vs_bands(ctx: Context) -> dict[str, Any]:
+def resample_vs_bands(ctx: Context, spectra: int) -> dict[str, Any]:
     """SRF resampling of random spectra into the first 1, 2, 4, 8 and 13 bands, float32; each
     band plan validated on a slice against the float64 oracle before it is timed."""
-    from s2cl.grid import DEFAULT_GRID
-    from s2cl.reference.forward import resample
-    from s2cl.resample import ResamplePlan, Resampler
-    from s2cl.runtime import get_runtime
-    from s2cl.sensor import Sensor
+    from bench.bench_resample import random_spectra, validated_resampler
 
-    sensor = Sensor.sentinel2()
-    rt = get_runtime()
-    n = 20_000 if ctx.quick else 100_000
-    spectra = np.random.default_rng(0).random((n, DEFAULT_GRID.size), dtype=np.float32)
+    data = random_spectra(spectra)
     counts = [1, 2, 4, 8, 13]
-    resamplers, errors = [], []
-    for k in counts:
-        plan = ResamplePlan.of(sensor.bands[:k], DEFAULT_GRID)
-        res = Resampler(rt, plan, "float32")
-        errors.append(max_rel_error(res(spectra[:500]), resample(spectra[:500], plan.weights)))
-        check(errors[-1] < 2e-6, f"resampling into {k} bands disagrees with the float64 oracle: {errors[-1]:.2e}")
-        resamplers.append(res)
-    seconds = [median_time(lambda r=res: r(spectra), ctx.repeat, warmup=1) for res in resamplers]
-    return _series("SRF resampling", "bands", counts, seconds, "band values/s", scale=n, pixels=n,
-                   validation_max_rel_vs_float64=max(errors),
+    validated = [validated_resampler(data, k) for k in counts]
+    seconds = [median_time(lambda r=res: r(data), ctx.repeat, warmup=1) for res, _ in validated]
+    return _series("bands", counts, seconds, "band values/s", scale=spectra, pixels=spectra,
+                   validation_max_rel_vs_float64=max(err for _, err in validated),
                    note="bands B1… in order: supports differ (B8 115 nm, B12 180 nm FWHM), so time follows the "
                         "summed support, not the count")
 
@@ -122,36 +110,31 @@ def _sweep_scene(ctx: Context, copies: int) -> Any:
     return _full_scene(ctx, **{"surface.copies": copies})
 
 
-def validated_job(ctx: Context, copies: int, chunk: int | None = None) -> tuple[Any, float]:
-    """The default scene's sweep with ``copies`` copies, its first configurations checked against
-    the numpy float64 oracle (max relative difference of the Cab RMS)."""
-    from s2cl.optimise import plan_sweep
-    from s2cl.sweep import evaluate_chunk
+def validated_job(ctx: Context, copies: int, chunk: int | None = None) -> tuple[Any, dict[str, Any]]:
+    """The default scene's sweep with ``copies`` copies, its kernel checked by
+    :func:`bench.sweep_check.validate_sweep` once per process (and copies)."""
+    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(_sweep_scene(ctx, copies), chunk=chunk)
     key = f"sweep-validation-{copies}"
     if key not in ctx.cache:
-        ref = evaluate_chunk(replace(job, backend="numpy", precision="float64"), 0, 4)
-        got = evaluate_chunk(job, 0, 4)
-        err = max_rel_error(got["rms"], ref["rms"])
-        check(err < 1e-3, f"sweep kernel RMS disagrees with the float64 oracle: max rel {err:.2e}")
-        ctx.cache[key] = err
+        ctx.cache[key] = validate_sweep(job)
     return job, ctx.cache[key]
 
 
-def sweep_vs_configs(ctx: Context) -> dict[str, Any]:
+def sweep_vs_configs(ctx: Context, copies: int) -> dict[str, Any]:
     """The fused sweep kernel (gather → noise → DN → calibration → correction → IGRM → metrics)
     on the default scene's B4 B5 B6 B8 sweep, validated against the numpy float64 oracle first."""
-    from s2cl.sweep import evaluate_chunk
+    from s2cl.sweep.engine import evaluate_chunk
 
-    copies = 10 if ctx.quick else 100
-    job, err = validated_job(ctx, copies)
+    job, checked = validated_job(ctx, copies)
     pixels = job.tables.n_pixels
     counts = [10, 100, 1000, job.n_configs]
     seconds = [median_time(lambda c=c: evaluate_chunk(job, 0, c), ctx.repeat if c < 1000 else 2, warmup=1)
                for c in counts]
-    out = _series("sweep (configurations × pixels)", "configurations", counts, seconds, "configurations/s",
-                  pixels_per_config=pixels, validation_max_rel_rms_vs_float64=err)
+    out = _series("configurations", counts, seconds, "configurations/s",
+                  pixels_per_config=pixels, validation_max_rel_rms_vs_float64=checked["rms_rel_diff_max"],
+                  validation_same_status_fraction=checked["same_status_fraction"])
     for p in out["points"]:
         p["config_pixels_per_s"] = p["rate_per_s"] * pixels
     return out
@@ -161,8 +144,8 @@ _MEMORY_PROBE = """
 import json, sys, threading, time
 from bench.chain import Context
 from bench.scaling import _sweep_scene
-from s2cl.optimise import plan_sweep
-from s2cl.sweep import evaluate_chunk
+from s2cl.sweep.plan import plan_sweep
+from s2cl.sweep.engine import evaluate_chunk
 
 def rss():
     with open("/proc/self/status") as fh:
@@ -188,35 +171,32 @@ print(json.dumps({"chunk": chunk, "rss_before_mib": base, "chunk_rss_mib": peak[
 """
 
 
-def memory_vs_chunk(ctx: Context) -> dict[str, Any]:
+def memory_vs_chunk(ctx: Context, copies: int, chunks: tuple[int, ...]) -> dict[str, Any]:
     """Resident memory one sweep chunk adds (VmRSS sampled every 0.5 ms), in a fresh process per
     chunk size (PoCL's OpenCL buffers live in host memory, so RSS sees them)."""
-    copies = 10 if ctx.quick else 100
     job, _ = validated_job(ctx, copies)  # the kernel the probes run, checked in this process
-    chunks = [16, 128, 1024] if ctx.quick else [16, 64, 256, 1024, 3312]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     points = []
     for c in chunks:
         out = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(c), str(copies)], capture_output=True,
                              text=True, env=env, cwd=ROOT, check=True)
         points.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    from s2cl.sweep import HOST_BYTES_PER_EVALUATION
+    from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION
 
     pixels = job.tables.n_pixels
     for p in points:
         p["mib_per_config"] = p["chunk_rss_mib"] / p["chunk"]
         p["estimate_mib"] = p["chunk"] * pixels * HOST_BYTES_PER_EVALUATION / 2**20
-    return {"name": "memory vs chunk", "pixels_per_config": pixels, "points": points,
+    return {"pixels_per_config": pixels, "points": points,
             "note": "chunk_rss_mib: peak growth of the resident set while the chunk runs, over the process after "
                     "set-up (sampled, so a lower bound); estimate_mib: s2cl's own planning estimate "
                     "(check_resources), 64 B per configuration-pixel"}
 
 
-def dask_workers(ctx: Context) -> dict[str, Any]:
+def dask_workers(ctx: Context, copies: int) -> dict[str, Any]:
     """The whole sweep written to Parquet in-process and with Dask LocalCluster(1 and 2 workers)."""
-    from s2cl.sweep import run_sweep
+    from s2cl.sweep.engine import run_sweep
 
-    copies = 10 if ctx.quick else 100
     job, _ = validated_job(ctx, copies, chunk=512)
     rows: list[dict[str, Any]] = []
     results = {}
@@ -231,17 +211,7 @@ def dask_workers(ctx: Context) -> dict[str, Any]:
         rows.append({"workers": workers or 0, "label": "in-process" if workers is None else f"Dask, {workers}",
                      "seconds": sec, "configs_per_s": job.n_configs / sec})
     check(all(np.array_equal(results[None], v) for v in results.values()), "Dask results differ from in-process")
-    return {"name": "dask", "configurations": job.n_configs, "pixels_per_config": job.tables.n_pixels,
+    return {"configurations": job.n_configs, "pixels_per_config": job.tables.n_pixels,
             "chunk": job.chunk, "rows": rows,
             "note": "wall time including cluster start-up; one run each (2 shared cores: the second worker competes "
                     "with the first and with the other users)"}
-
-
-SCALING = {
-    "forward": forward_vs_pixels,
-    "fits": fits_vs_pixels,
-    "bands": resample_vs_bands,
-    "configs": sweep_vs_configs,
-    "memory": memory_vs_chunk,
-    "dask": dask_workers,
-}

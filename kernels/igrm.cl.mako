@@ -4,14 +4,15 @@ The fit itself is s2_igrm_fit_igrm from common/igrm_lm.mako (reusable in fused k
 file only loads, calls and stores.
 
 Template variables
-  T      s2cl.vectypes.VecTypes: precision (float32/float64) and lanes (8 on PoCL CPU, 1 on GPUs)
+  T      s2cl.cl.vectypes.VecTypes: precision (float32/float64) and lanes (native width on CPUs, 1 on GPUs)
   T1     the same precision with one lane (scalar helpers of the grid initial guess)
-  c      s2cl.igrm.KernelConfig: n_bands, bounds, tolerances, loss, initial guess, iteration
+  c      s2cl.retrieve.igrm_settings.KernelConfig: n_bands, bounds, tolerances, loss, initial guess, iteration
          limit, exp choice ("poly": own polynomial, "builtin": OpenCL exp), normalisation xc/xw
-  exp_coef, exp_consts   s2cl.vecmath.exp_template_vars(...) (used when c.exp == "poly")
+  exp_coef, exp_consts   s2cl.cl.vecmath.exp_template_vars(...) (used when c.exp == "poly")
   iter_t "uchar" when c.max_iter <= 255, else "ushort"
+  args, signature   the argument specs (s2cl.cl.kernel_args) and the function writing them
 Defines: none (everything scene-fixed is a rendered literal).
-Arguments (outputs first; all arrays structure-of-arrays, pixel index fastest)
+Arguments (IgrmFitter.args; outputs first; all arrays structure-of-arrays, pixel index fastest)
   params      out [7][pitch] real   rmax, rmin, l0 [nm], s [nm], lp [nm], rms residual, log10 condition
   status      out [pitch] uchar     common/s2_status.clh (S2_OK converged, S2_ITERATION_LIMIT,
                                     S2_DEGENERATE, S2_INVALID, S2_STALLED)
@@ -54,13 +55,7 @@ ${vm.ldl4_solve(T, c.pivot_rel)}
 ${lm.igrm_fit(T, c, "igrm", T1)}
 
 __kernel void igrm_fit(
-    __global ${T.R} *restrict params,
-    __global uchar *restrict status,
-    __global ${iter_t} *restrict iterations,
-    __global uchar *restrict bounds,
-    __global const ${T.R} *restrict refl,
-    __global const ${T.R} *restrict wavelength,
-    const int pitch)
+    ${signature(args, T)})
 {
     const int gid = get_global_id(0);
     ${T.R} wl[${c.n_bands}];

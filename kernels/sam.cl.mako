@@ -4,11 +4,11 @@ spectral angle to the pixel, if that angle is within the threshold.
 The classification and its status: s2_sam_<T.suffix>_<n_bands>_<n_refs> of common/stages.mako (the
 sweep kernel runs the same function); this kernel adds the angle in radians for the output.
 Template variables
-  T        s2cl.vectypes.VecTypes (precision, lanes)
+  T        s2cl.cl.vectypes.VecTypes (precision, lanes)
   n_bands  number of bands (unrolled)
   n_refs   number of reference spectra
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid
-Kernel arguments (outputs first; SoA, pixel index fastest)
+Kernel arguments (s2cl.retrieve.sam.ARGS; outputs first; SoA, pixel index fastest)
   best     out [pitch] int    reference index (the first on ties), -1 unless status is S2_OK
   angle    out [pitch] real   radians in [0, pi] (S2_OK and S2_UNCLASSIFIED), else 0
   status   out [pitch] uchar  common/s2_status.clh: S2_OK, S2_UNCLASSIFIED, S2_DEGENERATE (zero
@@ -27,13 +27,7 @@ loop is multiply-adds; the square root and acos run once per pixel, for the winn
 ${st.sam(T, n_bands, n_refs, max_abs)}
 
 __kernel void sam_classify(
-    __global int *restrict best,
-    __global ${T.R} *restrict angle,
-    __global uchar *restrict status,
-    __global const ${T.R} *restrict refl,
-    __global const ${T.R} *restrict refs,
-    const ${T.R} cos_min,
-    const int pitch)
+    ${signature(args, T)})
 {
     const int gid = get_global_id(0);
     ${T.R} ref[${n_refs * n_bands}];

@@ -4,39 +4,43 @@ sense.cl.mako: the radiometric stage of the sensor, per pixel and band:
   -> (atmospheric correction to band reflectance)
 
 Template variables
-  args       list of s2cl.kernel_args.Arg (host binds the same list)
+  args       list of s2cl.cl.kernel_args.Arg (host binds the same list)
   signature  function rendering args
   n_bands    number of bands (unrolled)
   band_ids   global index of each band: its noise is lane (id & 3) of Philox counter group (id >> 2),
              so a band's noise does not depend on which other bands share the kernel
   noise, quantise, calibrate, correct   bools: which stages exist. A stage that is off has no code
              and no arguments in the compiled kernel.
-  T          s2cl.vectypes.VecTypes(real_t, 1): the scalar types of the shared stage functions
-             (common/stages.mako: quantise, calibrate, correct, the same code the sweep kernel runs)
-Defines
-  S2_DOUBLE  float64 build
-Arguments (in order; see s2cl/sense.py)
-  (noise)     noisy       [n_bands x n_pixels] real_t  radiance with noise
+  T          s2cl.cl.vectypes.VecTypes of the working precision, one lane: the types of the kernel and
+             of the shared stage functions (common/stages.mako: quantise, calibrate, correct, the same
+             code the sweep kernel runs; common/random.mako: the noise)
+Defines: none.
+Arguments (in order; see s2cl/forward/sense.py)
+  (noise)     noisy       [n_bands x n_pixels] real  radiance with noise
   (quantise)  dn          [n_bands x n_pixels] ushort  digital numbers
   (quantise)  flags       [n_bands x n_pixels] uchar   S2_FLAG_LOW / _HIGH / _NODATA (common/s2_status.clh)
-  (calibrate) calibrated  [n_bands x n_pixels] real_t  radiance from DN
-  (correct)   reflectance [n_bands x n_pixels] real_t  band reflectance (see s2cl/correction.py)
-              radiance    [n_bands x n_pixels] real_t  noise-free band radiance (input)
-  (noise)     noise_a, noise_b [n_bands] real_t   sigma^2 = a + b max(L, 0)  (width scaling applied)
-  (quantise)  lmin, lmax, scale [n_bands] real_t
-  (calibrate) gain        [n_bands] real_t
-  (correct)   band_lp, band_g, band_s [n_bands] real_t  band-effective path radiance, ground term,
+  (calibrate) calibrated  [n_bands x n_pixels] real  radiance from DN
+  (correct)   reflectance [n_bands x n_pixels] real  band reflectance (s2cl.atmos.correction)
+              radiance    [n_bands x n_pixels] real  noise-free band radiance (input)
+  (noise)     noise_a, noise_b [n_bands] real   sigma^2 = a + b max(L, 0)  (width scaling applied)
+  (quantise)  lmin, lmax, scale [n_bands] real
+  (calibrate) gain        [n_bands] real
+  (correct)   band_lp, band_g, band_s [n_bands] real  band-effective path radiance, ground term,
               spherical albedo of the state assumed by the correction
-  (noise)     seed, frame  uint    noise stream (see common/s2_random.clh)
+  (noise)     seed, frame  uint    noise stream (see common/random.mako)
               pixel_offset uint    index of this chunk's first pixel (noise keys on the global index)
   (quantise)  maxdn        uint    2^bits - 1
               n_pixels     uint
 Units: radiance W m-2 sr-1 um-1 throughout.
 </%doc>
 <%namespace name="st" file="common/stages.mako"/>
-#include "common/s2_real.clh"
+<%namespace name="rn" file="common/random.mako"/>
+<% R = T.R %>
+% if T.double:
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+% endif
 % if noise:
-#include "common/s2_random.clh"
+${rn.random(T)}
 % endif
 % if quantise:
 ${st.quantise(T)}
@@ -49,7 +53,7 @@ ${st.correct(T)}
 % endif
 
 __kernel void sense_bands(
-    ${signature(args)})
+    ${signature(args, T)})
 {
     const uint i = get_global_id(0);
     if (i >= n_pixels)
@@ -57,20 +61,20 @@ __kernel void sense_bands(
 % if noise:
     const uint pixel = pixel_offset + i;
   % for g in sorted({bid >> 2 for bid in band_ids}):
-    const real4_t z${g} = s2_normal4(seed, S2_TAG_SENSOR_NOISE, pixel, ${g}u, frame, 0u);
+    const ${R}4 z${g} = s2_normal4_${T.suffix}(seed, S2_TAG_SENSOR_NOISE, pixel, ${g}u, frame, 0u);
   % endfor
 % endif
 % for k in range(n_bands):
     {
         const size_t at = (size_t)${k}u * n_pixels + i;
-        real_t L = radiance[at];
+        ${R} L = radiance[at];
   % if noise:
-        L += sqrt(noise_a[${k}] + noise_b[${k}] * fmax(L, S2_R(0.0))) * z${band_ids[k] >> 2}.s${band_ids[k] & 3};
+        L += sqrt(noise_a[${k}] + noise_b[${k}] * fmax(L, ${T.lit(0.0)})) * z${band_ids[k] >> 2}.s${band_ids[k] & 3};
         noisy[at] = L;
   % endif
   % if quantise:
         ${T.M} flag;
-        const real_t q = s2_quantise_${T.suffix}(L, lmin[${k}], lmax[${k}], scale[${k}], (real_t)maxdn, &flag);
+        const ${R} q = s2_quantise_${T.suffix}(L, lmin[${k}], lmax[${k}], scale[${k}], (${R})maxdn, &flag);
         dn[at] = (ushort)q;
         flags[at] = (uchar)flag;
   % endif

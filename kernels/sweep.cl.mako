@@ -1,15 +1,15 @@
 <%doc>
 sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end to end:
   gather noise-free band radiance and sigma of the configuration's variants (tables of
-  s2cl/sweep_tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
+  s2cl/sweep/tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
   -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
-  GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
+  a normalised-difference index such as GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
 Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
 gets the same verdict on both paths (tests/test_one_rule.py). The spectral integral is not here: it
 ran once per (variant, spectrum) on the host.
 
 Template variables
-  T          s2cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
+  T          s2cl.cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
   n_slots    number of band slots;  counts[k], strides[k]: mixed-radix decoding of the
              configuration number (last slot fastest): v_k = (cfg / strides[k]) % counts[k]
   row0[k]    first row of slot k in radiance/sigma (rows: variants, columns: spectra)
@@ -18,15 +18,16 @@ Template variables
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
   lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
   noise, quantise            bools
-  kind       "igrm" | "gvmi" | "sam";  nir, swir (gvmi slots); n_classes, cos_min (sam; below -1:
+  kind       "igrm" | "sam" | an index of s2cl.retrieve.indices;  nd (that index: offsets),
+             slot_a, slot_b (its bands' slots); n_classes, cos_min (sam; below -1:
              no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
   max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
-Arguments
-  index     out [n_configs][pitch] real   igrm: lp (nm); gvmi: GVMI; sam: class (n_classes: none)
+Arguments (s2cl.sweep.kernel.ARGS)
+  index     out [n_configs][pitch] real   igrm: lp (nm); index: its value; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
-  extra     out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako);
-  extra2    out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 255 = >= 12.75
-                                          decades or singular (0 for the other analyses)
+  bounds    out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako); else 0
+  condition out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 240 = the cap of 12
+                                          decades (singular); else 0
   radiance  in  [rows][n_spectra] real    W m-2 sr-1 um-1
   sigma     in  [rows][n_spectra] real    noise standard deviation, same units
   z         in  [n_slots][pitch] real     standard normal deviates
@@ -35,7 +36,7 @@ Arguments
   config_start uint, n_configs uint
 Global size: (pitch / T.lanes, n_configs).
 IGRM: the bands of a configuration are sorted by centre before the fit (a stable sorting network on
-the scalar centres), as the direct API (s2cl.igrm.IgrmFitter) requires increasing wavelengths.
+the scalar centres), as the direct API (s2cl.retrieve.igrm.IgrmFitter) requires increasing wavelengths.
 No builtin math in the hot path (shared/notes/pocl-performance.md).
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>
@@ -77,27 +78,14 @@ ${st.quantise(T)}
 ${st.calibrate(T)}
 % endif
 ${st.correct(T)}
-% if kind == "gvmi":
-${st.gvmi(T, max_abs)}
+% if nd is not None:
+${st.normalised_difference(T, nd, max_abs)}
 % elif kind == "sam":
 ${st.sam(T, n_slots, n_classes, max_abs)}
 % endif
 
 __kernel void sweep_configs(
-    __global ${R} *restrict index,
-    __global uchar *restrict status,
-    __global uchar *restrict extra,
-    __global uchar *restrict extra2,
-    __global const ${R} *restrict radiance,
-    __global const ${R} *restrict sigma,
-    __global const ${R} *restrict z,
-    __global const ${R} *restrict centre,
-    __global const ${R} *restrict lp,
-    __global const ${R} *restrict g,
-    __global const ${R} *restrict s,
-    __global const ${R} *restrict refs,
-    const uint config_start,
-    const uint n_configs)
+    ${signature(args, T)})
 {
     const uint blk = get_global_id(0);
     const uint c = get_global_id(1);
@@ -132,13 +120,13 @@ __kernel void sweep_configs(
     }
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
-% if kind == "gvmi":
+% if nd is not None:
     ${T.M} st;
-    ${vstore(f"s2_gvmi_{T.suffix}(rho[{nir}], rho[{swir}], &st)", "(index + at)")}
+    ${vstore(f"s2_{nd.kind}_{T.suffix}(rho[{slot_a}], rho[{slot_b}], &st)", "(index + at)")}
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = 0;
-    extra2[at + ${l}] = 0;
+    bounds[at + ${l}] = 0;
+    condition[at + ${l}] = 0;
   % endfor
 % elif kind == "sam":
     /* the configuration's class references, scaled to unit length (the same for every lane) */
@@ -163,8 +151,8 @@ __kernel void sweep_configs(
     ${vstore(f"ok ? {T.convert(T.R) if L > 1 else '(' + R + ')'}(best) : ({V})({T.lit(float(n_classes))})", "(index + at)")}
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = 0;
-    extra2[at + ${l}] = 0;
+    bounds[at + ${l}] = 0;
+    condition[at + ${l}] = 0;
   % endfor
 % else:
     /* sort the slots by band centre (stable; the centres are the same for every lane) */
@@ -184,8 +172,8 @@ __kernel void sweep_configs(
     const ${V} code = out[6] * ${T.lit(20.0)} + ${T.lit(0.5)};
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
-    extra[at + ${l}] = (uchar)${lane("bd", l)};
-    extra2[at + ${l}] = (uchar)${lane("code", l)};
+    bounds[at + ${l}] = (uchar)${lane("bd", l)};
+    condition[at + ${l}] = (uchar)${lane("code", l)};
   % endfor
 % endif
 }

@@ -3,9 +3,9 @@ vecmath_check.cl.mako: elementwise wrappers that expose the common/vecmath.mako 
 and to bench/ (their accuracy is a stated, tested property).
 
 Template variables
-  T         s2cl.vectypes.VecTypes (precision, lanes)
-  exp_coef  exp polynomial coefficients (s2cl.vecmath.exp_poly_coefficients)
-  exp_consts dict: emin, ln2_hi, ln2_lo, magic (s2cl.vecmath, per precision)
+  T         s2cl.cl.vectypes.VecTypes (precision, lanes)
+  exp_coef  exp polynomial coefficients (s2cl.cl.vecmath.exp_poly_coefficients)
+  exp_consts dict: emin, ln2_hi, ln2_lo, magic (s2cl.cl.vecmath, per precision)
 Kernels (one work-item = T.lanes consecutive elements; n must be a multiple of T.lanes)
   check_exp_neg(out[n] real, a[n] real)             out = s2_exp_neg(a)
   check_rsqrt(out[n] real, a[n] real)               out = s2_rsqrt(a)

@@ -12,15 +12,17 @@ Python API (mirrors the CLI)::
 
 __version__ = "0.1.0"
 
-from .atmosphere import AtmosphereLUT, AtmosphereState
-from .effects import EffectSet
-from .errors import BuildError, DeviceError, InputError, S2CLError
-from .grid import DEFAULT_GRID, SpectralGrid
-from .libraries import available_libraries, load_library
-from .library import SpectralLibrary
-from .scene import Scene
-from .sensor import Band, Sensor
-from .simulate import LibrarySimulation, Simulator, simulate
+import s2cl.logs  # noqa: F401  (the s2cl logger is silent until an application configures it)
+from s2cl.atmos.atmosphere import AtmosphereLUT
+from s2cl.atmos.state import AtmosphereState
+from s2cl.errors import BuildError, DeviceError, InputError, S2CLError
+from s2cl.forward.simulate import LibrarySimulation, Simulator, simulate
+from s2cl.grid import DEFAULT_GRID, SpectralGrid
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.registry import available_libraries, load_library
+from s2cl.scene.effects import EffectSet
+from s2cl.scene.scene import Scene
+from s2cl.sensor.sensor import Band, Sensor
 
 __all__ = [
     "DEFAULT_GRID",

@@ -1,5 +1,5 @@
 """``python -m s2cl`` runs the command line (same as the ``s2cl`` script)."""
 
-from .cli import main
+from s2cl.cli.main import main
 
 main()

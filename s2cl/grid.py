@@ -7,7 +7,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .errors import InputError
+from s2cl.errors import InputError
 
 #: most wavelengths a grid may have (0.021 nm over 400–2500 nm; every library spectrum is held on it)
 MAX_SAMPLES = 100_000

@@ -3,7 +3,7 @@
 Library code logs through :data:`LOGGER` (or a child, ``logging.getLogger("s2cl.<part>")``) and never
 prints. Nothing reaches the terminal unless an application asks: the CLI calls :func:`configure`
 (warnings by default, DEBUG with ``-v``); a Python user calls :func:`configure` or sets up
-``logging`` as usual. Compiler logs of kernel builds are DEBUG records of ``s2cl.runtime``.
+``logging`` as usual. Compiler logs of kernel builds are DEBUG records of ``s2cl.cl.runtime``.
 """
 
 from __future__ import annotations

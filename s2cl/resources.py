@@ -11,7 +11,7 @@ import importlib.resources
 from functools import cache
 from pathlib import Path
 
-from .errors import S2CLError
+from s2cl.errors import S2CLError
 
 
 @cache
@@ -35,3 +35,16 @@ def kernel_dir() -> Path:
 def scene_dir() -> Path:
     """Directory of the built-in scenes."""
     return shipped_dir("scenes", "default.toml")
+
+
+@cache
+def code_fingerprint() -> str:
+    """SHA-256 (hex) of s2cl's package (sources and data) and its OpenCL kernels: it keys results that a
+    code change could alter (a resumed sweep never reuses chunks computed by other code)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for root in (Path(__file__).resolve().parent, kernel_dir()):
+        for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+            h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()

@@ -11,13 +11,14 @@ import os
 
 import pytest
 
-from s2cl.runtime import STRICT_ENV, Runtime, get_runtime
+from s2cl.cl.builds import STRICT_ENV
+from s2cl.cl.runtime import Runtime, get_runtime
 
 os.environ.setdefault(STRICT_ENV, "error")
 
 #: Pixels per work-item forced in the kernel tests, whatever this CPU's own width: an AVX-512
 #: machine runs the AVX2 widths (8) and the others; on an AVX2 machine 16 falls back to 8
-#: (runtime.choose_lanes), which the same tests then check.
+#: (s2cl.cl.devices.choose_lanes), which the same tests then check.
 FORCED_LANES = (1, 4, 8, 16)
 
 

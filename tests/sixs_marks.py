@@ -6,8 +6,8 @@ from collections.abc import Callable
 
 import pytest
 
+from s2cl.atmos.sixs import sixs_executable
 from s2cl.errors import DependencyError
-from s2cl.sixs import sixs_executable
 
 
 def _missing() -> str | None:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from s2cl.analysis import AnalysisSettings
-from s2cl.libraries import load_library
-from s2cl.scene import Scene
-from s2cl.sweep import SweepJob
-from s2cl.sweep_tables import build_tables, sweep_space
+from s2cl.libraries.registry import load_library
+from s2cl.reference.sweep import NumpyEvaluator
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.scene.scene import Scene
+from s2cl.sweep.engine import SweepJob
+from s2cl.sweep.tables import build_tables, sweep_space
 
 
 class Terms:
@@ -32,14 +33,19 @@ def gvmi_scene(copies: int = 20, b11_max_width: float = 150.0) -> Scene:
     })
 
 
-def gvmi_job(chunk: int = 5, copies: int = 20, backend: str = "numpy", b11_max_width: float = 150.0) -> SweepJob:
+def gvmi_job(chunk: int = 5, copies: int = 20, b11_max_width: float = 150.0) -> SweepJob:
     scene = gvmi_scene(copies, b11_max_width)
     space = sweep_space(scene)
     lib = load_library("builtin:leaf-water", scene.grid)
     terms = Terms(scene.grid.size)
     tables = build_tables(scene, space, lib, terms, terms, target=lib.params["ewt"])
     analysis = AnalysisSettings.from_scene(scene, space.bands)
-    return SweepJob(tables, analysis, chunk=chunk, backend=backend, scene_name=scene.name)
+    return SweepJob(tables, analysis, chunk=chunk, scene_name=scene.name)
+
+
+def numpy_evaluator(job: SweepJob) -> NumpyEvaluator:
+    """The float64 numpy twin as the sweep's chunk evaluator (engine tests: exact and fast, no device)."""
+    return NumpyEvaluator(job.tables, job.analysis)
 
 
 #: A small whole-chain sweep scene (Lib1, IGRM, B4 over 3 centres × 2 widths: 6 configurations) for

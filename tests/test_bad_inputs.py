@@ -5,7 +5,7 @@ case's first line says ``# expect: TEXT``), no traceback, no output folder, noth
 
 A fresh ``python -m s2cl`` costs about a second of imports, 180 of them three minutes on two cores.
 So each run is a child process forked from this test process after s2cl is imported, running the
-CLI's entry point ``s2cl.cli.main`` with its own working folder, ``$TMPDIR``, stdout and stderr
+CLI's entry point ``s2cl.cli.main.main`` with its own working folder, ``$TMPDIR``, stdout and stderr
 files, and exit code; two children run at a time. One case in ten also runs as a real
 ``python -m s2cl`` and must give the same exit code and stderr line.
 """
@@ -53,7 +53,7 @@ def _child(args: list[str], cwd: Path, tmpdir: Path, out: Path, err: Path) -> No
             os.close(f)
         sys.stdout = io.TextIOWrapper(io.FileIO(1, "w", closefd=False), write_through=True)
         sys.stderr = io.TextIOWrapper(io.FileIO(2, "w", closefd=False), write_through=True)
-        from s2cl.cli import main
+        from s2cl.cli.main import main
 
         main(args)
         code = 0
@@ -69,7 +69,7 @@ def _child(args: list[str], cwd: Path, tmpdir: Path, out: Path, err: Path) -> No
 
 def run_forked(jobs: list[tuple[list[str], Path, Path, Path]]) -> list[subprocess.CompletedProcess]:
     """Run each (args, working folder, $TMPDIR, log stem) as a forked child, ``PARALLEL`` at a time."""
-    import s2cl.cli  # noqa: F401  (imported once, here, before any fork)
+    import s2cl.cli.main  # noqa: F401  (imported once, here, before any fork)
 
     sys.stdout.flush()
     sys.stderr.flush()

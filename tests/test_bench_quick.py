@@ -3,6 +3,8 @@
 Runs ``python -m bench --quick --only atmosphere`` in-process (a few seconds): the knob validates
 the reference chain against the float64 oracles, times both settings, and the command writes the
 JSON, Markdown and Pareto plot. No timing is asserted, only that the numbers exist and make sense.
+Also: the registry's families are consistent with the functions they run, every shipped suite
+result still renders, and the one sweep-kernel check passes the kernel and stops a wrong one.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import math
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -72,3 +75,55 @@ def test_validation_failure_exits_1(bench_main: Callable[[list[str]], int], tmp_
         bench_main(["--quick", "--only", "atmosphere", "--out", str(tmp_path), "--no-docs"])
     assert exit_info.value.code == 1
     assert not list(tmp_path.iterdir())  # nothing timed, nothing written
+
+
+def test_registry_declares_every_family_once(bench_main: Callable[[list[str]], int]) -> None:
+    import inspect
+
+    from bench.registry import FAMILIES, GROUPS
+
+    assert len({f.name for f in FAMILIES}) == len(FAMILIES)
+    assert {f.group.key for f in FAMILIES} == {g.key for g in GROUPS}
+    for f in FAMILIES:
+        assert f.columns and f.full.keys() == f.quick.keys(), f.name
+        params = list(inspect.signature(f.run).parameters)
+        assert params[0] == "ctx" and set(f.full) <= set(params[1:]), f.name  # run(ctx, **sizes)
+
+
+def test_report_renders_every_shipped_suite_result(bench_main: Callable[[list[str]], int]) -> None:
+    """Older results (from before the registry) still render, every family with its table."""
+    from bench.registry import FAMILIES
+    from bench.report import markdown
+
+    shipped = [json.loads(p.read_text()) for p in sorted((ROOT / "bench" / "results").glob("*.json"))]
+    suites = [r for r in shipped if r.get("benchmark") == "s2cl suite"]
+    assert suites
+    for results in suites:
+        md = markdown(results, {}, docs=True)
+        assert "does not declare" not in md and "Why the defaults" in md
+        for f in FAMILIES:
+            if f.key in results.get(f.group.key, {}):
+                assert f.title in md or results[f.group.key][f.key].get("title", "") in md, f.name
+
+
+def test_sweep_validation_fails_on_a_wrong_kernel(bench_main: Callable[[list[str]], int]) -> None:
+    """The one sweep check passes the real kernel and stops one whose statuses disagree."""
+    from dataclasses import replace
+
+    from bench.chain import Context
+    from bench.common import BenchValidationError
+    from bench.scaling import _sweep_scene
+    from bench.sweep_check import SAME_STATUS_MIN, validate_sweep
+    from s2cl.reference.sweep import evaluate
+    from s2cl.sweep.plan import plan_sweep
+
+    job = plan_sweep(_sweep_scene(Context.make(True), 2))
+    ok = validate_sweep(job)
+    assert ok["same_status_fraction"] >= SAME_STATUS_MIN and "criterion" in ok
+
+    def wrong(start: int, stop: int) -> Any:  # a raw chunk whose statuses are all wrong
+        raw = evaluate(job.tables, job.analysis, start, stop)
+        return replace(raw, status=(raw.status + 1).astype(raw.status.dtype))
+
+    with pytest.raises(BenchValidationError, match="disagrees"):
+        validate_sweep(job, wrong)

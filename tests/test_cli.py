@@ -12,6 +12,8 @@ import pytest
 import xarray as xr
 from sweep_fixtures import SMALL_SWEEP_TOML
 
+from s2cl.scene.scene import find_scene
+
 
 def run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "s2cl", *args], cwd=cwd, capture_output=True, text=True,
@@ -35,6 +37,12 @@ def test_simulate_default_scene(tmp_path) -> None:
     assert summary["analysis"]["kind"] == "igrm" and 0 < summary["analysis"]["rms"] < 30
     ds = xr.open_dataset(tmp_path / "sim" / "simulation.nc", engine="h5netcdf")
     assert ds["dn"].shape == (13, 120, 100) and ds["reflectance"].shape == (13, 120, 100)
+    # CF-1.10: the convention, units everywhere, standard names where the CF table has them
+    assert ds.attrs["Conventions"] == "CF-1.10"
+    assert ds["noisy"].attrs["standard_name"] == "toa_outgoing_radiance_per_unit_wavelength"
+    assert ds["reflectance"].attrs["standard_name"] == "surface_bidirectional_reflectance"
+    assert ds["centre_nm"].attrs["standard_name"] == "sensor_band_central_radiation_wavelength"
+    assert all("units" in ds[v].attrs for v in ("noisy", "dn", "calibrated", "reflectance", "band_radiance"))
     assert not list((tmp_path / "sim").glob(".*.tmp"))
 
 
@@ -52,7 +60,7 @@ def test_sweep_count_run_report_and_refuse_mixing(tmp_path) -> None:
     assert first.returncode == 0, first.stderr
     assert "warning" not in (first.stdout + first.stderr).lower()
     verbose = run("-v", "devices", cwd=tmp_path)  # -v: the DEBUG log on stderr
-    assert verbose.returncode == 0 and "s2cl.runtime DEBUG: OpenCL device" in verbose.stderr
+    assert verbose.returncode == 0 and "s2cl.cl.runtime DEBUG: OpenCL device" in verbose.stderr
     table = pq.read_table(tmp_path / "out" / "results.parquet")
     assert table.num_rows == 6 and table.schema.metadata[b"scene"] == b"small"
     assert (tmp_path / "out" / "heatmap_B4.png").stat().st_size > 1000
@@ -90,11 +98,17 @@ def test_paper_scene_prints_the_papers_values(tmp_path) -> None:
      (["sweep", "count", "default", "--bogus"], "No such option"),
      (["optimise", "bad.toml"], "effects.bits"),
      (["srf", "B99"], "no band 'B99'"),
-     (["simulate", "--device", "no-such-device"], "no OpenCL device matches")],
+     (["simulate", "--device", "no-such-device"], "no OpenCL device matches"),
+     (["simulate", "device.toml"], "no OpenCL device matches"),
+     (["sweep", "run", "device.toml"], "no OpenCL device matches")],
 )
 def test_errors_are_one_line_with_exit_code(tmp_path, args: list[str], message: str) -> None:
     (tmp_path / "bad.toml").write_text('[scene]\nname = "b"\n[surface]\nlibrary = "builtin:lib1"\n'
                                        "[effects]\nbits = 40\n")
+    # [compute] device is the scene's choice of device: refused before anything is made, like --device
+    default = find_scene("default").read_text(encoding="utf-8")
+    assert '# device = "pocl"' in default
+    (tmp_path / "device.toml").write_text(default.replace('# device = "pocl"', 'device = "no-such-device"'))
     out = run(*args, cwd=tmp_path)
     assert out.returncode == 2
     assert message in out.stderr

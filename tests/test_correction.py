@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.correction import BandAtmosphere
-from s2cl.effects import EffectSet
+from s2cl.atmos.correction import BandAtmosphere
 from s2cl.errors import InputError
+from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.grid import DEFAULT_GRID
 from s2cl.reference.forward import resample, toa_radiance
-from s2cl.sense import Radiometry, Sensing
-from s2cl.sensor import Sensor
+from s2cl.scene.effects import EffectSet
+from s2cl.sensor.sensor import Sensor
 
 CORRECT_ONLY = EffectSet(atmosphere=True, noise=False, quantise=False, calibrate=False, correct=True)
 
@@ -96,7 +96,7 @@ def test_correct_needs_terms_and_atmosphere(rt) -> None:
 def test_shipped_lut_round_trip_and_band_averaging_residual() -> None:
     """Real 6S terms, no noise: flat 0.1/0.2 come back within 1e-5; spectra with structure inside a
     band (vegetation, minerals) carry a residual, largest in B10 where the atmosphere is opaque."""
-    from s2cl.correction_residuals import band_averaging_residuals
+    from s2cl.atmos.residuals import band_averaging_residuals
 
     flat, lib1, minerals = band_averaging_residuals(("builtin:flat", "builtin:lib1", "builtin:minerals"))
     assert np.allclose(flat.true, [[0.1, 0.2]] * len(flat.bands), atol=1e-12)

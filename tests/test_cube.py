@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from s2cl.cube import aggregate, load_cube, simulate_cube
 from s2cl.errors import InputError
+from s2cl.forward.cube import aggregate, load_cube, simulate_cube
+from s2cl.forward.sense import Radiometry
 from s2cl.grid import DEFAULT_GRID
-from s2cl.output import write_netcdf
+from s2cl.io.output import write_netcdf
 from s2cl.reference import forward as ref
-from s2cl.scene import Scene
-from s2cl.sense import Radiometry
+from s2cl.scene.scene import Scene
 
 
 def _cube(rows: int = 60, cols: int = 60, seed: int = 0) -> np.ndarray:
@@ -32,7 +32,7 @@ def _scene(tmp_path=None, **surface) -> Scene:
 def test_bands_at_their_own_gsd(rt) -> None:
     cube = _cube()
     scene = _scene()
-    ds = simulate_cube(scene, cube)
+    ds = simulate_cube(rt, scene, cube)
     assert ds["dn_B2"].shape == (60, 60)
     assert ds["dn_B5"].shape == (30, 30)
     assert ds["dn_B1"].shape == (10, 10)
@@ -66,10 +66,13 @@ def test_netcdf_cube_in_and_out(rt, tmp_path) -> None:
     ds_in.to_netcdf(tmp_path / "cube.nc", engine="h5netcdf")
     loaded, wl = load_cube(tmp_path / "cube.nc")
     assert loaded.shape == cube.shape and np.allclose(wl, DEFAULT_GRID.wavelengths)
-    out = simulate_cube(_scene(tmp_path))
+    out = simulate_cube(rt, _scene(tmp_path))
     path = write_netcdf(tmp_path / "out" / "simulation.nc", out)
     back = xr.open_dataset(path, engine="h5netcdf")
     assert back["dn_B4"].dtype == np.uint16 and back["dn_B12"].shape == (6, 6)
+    assert back.attrs["Conventions"] == "CF-1.10"
+    assert back["noisy_B4"].attrs["standard_name"] == "toa_outgoing_radiance_per_unit_wavelength"
+    assert back["flags_B4"].attrs["flag_meanings"].split()[0] == "below_lmin"
     assert not list((tmp_path / "out").glob(".*tmp"))
 
 
@@ -80,21 +83,21 @@ def test_envi_cube(rt, tmp_path) -> None:
                                                                 "wavelength units": "nm"})
     loaded, wl = load_cube(tmp_path / "cube.hdr")
     assert np.allclose(loaded, cube) and wl.size == DEFAULT_GRID.size
-    ds = simulate_cube(_scene(tmp_path, cube="cube.hdr"))
+    ds = simulate_cube(rt, _scene(tmp_path, cube="cube.hdr"))
     assert ds["dn_B2"].shape == (6, 6)
 
 
 def test_cube_bad_inputs(rt, tmp_path) -> None:
     with pytest.raises(InputError, match="not a whole multiple"):
-        simulate_cube(_scene(gsd_m=15.0), _cube(12, 12))
+        simulate_cube(rt, _scene(gsd_m=15.0), _cube(12, 12))
     with pytest.raises(InputError, match="wavelengths"):
-        simulate_cube(_scene(), _cube(6, 6)[:, :, :2000])
+        simulate_cube(rt, _scene(), _cube(6, 6)[:, :, :2000])
     nan = _cube(6, 6)
     nan[2, 3, 100] = np.nan
     with pytest.raises(InputError, match="non-finite"):
-        simulate_cube(_scene(), nan)
+        simulate_cube(rt, _scene(), nan)
     with pytest.raises(InputError, match="smaller than one"):
-        simulate_cube(_scene(), _cube(4, 4))
+        simulate_cube(rt, _scene(), _cube(4, 4))
     with pytest.raises(InputError, match="not found"):
         load_cube(tmp_path / "missing.nc")
     (tmp_path / "junk.nc").write_text("not netcdf")
@@ -104,4 +107,4 @@ def test_cube_bad_inputs(rt, tmp_path) -> None:
     with pytest.raises(InputError, match="wavelength"):
         load_cube(tmp_path / "nowl.nc")
     with pytest.raises(InputError, match="shape"):
-        simulate_cube(_scene(), np.zeros((10, 2101), np.float32))
+        simulate_cube(rt, _scene(), np.zeros((10, 2101), np.float32))

@@ -1,4 +1,4 @@
-"""Design validity (s2cl.design): one rule for simulate, sweeps, counts and the direct APIs; underdetermined
+"""Design validity (s2cl.retrieve.design): one rule for simulate, sweeps, counts and the direct APIs; underdetermined
 designs are flagged in results.parquet, counted in summary.json and left out of the ranking."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from s2cl.design import count_underdetermined, design_problem, underdetermined
-from s2cl.variants import table2_space
+from s2cl.retrieve.design import count_underdetermined, design_problem, underdetermined
+from s2cl.sensor.variants import table2_space
 
 
 def test_igrm_needs_four_distinct_centres() -> None:

@@ -36,7 +36,7 @@ BASE: dict[str, Any] = {
         "B5": {"centres": [705.0, 710.0], "widths": [15.0, 20.0]},
         "B6": {"centre": 740.0, "width": 15.0},
         "B7": {"centre": 783.0, "width": 20.0}}},
-    "output": {"precision": "float32"},
+    "compute": {"precision": "float32", "lanes": 8},
 }
 
 HOSTILE = st.one_of(
@@ -92,11 +92,11 @@ def assert_clean(err: S2CLError) -> None:
 
 def check_like_sweep_count(data: dict[str, Any], folder: Path) -> None:
     """What ``s2cl sweep count`` runs, minus the printing."""
-    from s2cl.budget import Budget
-    from s2cl.optimise import count_table
-    from s2cl.scene import Scene
-    from s2cl.sweep_budget import sweep_resources
-    from s2cl.validate import check_sweep
+    from s2cl.io.budget import Budget
+    from s2cl.scene.scene import Scene
+    from s2cl.scene.validate import check_sweep
+    from s2cl.sweep.budget import sweep_resources
+    from s2cl.sweep.plan import count_table
 
     scene = Scene.from_dict(data, path=folder / "fuzz.toml")
     checked = check_sweep(scene)
@@ -127,7 +127,7 @@ TOML_PIECES = st.sampled_from(["[scene]\n", 'name = "x"\n', "[surface]\n", 'libr
 @given(text=st.one_of(st.text(max_size=300), st.lists(TOML_PIECES, max_size=30).map("".join)),
        raw=st.binary(max_size=200))
 def test_scene_files_of_any_content_load_or_fail_in_one_line(text: str, raw: bytes) -> None:
-    from s2cl.scene import Scene
+    from s2cl.scene.scene import Scene
 
     with tempfile.TemporaryDirectory() as folder:
         for content in (text.encode("utf-8", "surrogatepass"), raw):
@@ -168,7 +168,7 @@ def csv_texts(draw: Any) -> str:
 @FUZZ
 @given(text=csv_texts(), quantity=st.sampled_from(["reflectance", "radiance"]))
 def test_csv_libraries_load_or_fail_in_one_line(text: str, quantity: str) -> None:
-    from s2cl.library import load_csv_library
+    from s2cl.libraries.files import load_csv_library
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "lib.csv"
@@ -228,7 +228,7 @@ def envi_files(draw: Any) -> tuple[str, bytes]:
 @given(files=envi_files())
 def test_envi_libraries_load_or_fail_in_one_line(files: tuple[str, bytes]) -> None:
     pytest.importorskip("spectral")
-    from s2cl.library import load_envi_library
+    from s2cl.libraries.files import load_envi_library
 
     header, data = files
     with tempfile.TemporaryDirectory() as folder:

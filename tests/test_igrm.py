@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmSettings, fit_igrm
 from s2cl.reference.igrm import fit_numpy_lm, fit_scipy, model
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, synthetic
+from s2cl.retrieve.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmSettings, fit_igrm
 
 WL4, WL6 = band_centres(BANDS_4), band_centres(BANDS_6)
 #: float64 reference settings: tight tolerance, generous iteration limit
@@ -41,8 +41,8 @@ def test_settings_from_mapping_names_file_and_key():
 
 def test_input_errors(rt):
     with pytest.raises(InputError, match="at least 4 bands"):
-        IgrmFitter(3)
-    f = IgrmFitter(4)
+        IgrmFitter(rt, 3)
+    f = IgrmFitter(rt, 4)
     with pytest.raises(InputError, match=r"reflectance: must have shape \(4, n_pixels\)"):
         f.fit(np.zeros((5, 10)), WL4)
     with pytest.raises(InputError, match="strictly increasing"):
@@ -60,7 +60,7 @@ def test_input_errors(rt):
 @pytest.mark.parametrize("wl", [WL4, WL6], ids=["4bands", "6bands"])
 def test_noise_free_recovers_truth(rt, real_t, wl):
     y, truth = synthetic(2000, wl, noise=0.0, seed=3)
-    r = IgrmFitter(len(wl), TIGHT if real_t == "float64" else None, real_t=real_t).fit(y, wl)
+    r = IgrmFitter(rt, len(wl), TIGHT if real_t == "float64" else None, real_t=real_t).fit(y, wl)
     ok = r.status == FitStatus.CONVERGED
     assert ok.mean() >= 0.995
     tol_nm = 1e-4 if real_t == "float64" else 0.05
@@ -79,7 +79,7 @@ def test_float64_kernel_matches_scipy(rt, wl, loss):
     y, _ = synthetic(150, wl, noise=0.003, seed=11)
     settings = IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12, loss=loss)
     ref = fit_scipy(y, wl, settings)
-    r = IgrmFitter(len(wl), settings, real_t="float64").fit(y, wl)
+    r = IgrmFitter(rt, len(wl), settings, real_t="float64").fit(y, wl)
     both = (r.status == FitStatus.CONVERGED) & (ref.status == FitStatus.CONVERGED)
     assert both.mean() >= 0.97
     np.testing.assert_array_equal(r.status, ref.status)
@@ -98,7 +98,7 @@ def test_float64_kernel_is_twin_of_numpy_lm(rt, init):
         pytest.skip("device has no cl_khr_fp64")
     y, _ = synthetic(3000, WL6, noise=0.003, seed=5)
     settings = IgrmSettings(init=init)
-    r = IgrmFitter(6, settings, real_t="float64").fit(y, WL6)
+    r = IgrmFitter(rt, 6, settings, real_t="float64").fit(y, WL6)
     n = fit_numpy_lm(y, WL6, settings, dtype=np.float64)
     assert np.mean(r.status == n.status) >= 0.999
     assert np.mean(r.iterations == n.iterations) >= 0.99
@@ -112,7 +112,7 @@ def test_grid_init_agrees_with_scipy_from_grid_start(rt):
     y, _ = synthetic(100, WL4, noise=0.003, seed=8)
     settings = IgrmSettings(init="grid", tol=1e-10, max_iter=255)
     ref = fit_scipy(y, WL4, settings)
-    r = IgrmFitter(4, settings, real_t="float64").fit(y, WL4)
+    r = IgrmFitter(rt, 4, settings, real_t="float64").fit(y, WL4)
     both = (r.status == 0) & (ref.status == 0)
     assert both.mean() >= 0.97
     np.testing.assert_allclose(r.lp[both], ref.lp[both], atol=1e-3)
@@ -121,8 +121,8 @@ def test_grid_init_agrees_with_scipy_from_grid_start(rt):
 def test_fast_variant_matches_plain_builtin_variant(rt):
     """Own exp + 8 lanes against builtin exp + scalar code (the obviously-correct variant)."""
     y, _ = synthetic(20000, WL6, noise=0.003, seed=2)
-    fast = IgrmFitter(6, lanes=8, exp="poly").fit(y, WL6)
-    plain = IgrmFitter(6, lanes=1, exp="builtin").fit(y, WL6)
+    fast = IgrmFitter(rt, 6, lanes=8, exp="poly").fit(y, WL6)
+    plain = IgrmFitter(rt, 6, lanes=1, exp="builtin").fit(y, WL6)
     assert np.mean(fast.fitted() == plain.fitted()) >= 0.998
     # statuses differ only at the CONVERGED/STALLED threshold (lp_tol_nm = 1e-3 nm), where two float32
     # exp implementations round the Gauss-Newton step differently
@@ -138,8 +138,8 @@ def test_float32_close_to_float64(rt):
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     y, _ = synthetic(20000, WL4, noise=0.003, seed=4)
-    r32 = IgrmFitter(4).fit(y, WL4)
-    r64 = IgrmFitter(4, TIGHT, real_t="float64").fit(y, WL4)
+    r32 = IgrmFitter(rt, 4).fit(y, WL4)
+    r64 = IgrmFitter(rt, 4, TIGHT, real_t="float64").fit(y, WL4)
     d = np.abs(r32.lp - r64.lp)
     assert np.median(d) <= 1e-3 and np.mean(d <= 0.05) >= 0.995
 
@@ -148,7 +148,7 @@ def test_float32_close_to_float64(rt):
 def test_any_pixel_count_and_lane_independence(rt, n):
     """Pixel counts off the lane width give the same per-pixel results as one big batch."""
     y, _ = synthetic(2048, WL4, noise=0.003, seed=6)
-    f = IgrmFitter(4)
+    f = IgrmFitter(rt, 4)
     full = f.fit(y, WL4)
     part = f.fit(y[:, 500:500 + n], WL4)
     for name in ("lp", "rmax", "rmin", "rms", "status", "iterations", "bounds"):
@@ -159,24 +159,24 @@ def test_lane_width_does_not_change_results(rt):
     """One pixel per work-item or 4/8/16 in vectors: bit-identical results (no lane mixes with another),
     and each within the float32 tolerance of the converged float64 fit."""
     y, _ = synthetic(3000, WL6, noise=0.003, seed=13)
-    results = {lanes: IgrmFitter(6, lanes=lanes).fit(y, WL6) for lanes in (1, 4, 8, 16)}
+    results = {lanes: IgrmFitter(rt, 6, lanes=lanes).fit(y, WL6) for lanes in (1, 4, 8, 16)}
     for lanes in (4, 8, 16):
         for name in ("lp", "rmin", "rms", "status", "iterations", "bounds"):
             np.testing.assert_array_equal(getattr(results[lanes], name), getattr(results[1], name), err_msg=name)
     if rt.has_fp64:
-        r64 = IgrmFitter(6, TIGHT, real_t="float64").fit(y, WL6)
+        r64 = IgrmFitter(rt, 6, TIGHT, real_t="float64").fit(y, WL6)
         d = np.abs(results[16].lp - r64.lp)
         assert np.median(d) <= 1e-3 and np.mean(d <= 0.05) >= 0.995
 
 
 def test_zero_pixels(rt):
-    r = IgrmFitter(4).fit(np.zeros((4, 0)), WL4)
+    r = IgrmFitter(rt, 4).fit(np.zeros((4, 0)), WL4)
     assert r.n_pixels == 0 and r.lp.shape == (0,)
 
 
 def test_chunking_is_invisible(rt):
     y, _ = synthetic(1000, WL4, noise=0.003, seed=9)
-    f = IgrmFitter(4)
+    f = IgrmFitter(rt, 4)
     a, b = f.fit(y, WL4), f.fit(y, WL4, chunk=96)
     np.testing.assert_array_equal(a.lp, b.lp)
     np.testing.assert_array_equal(a.status, b.status)
@@ -192,8 +192,8 @@ def test_soft_l1_resists_one_bad_band(rt):
     """With a gross error in one of six bands, soft-L1 stays closer to the clean solution."""
     y, truth = synthetic(500, WL6, noise=0.001, seed=12)
     y[3] += 0.08  # B7 off by 8 % reflectance
-    lin = IgrmFitter(6).fit(y, WL6)
-    rob = IgrmFitter(6, IgrmSettings(loss="soft_l1", f_scale=0.005)).fit(y, WL6)
+    lin = IgrmFitter(rt, 6).fit(y, WL6)
+    rob = IgrmFitter(rt, 6, IgrmSettings(loss="soft_l1", f_scale=0.005)).fit(y, WL6)
     err_lin = np.median(np.abs(lin.lp - truth["l0"] - truth["s"]))
     err_rob = np.median(np.abs(rob.lp - truth["l0"] - truth["s"]))
     assert err_rob < 0.5 * err_lin
@@ -206,7 +206,7 @@ def test_prosail_canopies_order_by_chlorophyll(rt):
 
     cab = np.arange(10.0, 91.0, 10.0)
     y = box_resample(prosail_canopies(cab, np.full(cab.size, 3.0)), BANDS_4)
-    r = IgrmFitter(4).fit(y, WL4)
+    r = IgrmFitter(rt, 4).fit(y, WL4)
     assert np.all(r.status == FitStatus.CONVERGED)
     assert np.all(np.diff(r.lp) > 0)
     assert np.all((r.l0 > 660) & (r.l0 < 695) & (r.s > 20) & (r.s < 60))

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmResult, IgrmSettings
+from s2cl.cl.runtime import get_runtime
 from s2cl.reference.igrm import model
 from s2cl.reference.igrm_cases import BANDS_4, BANDS_6, band_centres, synthetic
+from s2cl.retrieve.igrm import BoundFlag, FitStatus, IgrmFitter, IgrmResult, IgrmSettings
 
 WL4, WL6 = band_centres(BANDS_4), band_centres(BANDS_6)
 FIELDS = ("rmax", "rmin", "l0", "s", "lp", "rms", "status", "iterations", "bounds")
@@ -28,7 +29,7 @@ def fit_embedded(hard: np.ndarray, wl: np.ndarray, real_t: str = "float32", sett
     is_hard[pos] = True
     mixed[:, is_hard] = hard
     mixed[:, ~is_hard] = normal
-    fitter = IgrmFitter(len(wl), settings, real_t=real_t)
+    fitter = IgrmFitter(get_runtime(), len(wl), settings, real_t=real_t)
     both, alone = fitter.fit(mixed, wl), fitter.fit(normal, wl)
     for name in FIELDS:
         got = getattr(both, name)
@@ -83,7 +84,7 @@ def test_no_red_edge_bare_minerals_are_flagged(rt, real_t):
 def test_noisy_four_band_runaway_stops_at_bounds(rt, real_t):
     """Noisy 4-band spectra whose exact solution runs away: the fit stops on a bound, flagged."""
     y, _ = synthetic(20000, WL4, noise=0.005, seed=7)
-    ref = IgrmFitter(4, IgrmSettings(l0_min_nm=400.0, l0_max_nm=900.0, s_min_nm=1.0, s_max_nm=900.0,
+    ref = IgrmFitter(rt, 4, IgrmSettings(l0_min_nm=400.0, l0_max_nm=900.0, s_min_nm=1.0, s_max_nm=900.0,
                                      rmin_min=-1.0, max_iter=200), real_t="float64" if rt.has_fp64 else "float32")
     free = ref.fit(y, WL4)
     runaway = np.flatnonzero((free.l0 < 650) | (free.l0 > 700) | (free.s < 10) | (free.s > 80))
@@ -153,8 +154,8 @@ def test_float32_vs_float64_population(rt):
         pytest.skip("device has no cl_khr_fp64")
     for wl in (WL4, WL6):
         y, _ = synthetic(100_000, wl, noise=0.003, seed=31)
-        r32 = IgrmFitter(len(wl)).fit(y.astype(np.float32), wl)
-        r64 = IgrmFitter(len(wl), IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12),
+        r32 = IgrmFitter(rt, len(wl)).fit(y.astype(np.float32), wl)
+        r64 = IgrmFitter(rt, len(wl), IgrmSettings(tol=1e-10, max_iter=255, residual_floor=1e-12),
                          real_t="float64").fit(y.astype(np.float32).astype(np.float64), wl)
         d = np.abs(r32.lp.astype(np.float64) - r64.lp)
         assert np.all(np.isfinite(d))
@@ -169,9 +170,9 @@ def test_float32_vs_float64_population(rt):
 def _sparse_canopy_pixels(n_copies: int = 40) -> tuple[np.ndarray, np.ndarray]:
     """Noisy, quantised, atmosphere-corrected B4 B5 B6 B8 reflectance of the sparse-canopy library
     (Lib2, the paper's hard case): the pixels a sweep fits."""
-    from s2cl.optimise import plan_sweep
     from s2cl.reference.sweep import band_reflectance
-    from s2cl.scene import Scene
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.plan import plan_sweep
 
     scene = Scene.from_dict({
         "scene": {"name": "lib2-hard"}, "surface": {"library": "builtin:lib2", "quantity": "reflectance",
@@ -194,8 +195,8 @@ def test_converged_means_at_the_float64_optimum_and_stalls_say_so(rt):
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     y, wl = _sparse_canopy_pixels()
-    r32 = IgrmFitter(4).fit(y, wl)
-    r64 = IgrmFitter(4, IgrmSettings(tol=1e-10, max_iter=1000, residual_floor=1e-12), real_t="float64").fit(y, wl)
+    r32 = IgrmFitter(rt, 4).fit(y, wl)
+    r64 = IgrmFitter(rt, 4, IgrmSettings(tol=1e-10, max_iter=1000, residual_floor=1e-12), real_t="float64").fit(y, wl)
     err = np.abs(r32.lp.astype(np.float64) - r64.lp)
     both = r32.fitted() & (r64.status == FitStatus.CONVERGED)
     conv = both & (r32.status == FitStatus.CONVERGED)
@@ -214,7 +215,7 @@ def test_condition_estimate_matches_twin_and_grows_with_coincident_bands(rt):
     from s2cl.reference.igrm import fit_numpy_lm
 
     y, _ = synthetic(2000, WL6, noise=0.003, seed=9)
-    r = IgrmFitter(6, real_t="float64").fit(y, WL6)
+    r = IgrmFitter(rt, 6, real_t="float64").fit(y, WL6)
     twin = fit_numpy_lm(y, WL6, dtype=np.float64)
     same = r.iterations == twin.iterations
     np.testing.assert_allclose(r.log10_condition[same], twin.log10_condition[same], atol=1e-6)

@@ -7,7 +7,7 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
-from s2cl.libraries import available_libraries, load_library
+from s2cl.libraries.registry import available_libraries, load_library
 
 SWIR = SpectralGrid(1500.0, 2500.0, 1.0)
 EXPECTED_SIZES = {"flat": 2, "lib1": 120, "lib2": 180, "leaf-water": 246, "minerals": 8, "iron-backgrounds": 3}

@@ -5,16 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.atmos.lut_axes import LUTAxes
+from s2cl.atmos.lut_build import _command_line, _to_1nm
+from s2cl.atmos.lut_runs import SCATTERING_NODES_UM, SCATTERING_SAMPLES_UM, _log_interp_matrix
+from s2cl.atmos.sixs import on_sixs_grid
 from s2cl.errors import InputError
-from s2cl.lut_build import (
-    SCATTERING_NODES_UM,
-    SCATTERING_SAMPLES_UM,
-    LUTAxes,
-    _command_line,
-    _log_interp_matrix,
-    _to_1nm,
-)
-from s2cl.sixs import on_sixs_grid
 
 
 def test_default_axes_cover_the_brief():
@@ -82,5 +77,37 @@ def test_to_1nm_keeps_6s_values_on_shared_wavelengths():
 
 
 def test_command_line_has_no_machine_path(monkeypatch):
-    monkeypatch.setattr("sys.argv", ["/some/where/s2cl/lut_build.py", "-o", "out.npz"])
-    assert _command_line() == "python -m s2cl.lut_build -o out.npz"
+    monkeypatch.setattr("sys.argv", ["/some/where/bin/s2cl", "lut", "build", "-o", "out.npz"])
+    assert _command_line() == "s2cl lut build -o out.npz"
+    monkeypatch.setattr("sys.argv", ["/some/where/s2cl/__main__.py", "lut", "build", "-o", "out.npz"])
+    assert _command_line() == "s2cl lut build -o out.npz"  # python -m s2cl
+
+
+def test_lut_build_records_the_one_command_line(monkeypatch, tmp_path):
+    """`s2cl lut build` records itself with the options given, however it was started; errors are one line."""
+    from s2cl.cli import lut as lut_cli
+    from s2cl.cli.main import main
+
+    seen = {}
+
+    def fake_build(output, axes, *, workers, progress, command):
+        seen.update(axes=axes, workers=workers, progress=progress, command=command)
+        raise InputError("stop here", source=str(output))
+
+    monkeypatch.setattr("s2cl.atmos.lut_build.build_lut", fake_build)
+    with pytest.raises(SystemExit) as info:
+        main(["lut", "build", "-o", str(tmp_path / "x.npz"), "--aot", "0,0.2", "-q"])
+    assert info.value.code == 2
+    assert seen["command"] == f"s2cl lut build --output {tmp_path / 'x.npz'} --aot 0,0.2 --quiet"
+    assert seen["axes"].aot550 == (0.0, 0.2) and seen["workers"] == 2 and seen["progress"] is False
+    assert lut_cli.BUILD_COMMAND == "s2cl lut build"
+
+
+def test_lut_build_refuses_bad_axes_in_one_line(capsys):
+    from s2cl.cli.main import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["lut", "build", "-o", "x.npz", "--aot", "0.1,0.2"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err == "error: axes.aot550: must start at 0 (the Rayleigh-only node), got 0.1\n"

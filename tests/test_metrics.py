@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.metrics import classification_metrics, regression_metrics
 from s2cl.reference import stages
+from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.status import Status
 
 DEGENERATE, INVALID, OK = Status.DEGENERATE, Status.INVALID, Status.OK
@@ -89,7 +89,8 @@ def test_confusion_and_omission() -> None:
 
 def test_gvmi_and_sam_twins_hard_cases() -> None:
     """The numpy twins' rules (the kernels' rules, kernels/common/stages.mako)."""
-    index, status = stages.gvmi(np.array([0.4, np.nan, -0.2, 0.01 - 0.1]), np.array([0.2, 0.1, -0.1, -0.0099 - 0.02]))
+    index, status = stages.normalised_difference(np.array([0.4, np.nan, -0.2, 0.01 - 0.1]),
+                                                 np.array([0.2, 0.1, -0.1, -0.0099 - 0.02]))
     assert index[0] == pytest.approx((0.5 - 0.22) / (0.5 + 0.22))
     assert status.tolist() == [Status.OK, Status.INVALID, Status.INVALID, Status.INVALID]  # last: "GVMI 199"
     refs = np.array([[1.0, 0.0], [0.0, 1.0]])
@@ -105,9 +106,9 @@ def test_gvmi_and_sam_twins_hard_cases() -> None:
 
 
 def test_batched_metrics_agree_with_single_population_fit() -> None:
-    """s2cl.metrics (per configuration, for sweeps) and s2cl.quantify (one population, with
+    """s2cl.retrieve.metrics (per configuration, for sweeps) and s2cl.retrieve.quantify (one population, with
     coefficients for plots) must give the same regression."""
-    from s2cl.quantify import fit_polynomial
+    from s2cl.retrieve.quantify import fit_polynomial
 
     rng = np.random.default_rng(3)
     x = rng.uniform(690, 735, (4, 3000))

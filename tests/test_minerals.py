@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from s2cl import minerals
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
-from s2cl.library_npz import read_library_file
+from s2cl.libraries import minerals
+from s2cl.libraries.npz import read_library_file
 
 SWIR = SpectralGrid(1500.0, 2500.0, 1.0)
 ROOT = Path(__file__).resolve().parent.parent

@@ -11,30 +11,29 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from s2cl.effects import EffectSet, build_options
+from s2cl.cl.templates import render_def
+from s2cl.forward.noise import TAG_SENSOR_NOISE, normal4, philox4x32, sensor_noise, uniform
+from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.reference import forward as ref
-from s2cl.reference.philox import TAG_SENSOR_NOISE, normal4, philox4x32, sensor_noise, uniform
-from s2cl.sense import Radiometry, Sensing
-from s2cl.sensor import Sensor
+from s2cl.scene.effects import EffectSet
+from s2cl.sensor.sensor import Sensor
 
 TEST_KERNELS = r"""
-#include "common/s2_real.clh"
-#include "common/s2_random.clh"
 __kernel void words(__global uint4 *out, const uint seed, const uint tag)
 {
     const uint i = get_global_id(0);
     out[i] = s2_philox_words(seed, tag, i, 7u, 3u, 1u);
 }
-__kernel void normals(__global real_t *out, const uint seed, const uint group)
+__kernel void normals(__global R *out, const uint seed, const uint group)
 {
     const uint i = get_global_id(0);
-    const real4_t z = s2_normal4(seed, S2_TAG_SENSOR_NOISE, i, group, 0u, 0u);
+    const R4 z = s2_normal4_SFX(seed, S2_TAG_SENSOR_NOISE, i, group, 0u, 0u);
     vstore4(z, i, out);
 }
-__kernel void uniform_extremes(__global real_t *out)
+__kernel void uniform_extremes(__global R *out)
 {
-    out[0] = s2_uniform(0u);
-    out[1] = s2_uniform(0xffffffffu);
+    out[0] = s2_uniform_SFX(0u);
+    out[1] = s2_uniform_SFX(0xffffffffu);
     out[2] = log(out[0]);
     out[3] = log(out[1]);
 }
@@ -44,7 +43,11 @@ NORMAL_TOL = {"float32": 2e-6, "float64": 1e-12}
 
 
 def _program(rt, real_t: str):
-    return rt.build(TEST_KERNELS, template="tests/noise", options=build_options(real_t))
+    """The noise stage (common/random.mako) alone, with test kernels around it."""
+    T = rt.types(real_t, vector=False)
+    pragma = "#pragma OPENCL EXTENSION cl_khr_fp64 : enable\n" if T.double else ""
+    kernels = TEST_KERNELS.replace("R4", f"{T.R}4").replace("R ", f"{T.R} ").replace("SFX", T.suffix)
+    return rt.build(pragma + render_def("common/random.mako", "random", T=T) + kernels, template="tests/noise")
 
 
 def test_philox_known_answers() -> None:

@@ -12,14 +12,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.design import design_problem
 from s2cl.errors import InputError
-from s2cl.optimise import plan_sweep
-from s2cl.scene import Scene
-from s2cl.simulate import simulate
-from s2cl.simulate_analysis import pixel_results
+from s2cl.forward.simulate import simulate
+from s2cl.retrieve.design import design_problem
+from s2cl.retrieve.scene_analysis import pixel_results
+from s2cl.scene.scene import Scene
 from s2cl.status import Status
-from s2cl.sweep_kernel import SweepKernel
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.plan import plan_sweep
 
 ESA = {"B4": (665, 30), "B5": (705, 15), "B6": (740, 15), "B7": (783, 20), "B8a": (865, 20), "B11": (1610, 90),
        "B12": (2190, 180)}
@@ -44,7 +44,7 @@ def _scene(kind: str, bands: dict[str, tuple[float, float]] | None = None, **sen
         "effects": {"atmosphere": True, "correct": True, "seed": 5},
         "sweep": {"bands": list(bands), "ranges": {b: {"centre": c, "width": w} for b, (c, w) in bands.items()}},
         "analysis": analysis,
-        "output": {"precision": "float64"},
+        "compute": {"precision": "float64"},
         **({"grid": GRID[kind]} if kind in GRID else {}),
     })
 
@@ -54,10 +54,10 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     scene = _scene(kind)
-    direct = pixel_results(scene, simulate(scene))
+    direct = pixel_results(rt, scene, simulate(scene))
     job = plan_sweep(scene)
     assert job.n_configs == 1
-    swept = SweepKernel(job.tables, job.analysis, precision="float64")(0, 1)
+    swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
     np.testing.assert_array_equal(swept.status[0], direct.status)
     tol = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0}[kind]  # nm / index / class
     np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=tol)
@@ -82,7 +82,7 @@ def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tm
     scene = _scene("igrm", bands, file=str(sensor))
     problem = design_problem("igrm", list(bands), [c for c, _ in bands.values()], [w for _, w in bands.values()])
     assert problem and "B5 and B6 at 730 nm" in problem and "3 distinct centres" in problem
-    from s2cl.simulate_analysis import analysis_design
+    from s2cl.retrieve.scene_analysis import analysis_design
 
     with pytest.raises(InputError, match="underdetermined") as direct:
         analysis_design(scene)
@@ -90,7 +90,7 @@ def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tm
         plan_sweep(scene)
     assert problem in str(direct.value) and problem in str(swept.value)
     assert "\n" not in str(direct.value)
-    from s2cl.igrm import IgrmFitter
+    from s2cl.retrieve.igrm import IgrmFitter
 
     with pytest.raises(InputError, match="underdetermined"):
-        IgrmFitter(4).fit(np.zeros((4, 3)), np.array([665.0, 730.0, 730.0, 783.0]))
+        IgrmFitter(rt, 4).fit(np.zeros((4, 3)), np.array([665.0, 730.0, 730.0, 783.0]))

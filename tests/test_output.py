@@ -7,8 +7,8 @@ import os
 import numpy as np
 import pytest
 
-from s2cl.cache import write_npz_atomic
-from s2cl.output import write_atomic
+from s2cl.io.cache import write_npz_atomic
+from s2cl.io.output import write_atomic
 
 
 @pytest.fixture
@@ -46,3 +46,17 @@ def test_failed_write_leaves_nothing(tmp_path) -> None:
     with pytest.raises(RuntimeError):
         write_atomic(tmp_path / "b.txt", boom)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_cache_follows_the_platform_and_the_override(tmp_path, monkeypatch) -> None:
+    """$S2CL_CACHE wins; otherwise the platform's user cache folder ($XDG_CACHE_HOME on Linux)."""
+    import sys
+
+    from s2cl.io.cache import CACHE_ENV, cache_dir
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "mine"))
+    assert cache_dir("prosail") == tmp_path / "mine" / "prosail" and (tmp_path / "mine" / "prosail").is_dir()
+    monkeypatch.delenv(CACHE_ENV)
+    if sys.platform.startswith("linux"):
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+        assert cache_dir("x") == tmp_path / "xdg" / "s2cl" / "x"

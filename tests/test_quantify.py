@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.igrm import BoundFlag, FitStatus
-from s2cl.quantify import RegressionStatus, fit_polynomial, score_retrieval, trimmed_rms
+from s2cl.retrieve.igrm import BoundFlag, FitStatus
+from s2cl.retrieve.quantify import RegressionStatus, fit_polynomial, score_retrieval, trimmed_rms
 
 
 def test_quadratic_recovered_exactly():

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.effects import EffectSet
 from s2cl.errors import InputError
+from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.reference import forward as ref
-from s2cl.sense import Radiometry, Sensing
+from s2cl.scene.effects import EffectSet
 from s2cl.status import PixelFlag
 
 QC = EffectSet(noise=False, quantise=True, calibrate=True)

@@ -152,9 +152,9 @@ def test_full_filesystem_is_refused_before_the_run(tmp_path) -> None:
 def test_disk_filling_during_the_write_is_an_output_error(tmp_path) -> None:
     """Another process fills the disk after the check: the streamed write fails in one error, no temp file."""
     from s2cl.errors import OutputError
-    from s2cl.scene import Scene
-    from s2cl.simulate_stream import simulate_to_netcdf
-    from s2cl.validate import check_simulate
+    from s2cl.forward.stream import simulate_to_netcdf
+    from s2cl.scene.scene import Scene
+    from s2cl.scene.validate import check_simulate
 
     checked = check_simulate(Scene.load(scene(tmp_path, **{"copies = 2": "copies = 200"})))
     with small_filesystem(tmp_path / "small", "3m") as small:
@@ -323,6 +323,18 @@ def test_coarse_grids_are_refused_or_warned(tmp_path) -> None:
     assert summary["warnings"][0].startswith("grid.step_nm: 5 nm")
 
 
+def test_a_sweep_over_tabulated_srfs_says_it_uses_the_model(tmp_path) -> None:
+    """A measured SRF describes only its band's own centre and width: a sweep warns that every variant
+    (and the reference row) uses the model SRF; simulate, which uses the table, does not."""
+    from s2cl.scene.scene import Scene
+    from s2cl.scene.validate import check_simulate, check_sweep
+
+    path = scene(tmp_path, **{"[effects]": '[sensor]\nsrf = "measured-S2A"\n[effects]'})
+    swept = [str(c) for c in check_sweep(Scene.load(path)).caveats]
+    assert any(c.startswith("sensor.srf: the sweep uses the model SRF") for c in swept), swept
+    assert not [c for c in check_simulate(Scene.load(path)).caveats if str(c).startswith("sensor.srf")]
+
+
 def test_radiance_libraries_from_csv(tmp_path) -> None:
     rows = "\n".join(f"{w},{50 + w / 100:.2f},{20 + w / 200:.2f}" for w in range(400, 2501, 10))
     (tmp_path / "toa.csv").write_text("wavelength_nm,bright,dark\n" + rows + "\n")
@@ -384,7 +396,7 @@ def test_simulate_and_optimise_into_one_folder_keep_each_others_results(finished
 def test_every_command_has_quiet() -> None:
     import click
 
-    from s2cl.cli import cli
+    from s2cl.cli.main import cli
 
     def commands(group: click.Group, prefix: str = "") -> Iterator[tuple[str, click.Command]]:
         for name, cmd in group.commands.items():

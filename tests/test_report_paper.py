@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from s2cl.report import heatmap_vs_paper, paper_comparison, paper_results, summarise
+from s2cl.sweep.report import heatmap_vs_paper, paper_comparison, paper_results, summarise
 
 
 def _grid_frame(table: str, band: str, values: np.ndarray, others: dict[str, tuple[float, float]]) -> pd.DataFrame:

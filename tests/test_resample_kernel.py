@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.forward.resample import ResamplePlan, Resampler
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 from s2cl.reference import forward as ref
-from s2cl.resample import ResamplePlan, Resampler
-from s2cl.sensor import Sensor
-from s2cl.srf import band_weights, point_weights
+from s2cl.sensor.sensor import Sensor
+from s2cl.sensor.srf import band_weights, point_weights
 
 RTOL = {"float32": 2e-6, "float64": 1e-12}
 

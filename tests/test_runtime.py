@@ -9,9 +9,11 @@ import sys
 
 import pytest
 
-from s2cl import runtime
+from s2cl.cl import devices, runtime
+from s2cl.cl.builds import STRICT_ENV
+from s2cl.cl.devices import LANES_ENV, choose_lanes, list_devices
+from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import BuildError, DeviceError, InputError
-from s2cl.runtime import LANES_ENV, STRICT_ENV, Runtime, choose_lanes, get_runtime, list_devices
 
 
 def test_default_device_is_pocl_cpu(rt: Runtime) -> None:
@@ -47,7 +49,7 @@ def test_pyopencl_ctx_is_honoured(monkeypatch, rt: Runtime) -> None:
 
 
 def test_no_platform_says_how_to_install(monkeypatch) -> None:
-    monkeypatch.setattr(runtime, "_platforms", lambda: [])
+    monkeypatch.setattr(devices, "_platforms", lambda: [])
     with pytest.raises(DeviceError) as err:
         Runtime()
     assert "pyopencl[pocl]" in str(err.value)
@@ -104,9 +106,9 @@ def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) 
     assert rt.lanes("float32") == 8 and rt.lanes("float64") == 4
     assert rt.lanes("float32", 16) == 8
     assert any("exceed this CPU device's native vector width (8)" in r.message for r in caplog.records)
-    from s2cl.igrm import IgrmFitter
+    from s2cl.retrieve.igrm import IgrmFitter
 
-    assert IgrmFitter(4, lanes=16, rt=rt).types.lanes == 8
+    assert IgrmFitter(rt, 4, lanes=16).types.lanes == 8
 
 
 def test_lanes_from_environment(rt: Runtime, monkeypatch) -> None:
@@ -125,18 +127,18 @@ WARNING_SOURCE = ("float f(float a) { if (a > 0.0f) return a; }\n"
 def test_build_log_is_debug_not_terminal(tmp_path) -> None:
     """A kernel that compiles with a warning, in a fresh process with PoCL's kernel cache off (PoCL's
     clang then prints "1 warning generated." straight to file descriptor 2, as PoCL 3.0 does on every
-    build): nothing reaches stdout or stderr; the log is a DEBUG record of ``s2cl.runtime``."""
+    build): nothing reaches stdout or stderr; the log is a DEBUG record of ``s2cl.cl.runtime``."""
     script = tmp_path / "build.py"
     script.write_text(
         "import logging, sys\n"
         "logging.basicConfig(stream=sys.stdout, level=logging.DEBUG, format='%(name)s|%(message)s')\n"
-        "from s2cl.runtime import get_runtime\n"
+        "from s2cl.cl.runtime import get_runtime\n"
         f"get_runtime().build({WARNING_SOURCE!r}, template='warns.cl')\n")
     env = {k: v for k, v in os.environ.items() if k != STRICT_ENV} | {"POCL_KERNEL_CACHE": "0"}
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stderr == ""
-    logged = [line for line in out.stdout.splitlines() if line.startswith("s2cl.runtime|")]
+    logged = [line for line in out.stdout.splitlines() if line.startswith("s2cl.cl.runtime|")]
     assert any("warns.cl" in line for line in logged) and "does not return a value" in out.stdout
 
 
@@ -150,18 +152,18 @@ def test_strict_builds_refuse_warnings(rt: Runtime, monkeypatch) -> None:
 
 def test_default_device_compiles(rt: Runtime) -> None:
     """The default device is one that builds kernels (a PoCL that cannot is skipped, see below)."""
-    assert runtime._builds(rt.info) is None
+    assert devices._builds(rt.info) is None
 
 
 def test_default_skips_a_device_that_cannot_compile(monkeypatch) -> None:
     infos = list_devices()
     broken = infos[0]
-    real = runtime._builds
-    monkeypatch.setattr(runtime, "_builds", lambda info: "error: unknown target CPU 'generic'"
+    real = devices._builds
+    monkeypatch.setattr(devices, "_builds", lambda info: "error: unknown target CPU 'generic'"
                         if info == broken else real(info))
     if any(real(i) is None for i in infos[1:]):  # another device that really compiles is chosen instead
-        assert runtime._first_working(infos) != broken
+        assert devices._first_working(infos) != broken
     with pytest.raises(DeviceError) as err:
-        runtime._first_working([broken])
+        devices._first_working([broken])
     assert "unknown target CPU" in str(err.value)
     assert "pocl-opencl-icd" in str(err.value)

@@ -7,7 +7,7 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.reference import stages as ref
-from s2cl.sam import SamClassifier, SamStatus, confusion_matrix, score_classification
+from s2cl.retrieve.sam import SamClassifier, SamStatus, confusion_matrix, score_classification
 
 
 def _scene(n: int, seed: int = 0):
@@ -23,7 +23,7 @@ def _scene(n: int, seed: int = 0):
 
 def test_sam_matches_oracle(rt, real_t, lanes):
     refs, _, pix = _scene(5003)
-    out = SamClassifier(refs, real_t=real_t, lanes=lanes).classify(pix)
+    out = SamClassifier(rt, refs, real_t=real_t, lanes=lanes).classify(pix)
     best, angle, status = ref.sam_classify(pix, refs)
     ang_all = np.sort(ref.spectral_angles(pix, refs), axis=0)
     clear = (ang_all[1] - ang_all[0]) > 1e-5  # not a near-tie
@@ -37,7 +37,7 @@ def test_sam_matches_spy(rt):
     spectral = pytest.importorskip("spectral")
     refs, _, pix = _scene(4000, seed=3)
     spy = spectral.spectral_angles(pix.T.reshape(40, 100, 5), refs).reshape(4000, 3)
-    out = SamClassifier(refs, real_t="float64" if rt.has_fp64 else "float32").classify(pix)
+    out = SamClassifier(rt, refs, real_t="float64" if rt.has_fp64 else "float32").classify(pix)
     np.testing.assert_array_equal(out.reference, np.argmin(spy, axis=1))
     np.testing.assert_allclose(out.angle, spy.min(axis=1), atol=1e-6 if rt.has_fp64 else 2e-4)
 
@@ -45,7 +45,7 @@ def test_sam_matches_spy(rt):
 def test_threshold_leaves_far_pixels_unclassified(rt):
     refs, _, pix = _scene(1000, seed=1)
     thr = 0.02
-    out = SamClassifier(refs, threshold_rad=thr).classify(pix)
+    out = SamClassifier(rt, refs, threshold_rad=thr).classify(pix)
     far = out.angle > thr + 1e-5
     near = out.angle < thr - 1e-5
     assert far.any() and near.any()
@@ -55,12 +55,12 @@ def test_threshold_leaves_far_pixels_unclassified(rt):
 
 def test_hard_cases_zero_nan_and_neighbours(rt):
     refs, _, pix = _scene(16, seed=2)
-    clean = SamClassifier(refs).classify(pix)
+    clean = SamClassifier(rt, refs).classify(pix)
     bad = pix.copy()
     bad[:, 3] = 0.0
     bad[2, 9] = np.nan
     bad[0, 10] = np.inf
-    out = SamClassifier(refs).classify(bad)
+    out = SamClassifier(rt, refs).classify(bad)
     assert out.status[3] == SamStatus.ZERO_VECTOR and out.label[3] == -1 and out.angle[3] == 0.0
     assert out.status[9] == SamStatus.INVALID_INPUT and out.status[10] == SamStatus.INVALID_INPUT
     assert np.all(np.isfinite(out.angle))
@@ -72,34 +72,34 @@ def test_hard_cases_zero_nan_and_neighbours(rt):
 def test_identical_references_first_wins(rt):
     refs, _, pix = _scene(500, seed=4)
     dup = np.vstack([refs, refs[1]])             # reference 3 == reference 1, but of class 2
-    sam = SamClassifier(dup, reference_classes=np.array([0, 1, 2, 2]))
+    sam = SamClassifier(rt, dup, reference_classes=np.array([0, 1, 2, 2]))
     assert sam.duplicate_references() == [(1, 3)]
     out = sam.classify(pix)
     assert not np.any(out.reference == 3)
-    np.testing.assert_array_equal(out.reference, SamClassifier(refs).classify(pix).reference)
+    np.testing.assert_array_equal(out.reference, SamClassifier(rt, refs).classify(pix).reference)
 
 
 def test_reference_errors(rt):
     with pytest.raises(InputError, match="reference 1 is a zero vector"):
-        SamClassifier(np.array([[0.1, 0.2], [0.0, 0.0]]))
+        SamClassifier(rt, np.array([[0.1, 0.2], [0.0, 0.0]]))
     with pytest.raises(InputError, match="threshold_rad"):
-        SamClassifier(np.array([[0.1, 0.2]]), threshold_rad=4.0)
+        SamClassifier(rt, np.array([[0.1, 0.2]]), threshold_rad=4.0)
     with pytest.raises(InputError, match="reference_classes"):
-        SamClassifier(np.array([[0.1, 0.2]]), reference_classes=np.array([-1]))
+        SamClassifier(rt, np.array([[0.1, 0.2]]), reference_classes=np.array([-1]))
     with pytest.raises(InputError, match=r"shape \(2, n_pixels\)"):
-        SamClassifier(np.array([[0.1, 0.2]])).classify(np.zeros((3, 4)))
+        SamClassifier(rt, np.array([[0.1, 0.2]])).classify(np.zeros((3, 4)))
 
 
 def test_confusion_and_mean_omission(rt):
     refs, truth, pix = _scene(3000, seed=5)
-    out = SamClassifier(refs, reference_classes=np.array([0, 1, 1])).classify(pix)
+    out = SamClassifier(rt, refs, reference_classes=np.array([0, 1, 1])).classify(pix)
     truth2 = np.where(truth == 2, 1, truth)
     score = score_classification(truth2, out, n_classes=2)
     assert score.confusion.shape == (2, 3) and score.confusion.sum() == 3000
     assert score.mean_omission < 0.05 and score.overall_accuracy > 0.95
     cm = confusion_matrix(np.array([0, 0, 0, 1, 1]), np.array([0, 1, -1, 1, 1]), 2)
     np.testing.assert_array_equal(cm, [[1, 1, 1], [0, 2, 0]])
-    from s2cl.sam import SamResult
+    from s2cl.retrieve.sam import SamResult
 
     r = SamResult(np.zeros(5, np.int32), np.array([0, 1, -1, 1, 1], np.int32), np.zeros(5),
                   np.array([0, 0, 1, 0, 0], np.uint8))

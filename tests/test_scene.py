@@ -7,7 +7,7 @@ import copy
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.scene import Scene, builtin_scenes, find_scene
+from s2cl.scene.scene import Scene, builtin_scenes, find_scene
 
 BASE = {"scene": {"name": "t"}, "surface": {"library": "lib.csv"}}
 
@@ -33,6 +33,26 @@ def test_defaults() -> None:
     assert scene.grid.size == 2101
     assert scene.sensor.bits == 12
     assert scene.effects.noise and scene.effects.quantise and scene.effects.calibrate
+
+
+def test_run_config_is_read_once_and_frozen() -> None:
+    """Everything downstream reads scene.run; [compute] sets precision, lanes and device."""
+    import dataclasses
+
+    scene = Scene.from_dict({**copy.deepcopy(BASE), "compute": {"precision": "float64", "lanes": 4, "device": "pocl"},
+                             "effects": {"seed": 7, "frame": 2}, "surface": {"library": "a.csv", "copies": 3}})
+    r = scene.run
+    assert (r.precision, r.lanes, r.device, r.seed, r.frame, r.copies, r.bits) == ("float64", 4, "pocl", 7, 2, 3, 12)
+    assert r.effects == scene.effects
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.seed = 1  # type: ignore[misc]
+    assert Scene.from_dict(copy.deepcopy(BASE)).run.precision == "float32"
+
+
+def test_output_precision_still_works_and_says_it_moved(caplog) -> None:
+    scene = Scene.from_dict({**copy.deepcopy(BASE), "output": {"precision": "float64"}})
+    assert scene.run.precision == "float64"
+    assert "compute.precision" in caplog.text and "deprecated" in caplog.text
 
 
 def test_relative_paths_resolve_against_scene_file(tmp_path) -> None:
@@ -62,6 +82,9 @@ def test_relative_paths_resolve_against_scene_file(tmp_path) -> None:
         ({"surface": {"cube": "b.nc"}}, "surface.gsd_m", "gsd_m"),
         ({"surface": {"library": "a.csv", "quantity": "reflectance"}}, "surface.quantity", "atmosphere"),
         ({"output": {"precision": "float16"}}, "output.precision", "float32"),
+        ({"compute": {"precision": "half"}}, "compute.precision", "float32"),
+        ({"compute": {"lanes": 3}}, "compute.lanes", "(1, 2, 4, 8, 16)"),
+        ({"compute": {"precision": "float32"}, "output": {"precision": "float64"}}, "output.precision", "disagree"),
         ({"scene": {}}, "scene.name", "missing"),
     ],
 )

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.noise_model import fit_noise_model
-from s2cl.sensor import SENSOR_COLUMNS, Sensor
+from s2cl.sensor.noise_model import fit_noise_model
+from s2cl.sensor.sensor import SENSOR_COLUMNS, Sensor
 
 
 def test_table1_values() -> None:

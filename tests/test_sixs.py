@@ -8,9 +8,9 @@ import sys
 import pytest
 from sixs_marks import sixs_test
 
-from s2cl import sixs
+from s2cl.atmos import sixs
+from s2cl.atmos.sixs_profiles import PROFILES, get_profile
 from s2cl.errors import DependencyError, InputError
-from s2cl.sixs_profiles import PROFILES, get_profile
 
 # {{{ dependency errors (no 6S needed)
 
@@ -143,7 +143,7 @@ def test_water_transmittance_depends_on_the_slant_column_only():
 
 @sixs_test
 def test_visibility_table_is_6s_conversion():
-    from s2cl.atmosphere import visibility_to_aot550
+    from s2cl.atmos.state import visibility_to_aot550
 
     for visibility in (23.0, 45.0):
         out = sixs.run_sixs(sixs.SixSInput(0.55, aot550=None, visibility_km=visibility))

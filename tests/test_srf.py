@@ -7,7 +7,16 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
-from s2cl.srf import ALPHA, X0, XS, band_weights, load_srf_csv, measured_sentinel2_srf, point_weights, super_gaussian
+from s2cl.sensor.srf import (
+    ALPHA,
+    X0,
+    XS,
+    band_weights,
+    load_srf_csv,
+    measured_sentinel2_srf,
+    point_weights,
+    super_gaussian,
+)
 
 
 def test_eq1_constants_and_fwhm() -> None:

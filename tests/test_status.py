@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import re
 
-from s2cl.igrm import FitStatus
 from s2cl.resources import kernel_dir
-from s2cl.sam import SamStatus
+from s2cl.retrieve.igrm import FitStatus
+from s2cl.retrieve.sam import SamStatus
 from s2cl.status import PixelFlag, Status
 
 

@@ -10,13 +10,13 @@ import pytest
 from click.testing import CliRunner
 from sixs_marks import sixs_test
 
-from s2cl.cli import cli, main
+from s2cl.cli.main import cli, main
 from s2cl.errors import InputError
 from s2cl.resources import scene_dir
-from s2cl.scene import Scene
+from s2cl.scene.scene import Scene
 from s2cl.studies import STUDIES, water_vapour
 from s2cl.studies.aerosol import equal_error
-from s2cl.studies.cirrus import (
+from s2cl.studies.cirrus_spikes import (
     SPIKE_DIP,
     despiked_terms,
     isolated_spikes,
@@ -168,8 +168,8 @@ def test_cirrus_sign_turns_only_when_all_spikes_go(results):
 @sixs_test
 def test_spikes_are_6s_own_samples():
     """The LUT's recovered 2.5 nm samples are 6S's printed H2O transmittances, spikes included."""
-    from s2cl.sixs import SixSInput, run_many
-    from s2cl.sixs_profiles import get_profile
+    from s2cl.atmos.sixs import SixSInput, run_many
+    from s2cl.atmos.sixs_profiles import get_profile
 
     setup = load_study(Scene.load("study-cirrus"))
     terms = setup.terms(setup.truth(water_vapour=1.0))
@@ -287,7 +287,7 @@ def test_quick_typo_fails_without_quick():
 def test_relative_lut_path_resolves_against_the_scene(tmp_path):
     import shutil
 
-    from s2cl.atmosphere import AtmosphereLUT
+    from s2cl.atmos.atmosphere import AtmosphereLUT
 
     lut = AtmosphereLUT.load()
     shutil.copy(lut.source, tmp_path / "my-lut.npz")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -13,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from sweep_fixtures import gvmi_job
+from sweep_fixtures import gvmi_job, numpy_evaluator
 
 from s2cl.errors import InputError
 from s2cl.reference.sweep import evaluate
-from s2cl.sweep import RESULTS, run_sweep
+from s2cl.sweep.engine import RESULTS, run_sweep
 
 HERE = Path(__file__).resolve().parent
 
@@ -28,7 +29,7 @@ def _table(path: Path):
 
 def test_sweep_writes_rows_and_metadata(tmp_path) -> None:
     job = gvmi_job()
-    path = run_sweep(job, tmp_path / "out")
+    path = run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "out")
     table = _table(path)
     assert table.num_rows == job.n_configs
     assert table.column("config").to_pylist() == list(range(job.n_configs))
@@ -43,8 +44,8 @@ def test_sweep_writes_rows_and_metadata(tmp_path) -> None:
 
 def test_sweep_metrics_match_direct_evaluation(tmp_path) -> None:
     job = gvmi_job()
-    table = _table(run_sweep(job, tmp_path / "out"))
-    from s2cl.metrics import regression_metrics
+    table = _table(run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "out"))
+    from s2cl.retrieve.metrics import regression_metrics
 
     raw = evaluate(job.tables, job.analysis, 0, job.n_configs)
     m = regression_metrics(raw.index, raw.status, raw.bounds, job.tables.target)
@@ -55,43 +56,63 @@ def test_sweep_metrics_match_direct_evaluation(tmp_path) -> None:
 def test_resume_computes_only_missing_chunks(tmp_path) -> None:
     job = gvmi_job()
     out = tmp_path / "out"
-    first = _table(run_sweep(job, out))
+    first = _table(run_sweep(job, evaluator=numpy_evaluator(job), out=out))
     chunks = sorted((out / "chunks").glob("*.parquet"))
     chunks[1].unlink()
     chunks[3].unlink()
     done: list[int] = []
     seen: list[tuple[int, int]] = []
-    again = _table(run_sweep(job, out, progress=done.append, on_start=lambda todo, skip: seen.append((todo, skip))))
+    again = _table(run_sweep(job, evaluator=numpy_evaluator(job), out=out, progress=done.append,
+                             on_start=lambda todo, skip: seen.append((todo, skip))))
     assert sum(done) == seen[0][0] == 10 and seen[0][1] == job.n_configs - 10
     assert again.equals(first)
 
 
 def test_folder_with_another_sweep_is_refused(tmp_path) -> None:
     out = tmp_path / "out"
-    run_sweep(gvmi_job(), out)
+    run_sweep(gvmi_job(), evaluator=numpy_evaluator(gvmi_job()), out=out)
     other = gvmi_job(b11_max_width=100.0)
     with pytest.raises(InputError, match="different sweep") as err:
-        run_sweep(other, out)
+        run_sweep(other, evaluator=numpy_evaluator(other), out=out)
     assert "--overwrite" in str(err.value)
-    assert _table(run_sweep(other, out, overwrite=True)).num_rows == other.n_configs
+    replaced = run_sweep(other, evaluator=numpy_evaluator(other), out=out, overwrite=True)
+    assert _table(replaced).num_rows == other.n_configs
+
+
+def test_chunks_of_other_code_are_never_resumed(tmp_path, monkeypatch) -> None:
+    """A resumed sweep keys its chunks by the sources and kernels too: after a code change (here the
+    code fingerprint, as a changed file would give), the folder is refused until --overwrite."""
+    import s2cl.sweep.engine as engine
+
+    out, job = tmp_path / "out", gvmi_job()
+    run_sweep(job, evaluator=numpy_evaluator(job), out=out)
+    assert json.loads((out / "manifest.json").read_text())["code"] == engine.code_fingerprint()
+    monkeypatch.setattr(engine, "code_fingerprint", lambda: "0" * 64)
+    with pytest.raises(InputError, match="other s2cl code") as err:
+        run_sweep(job, evaluator=numpy_evaluator(job), out=out)
+    assert "--overwrite" in str(err.value)
+    redone = run_sweep(job, evaluator=numpy_evaluator(job), out=out, overwrite=True)
+    assert _table(redone).num_rows == job.n_configs
+    assert json.loads((out / "manifest.json").read_text())["code"] == "0" * 64
 
 
 DRIVER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {tests!r})
-    from sweep_fixtures import gvmi_job
-    import s2cl.sweep as sweep
+    from sweep_fixtures import gvmi_job, numpy_evaluator
+    import s2cl.sweep.engine as sweep
     real = sweep.evaluate_chunk
     def slow(*args, **kwargs):
         time.sleep(0.05)
         return real(*args, **kwargs)
     sweep.evaluate_chunk = slow
-    sweep.run_sweep(gvmi_job(chunk=1), {out!r})
+    sweep.run_sweep(gvmi_job(chunk=1), evaluator=numpy_evaluator(gvmi_job(chunk=1)), out={out!r})
 """)
 
 
 def test_sigkill_and_resume_gives_identical_output(tmp_path) -> None:
-    reference = _table(run_sweep(gvmi_job(chunk=1), tmp_path / "reference")).to_pandas()
+    job = gvmi_job(chunk=1)
+    reference = _table(run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "reference")).to_pandas()
     out = tmp_path / "killed"
     script = DRIVER.format(tests=str(HERE), out=str(out))
     proc = subprocess.Popen([sys.executable, "-c", script], env={**os.environ, "PYTHONUNBUFFERED": "1"})
@@ -104,7 +125,7 @@ def test_sigkill_and_resume_gives_identical_output(tmp_path) -> None:
     assert 5 <= partial < len(reference), "the sweep should have been killed part-way"
     assert not (out / RESULTS).exists()
     done: list[int] = []
-    resumed = _table(run_sweep(gvmi_job(chunk=1), out, progress=done.append)).to_pandas()
+    resumed = _table(run_sweep(job, evaluator=numpy_evaluator(job), out=out, progress=done.append)).to_pandas()
     assert sum(done) == len(reference) - partial
     assert resumed.equals(reference)
 
@@ -114,26 +135,37 @@ def test_dask_two_workers_equal_single_process(tmp_path) -> None:
     pytest.importorskip("dask.distributed")
     job = gvmi_job(chunk=4)
     single = (tmp_path / "single" / RESULTS)
-    run_sweep(job, tmp_path / "single")
-    run_sweep(job, tmp_path / "dask", workers=2)
+    run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "single")
+    run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "dask", workers=2)
     assert _table(tmp_path / "dask" / RESULTS).equals(_table(single))
     assert (tmp_path / "dask" / RESULTS).read_bytes() == single.read_bytes()
+
+
+@pytest.mark.slow
+def test_dask_workers_run_the_kernel_on_the_named_device(rt, tmp_path) -> None:
+    """The OpenCL kernel on two Dask workers, each building its own context on the device the run names,
+    gives the single-process result bit for bit."""
+    pytest.importorskip("dask.distributed")
+    job = gvmi_job(chunk=6, copies=6)
+    run_sweep(job, tmp_path / "single", device=rt.info.spec)
+    run_sweep(job, tmp_path / "dask", workers=2, device=rt.info.spec)
+    assert (tmp_path / "dask" / RESULTS).read_bytes() == (tmp_path / "single" / RESULTS).read_bytes()
 
 
 def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
     import shutil as _shutil
 
-    import s2cl.sweep as sweep
+    import s2cl.sweep.engine as sweep
 
     job = gvmi_job()
     monkeypatch.setattr(sweep, "_available_memory", lambda: 1e5)
     with pytest.raises(InputError, match=r"GB of memory.*lower sweep.chunk"):
-        run_sweep(job, tmp_path / "a")
+        run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "a")
     monkeypatch.setattr(sweep, "_available_memory", lambda: None)
     usage = _shutil.disk_usage(tmp_path)
     monkeypatch.setattr(sweep.shutil, "disk_usage", lambda p: usage._replace(free=10))
     with pytest.raises(InputError, match="MB of disk"):
-        run_sweep(job, tmp_path / "b")
+        run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "b")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
@@ -148,8 +180,8 @@ def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
       "not swept")],
 )
 def test_bad_sweep_sections(sweep_section: dict, message: str) -> None:
-    from s2cl.scene import Scene
-    from s2cl.sweep_tables import sweep_space
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.tables import sweep_space
 
     scene = Scene.from_dict({"scene": {"name": "t"}, "surface": {"library": "x.csv"}, "sweep": sweep_section})
     with pytest.raises(InputError, match=message) as err:

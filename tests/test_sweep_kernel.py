@@ -6,19 +6,19 @@ import numpy as np
 import pytest
 from sweep_fixtures import Terms, gvmi_job
 
-from s2cl.analysis import AnalysisSettings
-from s2cl.libraries import load_library
+from s2cl.libraries.registry import load_library
 from s2cl.reference.sweep import evaluate
-from s2cl.scene import Scene
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.scene.scene import Scene
 from s2cl.status import Status
-from s2cl.sweep_kernel import SweepKernel
-from s2cl.sweep_tables import build_tables, sweep_space
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.tables import build_tables, sweep_space
 
 
 def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:
     job = gvmi_job(copies=7)  # 246 spectra x 7 copies: pixels not a multiple of the lanes
     ref = evaluate(job.tables, job.analysis, 0, job.n_configs)
-    got = SweepKernel(job.tables, job.analysis, precision=real_t, lanes=lanes)(0, job.n_configs)
+    got = SweepKernel(job.tables, job.analysis, rt, precision=real_t, lanes=lanes)(0, job.n_configs)
     assert np.array_equal(got.status, ref.status)
     # float32: a DN may round the other way near .5 (one DN ≈ 0.02 % of B11's range)
     # (float64: not bit-equal, as OpenCL contracts a*b+c into FMA; numpy does not)
@@ -28,7 +28,7 @@ def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:
 
 def test_chunks_are_independent(rt) -> None:
     job = gvmi_job(copies=5)
-    k = SweepKernel(job.tables, job.analysis)
+    k = SweepKernel(job.tables, job.analysis, rt)
     whole = k(0, job.n_configs)
     part = k(7, 19)
     assert np.array_equal(part.index, whole.index[7:19])
@@ -59,7 +59,7 @@ def _sam_job(threshold: float | None):
 def test_sam_sweep_matches_numpy(rt, real_t: str, threshold: float | None) -> None:
     tables, analysis = _sam_job(threshold)
     ref = evaluate(tables, analysis, 0, tables.n_configs)
-    got = SweepKernel(tables, analysis, precision=real_t)(0, tables.n_configs)
+    got = SweepKernel(tables, analysis, rt, precision=real_t)(0, tables.n_configs)
     agree = np.mean((got.index == ref.index) & (got.status == ref.status))
     assert agree > (0.9999 if real_t == "float64" else 0.995)
     if threshold:
@@ -86,12 +86,12 @@ def _igrm_job(copies: int = 6):
 def test_igrm_sweep_matches_numpy_lm(rt) -> None:
     tables, analysis = _igrm_job()
     ref = evaluate(tables, analysis, 0, tables.n_configs)
-    got = SweepKernel(tables, analysis, precision="float64")(0, tables.n_configs)
+    got = SweepKernel(tables, analysis, rt, precision="float64")(0, tables.n_configs)
     same = got.status == ref.status
     assert same.mean() > 0.995
     ok = same & (ref.status == 0)
     assert np.percentile(np.abs(got.index - ref.index)[ok], 99) < 1e-6
-    f32 = SweepKernel(tables, analysis, precision="float32")(0, tables.n_configs)
+    f32 = SweepKernel(tables, analysis, rt, precision="float32")(0, tables.n_configs)
     ok32 = (f32.status == 0) & (ref.status == 0)
     assert ok32.mean() > 0.95
     assert np.median(np.abs(f32.index - ref.index)[ok32]) < 0.01  # nm
@@ -100,8 +100,8 @@ def test_igrm_sweep_matches_numpy_lm(rt) -> None:
 def test_igrm_sweep_lanes_are_independent(rt, lanes: int) -> None:
     """The fused IGRM sweep at any lane width gives what one pixel per work-item gives, bit for bit."""
     tables, analysis = _igrm_job(copies=3)
-    one = SweepKernel(tables, analysis, lanes=1)(0, tables.n_configs)
-    got = SweepKernel(tables, analysis, lanes=lanes)(0, tables.n_configs)
+    one = SweepKernel(tables, analysis, rt, lanes=1)(0, tables.n_configs)
+    got = SweepKernel(tables, analysis, rt, lanes=lanes)(0, tables.n_configs)
     assert np.array_equal(got.index, one.index)
     assert np.array_equal(got.status, one.status) and np.array_equal(got.bounds, one.bounds)
 
@@ -125,7 +125,7 @@ def test_igrm_sweep_sorts_bands_and_flags_coincident_ones_by_condition(rt) -> No
     tables = build_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
     analysis = AnalysisSettings.from_scene(scene, space.bands)
     ref = evaluate(tables, analysis, 0, 3)
-    got = SweepKernel(tables, analysis, precision="float64")(0, 3)
+    got = SweepKernel(tables, analysis, rt, precision="float64")(0, 3)
     assert np.mean(got.status == ref.status) > 0.99
     ok = (got.status == 0) & (ref.status == 0)
     assert np.percentile(np.abs(got.index - ref.index)[ok], 99) < 1e-6  # config 1 (B5 745 > B6 740) included

@@ -9,7 +9,8 @@ import pytest
 
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
-from s2cl.library import flat_targets, load_csv_library, load_envi_library
+from s2cl.libraries.files import load_csv_library, load_envi_library
+from s2cl.libraries.library import flat_targets
 
 envi = pytest.importorskip("spectral.io.envi")
 

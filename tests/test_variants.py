@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.variants import BandRange, SweepSpace, table2_space
+from s2cl.sensor.variants import BandRange, SweepSpace, table2_space
 
 
 @pytest.mark.parametrize(("bands", "count"), [(["B4", "B5", "B6", "B7"], 43_056), (["B4", "B5", "B6", "B8"], 3_312),
@@ -61,7 +61,7 @@ def test_duplicate_band() -> None:
 
 
 def test_grid_band() -> None:
-    from s2cl.variants import BandGrid
+    from s2cl.sensor.variants import BandGrid
 
     g = BandGrid("B4", tuple(range(660, 706, 5)), (15, 20, 25, 30, 35, 40, 50))
     space = SweepSpace((g,)).validate()

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from s2cl.templates import render
-from s2cl.vecmath import EXP_DEGREE, EXP_MIN, exp_neg_model, exp_poly_coefficients, exp_template_vars
-from s2cl.vectypes import VecTypes
+from s2cl.cl.templates import render
+from s2cl.cl.vecmath import EXP_DEGREE, EXP_MIN, exp_neg_model, exp_poly_coefficients, exp_template_vars
+from s2cl.cl.vectypes import VecTypes
 
 #: Stated accuracy of s2_exp_neg on [EXP_MIN, 0] (relative, against exp of the same input):
 #: float32 degree 5: polynomial 1.0e-7 + rounding -> 3e-7 (2.5 ulp); float64 degree 12: 4e-16.
@@ -15,7 +15,7 @@ EXP_REL_TOL = {"float32": 3e-7, "float64": 4e-16}
 
 
 def _program(rt, real_t: str, lanes: int, degree: int | None = None):
-    T = VecTypes(real_t, rt.lanes(real_t, lanes))  # a width this CPU cannot use falls back (runtime.choose_lanes)
+    T = VecTypes(real_t, rt.lanes(real_t, lanes))  # a width this CPU cannot use falls back (devices.choose_lanes)
     src = render("vecmath_check.cl.mako", T=T, **exp_template_vars(real_t, degree))
     return T, rt.build(src, template="vecmath_check.cl.mako")
 

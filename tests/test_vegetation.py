@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from s2cl import minerals, vegetation
 from s2cl.errors import DependencyError, InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
-from s2cl.library_npz import read_library_file, write_library_file
-from s2cl.vegetation import LEAF_WATER, LIB1, LIB2, VegetationSpec, load_vegetation
+from s2cl.libraries import minerals, vegetation
+from s2cl.libraries.npz import read_library_file, write_library_file
+from s2cl.libraries.vegetation import LEAF_WATER, LIB1, LIB2, VegetationSpec, load_vegetation
 
 HAVE_PROSAIL = importlib.util.find_spec("prosail") is not None
 needs_prosail = pytest.mark.skipif(not HAVE_PROSAIL, reason="prosail not installed (pip install 's2cl[prosail]')")
@@ -164,7 +164,7 @@ def test_spec_from_dict_and_validation():
 
 def test_shipped_libraries_need_neither_prosail_nor_numba():
     code = (
-        "import sys; from s2cl.libraries import load_library; from s2cl.grid import DEFAULT_GRID\n"
+        "import sys; from s2cl.libraries.registry import load_library; from s2cl.grid import DEFAULT_GRID\n"
         "for n in ('lib1', 'lib2', 'leaf-water'): load_library('builtin:' + n, DEFAULT_GRID)\n"
         "bad = [m for m in ('prosail', 'numba') if m in sys.modules]\n"
         "assert not bad, bad\n"

@@ -25,8 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from s2cl.library_npz import write_library_file
-from s2cl.minerals import (
+from s2cl.libraries.minerals import (
     CITATION,
     DATA_FILE,
     DOI,
@@ -34,6 +33,7 @@ from s2cl.minerals import (
     FULL_RANGE_NM,
     SWIR_RANGE_NM,
 )
+from s2cl.libraries.npz import write_library_file
 
 AL_OH = "Al-OH"
 MG_OH_CO = "Mg-OH/C-O"

@@ -17,7 +17,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from s2cl.vegetation import SHIPPED, generate, prosail_version, shipped_path, write_library
+from s2cl.libraries.vegetation import SHIPPED, generate, prosail_version, shipped_path, write_library
 
 
 def main() -> None:

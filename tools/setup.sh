@@ -21,7 +21,7 @@ apt_install() {
 if [ "$extras" = test ] || [ "$extras" = sixs ]; then
   ldconfig -p 2>/dev/null | grep -q 'libgfortran\.so\.5' || apt_install libgfortran5
 fi
-if ! python -c "from s2cl.runtime import get_runtime; get_runtime()" >/dev/null 2>&1; then
+if ! python -m s2cl devices -q >/dev/null 2>&1; then
   apt_install pocl-opencl-icd
   python -m s2cl devices >/dev/null || { python -m s2cl devices; exit 1; }
 fi

@@ -25,8 +25,8 @@ Contract of  void s2_igrm_fit_<name>(const V *y, const R *wavelength_nm, V *out,
   bounds        M             bit 1 l0 at lower bound, 2 l0 at upper, 4 s at lower, 8 s at upper,
                               16 depth at 0 (rmax = rmin), 32 rmin at its lower bound;
                               0 for INVALID lanes
-Render-time constants: everything in `c`, an s2cl.igrm.KernelConfig (bounds, tolerances, loss,
-initial guess, iteration limit, exp choice); see s2cl/igrm.py for their meaning and defaults.
+Render-time constants: everything in `c`, an s2cl.retrieve.igrm_settings.KernelConfig (bounds, tolerances, loss,
+initial guess, iteration limit, exp choice); see s2cl/retrieve/igrm_settings.py for their meaning and defaults.
 Needs (emitted by the including template): s2_exp_neg_<T.suffix> (exp="poly"),
 s2_exp_neg_<suffix of 1 lane> (init="grid", exp="poly"), s2_rsqrt_<T.suffix> (loss="soft_l1"),
 s2_ldl4_solve_<T.suffix>.

@@ -1,12 +1,12 @@
 <%doc>
 common/stages.mako: the stages of the sensor chain after resampling, as `static inline` device
 functions written once and spliced by every kernel that runs them: the standalone kernels
-(sense.cl.mako, gvmi.cl.mako, sam.cl.mako) and the fused sweep kernel (sweep.cl.mako). A rule
+(sense.cl.mako, index.cl.mako, sam.cl.mako) and the fused sweep kernel (sweep.cl.mako). A rule
 (rounding, clipping, what counts as invalid, which status a pixel gets) therefore cannot differ
 between `s2cl simulate` and a sweep. Status codes and pixel flags: common/s2_status.clh.
 numpy twins (float64): s2cl/reference/stages.py.
 
-Every def takes T (s2cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 gives scalar code)
+Every def takes T (s2cl.cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 gives scalar code)
 and emits functions named with T.suffix, each guarded so that a kernel may splice a def twice.
 No builtin math in the per-pixel path (PoCL does not inline it, shared/notes/pocl-performance.md).
 
@@ -18,8 +18,9 @@ No builtin math in the per-pixel path (PoCL does not inline it, shared/notes/poc
                 lmin + dn gain; NaN where flags has S2_FLAG_NODATA.
   correct(T)    V s2_correct_<sfx>(V L, R lp, R g, R s)
                 band-effective inverse: y = (L - lp) / g, rho = y / max(1 + s y, 1e-6); NaN stays NaN.
-  gvmi(T, max_abs)  V s2_gvmi_<sfx>(V nir, V swir, M *status)
-                ((nir + 0.1) - (swir + 0.02)) / ((nir + 0.1) + (swir + 0.02)) (Segl et al. 2012 eq. 3);
+  normalised_difference(T, nd, max_abs)  V s2_<nd.kind>_<sfx>(V a, V b, M *status)
+                ((a + o_a) - (b + o_b)) / ((a + o_a) + (b + o_b)), offsets nd.offsets
+                (s2cl.retrieve.indices; GVMI, Segl et al. 2012 eq. 3: o = 0.1, 0.02);
                 S2_INVALID (index 0) unless both reflectances are finite, |rho| <= max_abs, and both
                 offset terms are positive (then the index lies in (-1, 1)); else S2_OK.
   sam(T, n_bands, n_classes, max_abs)
@@ -84,17 +85,18 @@ static inline ${T.V} s2_correct_${T.suffix}(const ${T.V} L, const ${T.R} lp, con
 #endif
 </%def>
 
-<%def name="gvmi(T, max_abs)">
+<%def name="normalised_difference(T, nd, max_abs)">
 #include "common/s2_status.clh"
-#ifndef S2_GVMI_${T.suffix.upper()}
-#define S2_GVMI_${T.suffix.upper()}
-static inline ${T.V} s2_gvmi_${T.suffix}(const ${T.V} nir, const ${T.V} swir, ${T.M} *status)
+#ifndef S2_${nd.kind.upper()}_${T.suffix.upper()}
+#define S2_${nd.kind.upper()}_${T.suffix.upper()}
+/* ${nd.title} */
+static inline ${T.V} s2_${nd.kind}_${T.suffix}(const ${T.V} rho_a, const ${T.V} rho_b, ${T.M} *status)
 {
-    const ${T.V} a = nir + ${T.lit(0.1)};
-    const ${T.V} b = swir + ${T.lit(0.02)};
+    const ${T.V} a = rho_a + ${T.lit(nd.offsets[0])};
+    const ${T.V} b = rho_b + ${T.lit(nd.offsets[1])};
     /* NaN and +-inf fail the range comparisons */
-    const ${T.M} ok = (nir <= ${T.vlit(max_abs)}) & (nir >= ${T.vlit(-max_abs)})
-                    & (swir <= ${T.vlit(max_abs)}) & (swir >= ${T.vlit(-max_abs)})
+    const ${T.M} ok = (rho_a <= ${T.vlit(max_abs)}) & (rho_a >= ${T.vlit(-max_abs)})
+                    & (rho_b <= ${T.vlit(max_abs)}) & (rho_b >= ${T.vlit(-max_abs)})
                     & (a > ${T.vlit(0.0)}) & (b > ${T.vlit(0.0)});
     *status = ok ? ${_m(T, "S2_OK")} : ${_m(T, "S2_INVALID")};
     return ok ? (a - b) / (a + b) : ${T.vlit(0.0)};

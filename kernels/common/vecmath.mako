@@ -5,7 +5,7 @@ Why: PoCL 3.0 does not inline builtin math (exp, sqrt, fma, fmin, fmax); one cal
 costs ~10-20x (shared/notes/pocl-performance.md). These helpers use only + - * /, comparisons,
 the ternary operator and as_* bit casts, which compile to inline vector instructions.
 
-Every def takes T, an s2cl.vectypes.VecTypes (T.V real lanes, T.M comparison mask, T.IB integer
+Every def takes T, an s2cl.cl.vectypes.VecTypes (T.V real lanes, T.M comparison mask, T.IB integer
 lanes of the same width, T.R scalar real, T.lit(x) literal, T.suffix e.g. "f8"), and emits its
 function once per type (#ifndef guard), so several templates may call the same def.
 
@@ -24,7 +24,7 @@ Mako helpers: absv(T, e), maxv(T, a, b), minv(T, a, b), clampv(T, e, lo, hi): ex
 <%def name="maxv(T, a, b)">((${a}) > (${b}) ? (${a}) : (${b}))</%def>
 
 ## exp(a), a <= 0. a = n ln2 + f (Cody-Waite, two-part ln2), |f| <= ln2/2; exp(f) by the
-## polynomial `coef` (ascending, from s2cl.vecmath.exp_poly_coefficients); 2^n from the exponent
+## polynomial `coef` (ascending, from s2cl.cl.vecmath.exp_poly_coefficients); 2^n from the exponent
 ## bits. n comes from the round-to-nearest "magic number" trick (a*log2e + 1.5*2^p - 1.5*2^p),
 ## exact because no fast-math option is ever passed. Arguments below emin (-87 float, -708
 ## double) are clamped, so results are normal numbers >= exp(emin): finite, never 0.

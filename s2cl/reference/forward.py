@@ -4,32 +4,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sense import Radiometry
-from ..srf import BandWeights
-from ..status import PixelFlag
-from . import stages
-from .philox import sensor_noise
+from s2cl.atmos.correction import toa
+from s2cl.forward.noise import add_noise as host_noise
+from s2cl.forward.sense import Radiometry
+from s2cl.reference import stages
+from s2cl.sensor.srf import BandWeights
+from s2cl.status import PixelFlag
 
 
 def resample(spectra: np.ndarray, weights: list[BandWeights] | tuple[BandWeights, ...]) -> np.ndarray:
     """Band values ``(n_bands, n_pixels)``: Σ w·spectrum over each band's support, float64."""
-    s = np.asarray(spectra, dtype=np.float64)
-    return np.stack([s[:, w.start : w.stop] @ w.weights for w in weights])
+    return np.stack([w.apply(spectra) for w in weights])
 
 
 def toa_radiance(rho: np.ndarray, path_radiance: np.ndarray, ground_term: np.ndarray,
                  spherical_albedo: np.ndarray) -> np.ndarray:
-    """L = Lp + G·ρ / (1 − S·ρ) per wavelength (W m⁻² sr⁻¹ µm⁻¹), float64."""
-    rho = np.asarray(rho, dtype=np.float64)
-    return path_radiance + ground_term * rho / (1.0 - spherical_albedo * rho)
+    """L = Lp + G·ρ / (1 − S·ρ) per wavelength (W m⁻² sr⁻¹ µm⁻¹), float64 (the product's host formula)."""
+    return toa(rho, path_radiance, ground_term, spherical_albedo)
 
 
 def add_noise(radiance: np.ndarray, r: Radiometry, seed: int, pixel_offset: int = 0, frame: int = 0) -> np.ndarray:
-    """Radiance plus σ(L)·z with the kernel's counter-based normals."""
-    L = np.asarray(radiance, dtype=np.float64)
-    z = sensor_noise(seed, np.arange(L.shape[1]) + pixel_offset, r.band_ids, frame)
-    sigma = np.sqrt(r.noise_a[:, None] + r.noise_b[:, None] * np.maximum(L, 0.0))
-    return L + sigma * z
+    """Radiance plus σ(L)·z with the kernel's counter-based normals (the product's host noise)."""
+    return host_noise(radiance, r.noise_a, r.noise_b, r.band_ids, seed, pixel_offset, frame)
 
 
 def quantise(radiance: np.ndarray, r: Radiometry) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""Oracles and baselines for the IGRM fit (``s2cl/igrm.py``, ``kernels/common/igrm_lm.mako``).
+"""Oracles and baselines for the IGRM fit (``s2cl/retrieve/igrm.py``, ``kernels/common/igrm_lm.mako``).
 
 * :func:`fit_scipy`: the oracle: ``scipy.optimize.least_squares`` (trust-region reflective,
   analytic Jacobian) per pixel, float64, same bounds, loss and initial guess as the kernel.
@@ -8,14 +8,15 @@
 * :func:`initial_guess`: the kernel's deterministic initial guesses, in numpy.
 
 Parameters are handled as in the kernel: ``p = (rmin, depth = rmax - rmin, L = (l0 - xc)/xw,
-S = s/xw)`` with :func:`s2cl.igrm.kernel_config` giving ``xc``, ``xw`` and the normalised bounds.
+S = s/xw)`` with :func:`s2cl.retrieve.igrm.kernel_config` giving ``xc``, ``xw`` and the normalised bounds.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..igrm import FitStatus, IgrmResult, IgrmSettings, KernelConfig, kernel_config
+from s2cl.retrieve.igrm import FitStatus, IgrmResult
+from s2cl.retrieve.igrm_settings import IgrmSettings, KernelConfig, kernel_config
 
 
 def model(wavelengths_nm: np.ndarray, rmax, rmin, l0, s) -> np.ndarray:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DependencyError
-from .igrm import model
+from s2cl.errors import DependencyError
+from s2cl.reference.igrm import model
 
 #: Sentinel-2 MSI red-edge bands (centre nm, FWHM nm) as used by ESA's preliminary design.
 S2_RED_EDGE = {"B4": (665.0, 30.0), "B5": (705.0, 15.0), "B6": (740.0, 15.0), "B7": (783.0, 20.0),

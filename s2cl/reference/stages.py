@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..status import MAX_ABS_REFLECTANCE, PixelFlag, Status
+from s2cl.atmos.correction import correct  # the host correction is the twin of s2_correct
+from s2cl.status import MAX_ABS_REFLECTANCE, PixelFlag, Status
 
-MIN_DENOMINATOR = 1e-6  # the correction's clamp of 1 + S y
+__all__ = ["calibrate", "correct", "normalised_difference", "quantise", "sam", "sam_classify", "spectral_angles"]
+
 
 
 def quantise(L: np.ndarray, lmin, lmax, maxdn: int) -> tuple[np.ndarray, np.ndarray]:
@@ -36,22 +38,16 @@ def calibrate(dn: np.ndarray, flags: np.ndarray, lmin, gain) -> np.ndarray:
     return np.where((np.asarray(flags) & PixelFlag.NODATA) != 0, np.nan, L)
 
 
-def correct(L: np.ndarray, lp, g, s) -> np.ndarray:
-    """Band-effective inverse ``y / max(1 + s y, 1e-6)`` with ``y = (L - lp) / g``; NaN stays NaN."""
-    y = (np.asarray(L, dtype=np.float64) - lp) / g
-    d = 1.0 + np.asarray(s, dtype=np.float64) * y
-    with np.errstate(invalid="ignore"):
-        return y / np.where(d > MIN_DENOMINATOR, d, MIN_DENOMINATOR)
-
-
-def gvmi(nir: np.ndarray, swir: np.ndarray, max_abs: float = MAX_ABS_REFLECTANCE) -> tuple[np.ndarray, np.ndarray]:
-    """GVMI (Segl et al. 2012 eq. 3) and status: INVALID (index 0) unless both reflectances are
-    finite, within ``max_abs``, and both offset terms NIR + 0.1, SWIR + 0.02 are positive."""
-    nir = np.asarray(nir, dtype=np.float64)
-    swir = np.asarray(swir, dtype=np.float64)
-    a, b = nir + 0.1, swir + 0.02
+def normalised_difference(rho_a: np.ndarray, rho_b: np.ndarray, offsets: tuple[float, float] = (0.1, 0.02),
+                          max_abs: float = MAX_ABS_REFLECTANCE) -> tuple[np.ndarray, np.ndarray]:
+    """A normalised-difference index (:mod:`s2cl.retrieve.indices`; default offsets: GVMI, Segl et al. 2012
+    eq. 3) and status: INVALID (index 0) unless both reflectances are finite, within ``max_abs``, and
+    both offset terms ρ + o are positive."""
+    rho_a = np.asarray(rho_a, dtype=np.float64)
+    rho_b = np.asarray(rho_b, dtype=np.float64)
+    a, b = rho_a + offsets[0], rho_b + offsets[1]
     with np.errstate(invalid="ignore", divide="ignore"):
-        ok = (np.abs(nir) <= max_abs) & (np.abs(swir) <= max_abs) & (a > 0) & (b > 0)
+        ok = (np.abs(rho_a) <= max_abs) & (np.abs(rho_b) <= max_abs) & (a > 0) & (b > 0)
         value = np.where(ok, (a - b) / np.where(ok, a + b, 1.0), 0.0)
     return value, np.where(ok, Status.OK, Status.INVALID).astype(np.uint8)
 

@@ -1,5 +1,6 @@
 """float64 numpy evaluation of sweep configurations: the oracle of the OpenCL sweep kernel and the
-"same sweep written as vectorised numpy" baseline of the benchmarks.
+"same sweep written as vectorised numpy" baseline of the benchmarks (pass a :class:`NumpyEvaluator` to
+:func:`s2cl.sweep.engine.run_sweep` to run a whole sweep this way).
 
 Per configuration and pixel: gather noise-free band radiance and σ → add σ·z → quantise (ties
 up) → calibrate → band-effective correction (a calibration error is folded into its terms) → the
@@ -12,37 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis import AnalysisSettings
-from ..metrics import condition_code
-from ..status import Status
-from ..sweep_tables import SweepTables
-from . import stages
-
-
-@dataclass
-class RawChunk:
-    """Per (configuration, pixel) results of configurations ``start … stop-1``.
-
-    ``index``: λp (nm) for igrm, GVMI for gvmi, class index for sam (float64); ``status``
-    (:class:`s2cl.status.Status`), ``bounds`` (IGRM active-bound bits) and ``condition`` (IGRM:
-    round(20 log10 of the fit's condition estimate), 240 = capped) are uint8; all ``(n_configs, n_pixels)``.
-    """
-
-    start: int
-    stop: int
-    index: np.ndarray
-    status: np.ndarray
-    bounds: np.ndarray
-    condition: np.ndarray | None = None
-
-
-def variant_indices(t: SweepTables, start: int, stop: int) -> np.ndarray:
-    """Variant index per slot, ``(n_configs, n_slots)``, last slot fastest (as SweepSpace.indices)."""
-    flat = np.arange(start, stop, dtype=np.int64)
-    out = np.empty((flat.size, t.n_slots), dtype=np.int64)
-    for k in range(t.n_slots - 1, -1, -1):
-        flat, out[:, k] = np.divmod(flat, t.counts[k])
-    return out
+from s2cl.reference import stages
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.indices import INDICES
+from s2cl.retrieve.metrics import condition_code
+from s2cl.status import Status
+from s2cl.sweep.raw import RawChunk, variant_indices
+from s2cl.sweep.tables import SweepTables
 
 
 def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.ndarray], np.ndarray]:
@@ -69,8 +46,8 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
     shape = rhos[0].shape
     bounds = np.zeros(shape, np.uint8)
     condition = np.zeros(shape, np.uint8)
-    if a.kind == "gvmi":
-        index, status = stages.gvmi(rhos[a.nir_slot], rhos[a.swir_slot])
+    if a.kind in INDICES:
+        index, status = stages.normalised_difference(rhos[a.slots[0]], rhos[a.slots[1]], INDICES[a.kind].offsets)
     elif a.kind == "sam":
         idx = variant_indices(t, start, stop)
         refs = np.stack([t.references[k][idx[:, k]] for k in range(t.n_slots)], axis=-1)  # (n_cfg, n_cls, n_slots)
@@ -92,8 +69,8 @@ def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict
     centres ``(n_configs, n_slots)``: the kernel's LM in vectorised numpy, one configuration at a
     time, the bands sorted by centre (stable) as the kernel sorts them. Returns λp (nm), status,
     bound bits and condition codes, each ``(n_configs, n_pixels)``."""
-    from ..igrm import IgrmSettings
-    from .igrm import fit_numpy_lm
+    from s2cl.reference.igrm import fit_numpy_lm
+    from s2cl.retrieve.igrm import IgrmSettings
 
     s = IgrmSettings.from_mapping(settings)
     n_cfg, n_px = rhos.shape[1:]
@@ -106,3 +83,14 @@ def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict
         condition[i] = condition_code(r.log10_condition)
     return index, status, bounds, condition
 
+
+@dataclass(frozen=True)
+class NumpyEvaluator:
+    """A picklable chunk evaluator (for :func:`s2cl.sweep.engine.run_sweep`, Dask included) of
+    :func:`evaluate` on ``tables`` and ``analysis``."""
+
+    tables: SweepTables
+    analysis: AnalysisSettings
+
+    def __call__(self, start: int, stop: int) -> RawChunk:
+        return evaluate(self.tables, self.analysis, start, stop)

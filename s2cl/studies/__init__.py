@@ -1,9 +1,10 @@
 """The paper's atmospheric-band studies (Segl et al. 2012, Sec. 3): ``s2cl study NAME``.
 
 Each study is a scene ``scenes/study-NAME.toml`` with a [study] section (what varies besides the
-bands) and a [sweep] section (the band variants, :mod:`s2cl.variants`), and a module here with a
-``run(setup) -> StudyResult``. :func:`run_study` loads the scene, runs the study and writes
-``NAME.json`` and ``NAME.png`` atomically.
+bands) and a [sweep] section (the band variants, :mod:`s2cl.sensor.variants`), and a module here with a
+``run(setup) -> StudyResult`` that computes only. :func:`run_study` loads the scene, runs the study and writes
+``NAME.json`` and ``NAME.png`` atomically; the figure is drawn from the JSON's ``data`` alone
+(:mod:`s2cl.studies.plots`), so :func:`replot` redraws it from a saved ``NAME.json``.
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import InputError
-from ..output import write_json
-from ..scene import Scene
-from . import aerosol, cirrus, methane, ozone, water_vapour
-from .common import StudyResult, StudySetup, load_study
+from s2cl.errors import InputError
+from s2cl.io.output import write_json
+from s2cl.scene.scene import Scene
+from s2cl.studies import aerosol, cirrus, methane, ozone, water_vapour
+from s2cl.studies.common import StudyResult, StudySetup, load_study
+from s2cl.studies.plots import replot
 
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
     "cirrus": cirrus.run,
@@ -25,7 +27,7 @@ STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
     "methane": methane.run,
 }
 
-__all__ = ["STUDIES", "StudyResult", "run_study", "study_scene"]
+__all__ = ["STUDIES", "StudyResult", "replot", "run_study", "study_scene"]
 
 
 def study_scene(name: str) -> Scene:
@@ -38,13 +40,14 @@ def study_scene(name: str) -> Scene:
 
 
 def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> tuple[StudyResult, Path, Path]:
-    """Run study ``name`` and write ``DIR/NAME.json`` and ``DIR/NAME.png``.
+    """Run study ``name`` and write ``DIR/NAME.json`` and ``DIR/NAME.png`` (drawn from the JSON as written,
+    :func:`replot`).
 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
     """
-    from .. import __version__
-    from ..outdir import check_output_dir, claim
+    from s2cl import __version__
+    from s2cl.io.outdir import check_output_dir, claim
 
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)
@@ -53,8 +56,8 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     result = STUDIES[setup.study.kind](setup)
     stem = setup.study.kind
     with claim(out):
-        png = result.plot(out / f"{stem}.png")
         payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick,
                    "s2cl_version": __version__}
         js = write_json(out / f"{stem}.json", payload)
+        png = replot(js, out / f"{stem}.png")
     return result, js, png

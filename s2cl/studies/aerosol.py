@@ -17,14 +17,10 @@ blue role to test B1's centre/width tolerance. Error: relative RMS of AOT550 (%)
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from ..correction import BandAtmosphere
-from ..plots import pyplot, save_png
-from ..reference.forward import toa_radiance
-from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
+from s2cl.atmos.correction import BandAtmosphere, toa
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 # "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
 PAPER_DOMINANT_ABOVE = 0.10
@@ -45,7 +41,7 @@ def retrieve(L: dict[str, np.ndarray], t: dict[str, dict[str, np.ndarray]], c_rs
     """DDV AOT550 from band radiances ``L[band] (n, …)`` (keys blue, red, swir) with band terms
     ``t[band][term] (n_axis,)`` (terms lp, g, s) and factors ``c_rs, c_br (n,)``."""
     def model(band: str, rho: np.ndarray) -> np.ndarray:
-        return toa_radiance(rho, t[band]["lp"], t[band]["g"], t[band]["s"])
+        return toa(rho, t[band]["lp"], t[band]["g"], t[band]["s"])
 
     shape = (-1,) + (1,) * (L["red"].ndim - 1) + (1,)
     lr, lb, ls = (L[b][..., None] for b in ("red", "blue", "swir"))
@@ -81,7 +77,7 @@ def run(setup: StudySetup) -> StudyResult:
     spectra = np.concatenate([lib.spectra for lib in targets.values()])
     names = [n for lib in targets.values() for n in lib.names]
     axis = aot_axis(setup)
-    gain = setup.scene.spec.correction.calibration_gain
+    gain = setup.scene.run.calibration_gain
     bands = [(b, *space.per_band[slot[b]][nominal[slot[b]]]) for b in (RED, SWIR, BLUE)]
     bands += [(B1, c, w) for c, w in b1_variants]
     weights = [setup.weights(b, c, w) for b, c, w in bands]
@@ -154,29 +150,8 @@ def run(setup: StudySetup) -> StudyResult:
             "factor_red_swir": c_rs_true.tolist(),
             "factor_blue_red": to_red[I_BLUE].tolist()}
 
-    def plot(path: Path) -> Path:
-        plt = pyplot()
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
-        ax = axes[0]
-        ax.plot(100 * eps_arr, curve, "o-", label="s2cl: correlation-factor error")
-        ax.axhline(cal_rms, color="tab:orange", ls="--", label=f"s2cl: calibration gain {gain:g}")
-        ax.axvline(100 * PAPER_DOMINANT_ABOVE, color="tab:red", ls=":", label="paper: dominates above 10 %")
-        ax.set_xlabel("correlation-factor error (%)")
-        ax.set_ylabel("AOT550 relative RMS (%)")
-        ax.set_title("DDV aerosol retrieval (blue B2, red B4, B12)", fontsize=9)
-        ax.legend(fontsize=7)
-        ax = axes[1]
-        x = np.arange(len(b1_rms))
-        ax.bar(x, b1_rms, 0.6)
-        ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in b1_variants], fontsize=7, rotation=45)
-        ax.set_ylabel("AOT550 relative RMS (%)")
-        ax.set_title("B1 as blue band: centre/width (paper: not critical)", fontsize=9)
-        fig.tight_layout()
-        return save_png(fig, path)
-
     return StudyResult(
         title="Aerosol (DDV): relative RMS and bias of retrieved AOT550 (%)",
         columns=["case", "blue band", "rel. RMS %", "bias %"], rows=rows, key_figures=figures, data=data,
-        plot=plot,
         notes=[f"true AOT550 {', '.join(f'{a:g}' for a in truth)}; {len(names)} DDV spectra × {pixels} noisy "
                "pixels; 6S continental aerosol (the paper does not name its DDV aerosol model)."])

@@ -6,26 +6,28 @@ Radiances are W m⁻² sr⁻¹ µm⁻¹, reflectances unitless, wavelengths nm, 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..atmosphere import AtmosphereLUT, AtmosphereState, AtmosphericTerms
-from ..correction import BandAtmosphere
-from ..errors import InputError
-from ..libraries import load_library
-from ..library import SpectralLibrary
-from ..reference.forward import add_noise
-from ..scene import Scene, StudySpec
-from ..scene_atmosphere import assumed_state, scene_lut, state_terms, true_state
-from ..sense import Radiometry
-from ..sensor import Band
-from ..srf import BandWeights
-from ..sweep_tables import sweep_space
-from ..variants import SweepSpace
+from s2cl.atmos.atmosphere import AtmosphereLUT
+from s2cl.atmos.correction import BandAtmosphere, correct
+from s2cl.atmos.scene_terms import assumed_state, scene_lut, state_terms, true_state
+from s2cl.atmos.state import AtmosphereState
+from s2cl.atmos.terms import AtmosphericTerms
+from s2cl.errors import InputError
+from s2cl.forward.noise import add_noise
+from s2cl.forward.sense import Radiometry
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.registry import load_library
+from s2cl.scene.scene import Scene
+from s2cl.scene.schema import StudySpec
+from s2cl.sensor.sensor import Band
+from s2cl.sensor.srf import BandWeights
+from s2cl.sensor.variants import SweepSpace
+from s2cl.sweep.tables import sweep_space
 
 
 @dataclass(frozen=True)
@@ -41,14 +43,14 @@ class KeyFigure:
 
 @dataclass
 class StudyResult:
-    """What a study produced: a table (rows of cells), key figures, JSON data and a plot function."""
+    """What a study produced: a table (rows of cells), key figures and JSON data. ``data`` is JSON-serialisable
+    and holds all that the study's figure shows (:func:`s2cl.studies.plots.plot_study` draws it)."""
 
     title: str
     columns: list[str]
     rows: list[list[Any]]
     key_figures: list[KeyFigure]
     data: dict[str, Any]
-    plot: Callable[[Path], Path]
     notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
@@ -74,7 +76,7 @@ class StudySetup:
 
     @property
     def lut(self) -> AtmosphereLUT:
-        """The scene's LUT (:func:`s2cl.scene_atmosphere.scene_lut`: path relative to the scene, cached)."""
+        """The scene's LUT (:func:`s2cl.atmos.scene_terms.scene_lut`: path relative to the scene, cached)."""
         return scene_lut(self.scene)
 
     def truth(self, **changes: Any) -> AtmosphereState:
@@ -96,7 +98,7 @@ class StudySetup:
         return state_terms(self.scene, state, "study")
 
     def space(self) -> SweepSpace:
-        """The [sweep] section as band variants (:mod:`s2cl.variants`)."""
+        """The [sweep] section as band variants (:mod:`s2cl.sensor.variants`)."""
         return sweep_space(self.scene).validate(self.source)
 
     def nominal(self, space: SweepSpace) -> int:
@@ -117,7 +119,7 @@ class StudySetup:
     def weights(self, name: str, centre_nm: float, width_nm: float) -> BandWeights:
         """Model-SRF weights (paper eq. 1) of band ``name`` moved to ``centre_nm``/``width_nm``."""
         return self.band(name).with_shape(centre_nm, width_nm).weights(
-            self.scene.grid, self.scene.spec.sensor.support, self.source)
+            self.scene.grid, self.scene.run.support, self.source)
 
     def targets(self) -> dict[str, SpectralLibrary]:
         """Target classes from [study] ``targets`` (each library cut to ``spectra`` spectra)."""
@@ -154,7 +156,7 @@ def apply(weights: BandWeights, spectrum: np.ndarray) -> np.ndarray:
 
 
 def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]) -> list[dict[str, np.ndarray]]:
-    """Band-effective Lp, G, S (:class:`s2cl.correction.BandAtmosphere`) of each band over a state
+    """Band-effective Lp, G, S (:class:`s2cl.atmos.correction.BandAtmosphere`) of each band over a state
     axis: one dict per band with keys ``lp``, ``g``, ``s``, each ``(n_states,)``."""
     per = [BandAtmosphere.of(t, list(weights)) for t in terms]
     lp, g, s = (np.array([getattr(b, n) for b in per])
@@ -163,23 +165,22 @@ def band_terms(terms: Sequence[AtmosphericTerms], weights: Sequence[BandWeights]
 
 
 def inverse(lp: np.ndarray, g: np.ndarray, s: np.ndarray, radiance: np.ndarray) -> np.ndarray:
-    """Band-level correction ``y/(1 + S·y)``, ``y = (L − Lp)/G`` (broadcasting)."""
-    y = (radiance - lp) / g
-    return y / (1.0 + s * y)
+    """Band-level correction (:func:`s2cl.atmos.correction.correct`, broadcasting)."""
+    return correct(radiance, lp, g, s)
 
 
 def noisy(setup: StudySetup, bands: Sequence[Band], radiance: np.ndarray, band_ids: Sequence[int],
           pixels: int) -> np.ndarray:
     """``pixels`` noisy copies of band radiances ``(n_bands, n)`` → ``(n_bands, n, pixels)``: the
-    sensor's noise model at each band's width (:class:`s2cl.sense.Radiometry`) times the sense
-    kernel's Philox deviates keyed by ``band_ids`` (:func:`s2cl.reference.forward.add_noise`, seed
-    and frame from [effects]); no noise when the scene switches noise off."""
+    sensor's noise model at each band's width times the sense kernel's Philox deviates keyed by
+    ``band_ids`` (:func:`s2cl.forward.noise.add_noise`, seed and frame from [effects]); no noise when
+    the scene switches noise off."""
     radiance = np.asarray(radiance, dtype=np.float64)
     L = np.repeat(radiance, pixels, axis=1)
     if setup.scene.effects.noise:
-        e = setup.scene.spec.effects
+        e = setup.scene.run
         r = Radiometry.of(list(bands), setup.scene.sensor.bits, list(band_ids))
-        L = add_noise(L, r, e.seed, frame=e.frame)
+        L = add_noise(L, r.noise_a, r.noise_b, r.band_ids, e.seed, frame=e.frame)
     return L.reshape(*radiance.shape, pixels)
 
 

@@ -8,12 +8,9 @@ error of a correction that ignores methane (terms with CH₄ removed) for flat t
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from ..plots import pyplot, save_png
-from .common import KeyFigure, StudyResult, StudySetup, apply, inverse
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, inverse
 
 PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
 BAND = "B11"
@@ -46,34 +43,14 @@ def run(setup: StudySetup) -> StudyResult:
     figures = [KeyFigure(f"B11 {variants[nominal, 0]:g}/{variants[nominal, 1]:g} methane absorption",
                          round(float(absorb[nominal]), 3), PAPER_MAX_PCT, "%", "paper: < 0.5 %"),
                KeyFigure("largest over the B11 variants", round(float(absorb.max()), 3), PAPER_MAX_PCT, "%")]
+    sel = (wl >= 1450) & (wl <= 1800)   # the figure's spectrum
     data = {"variants": variants.tolist(), "band_transmittance": trans,
-            "reflectance": list(st.reflectance), "reflectance_error_pct": errs}
-    sel = (wl >= 1450) & (wl <= 1800)
-
-    def plot(path: Path) -> Path:
-        plt = pyplot()
-        fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=110)
-        ax = axes[0]
-        ax.plot(wl[sel], 100 * (1 - t_ch4[sel]), "k-", lw=0.8)
-        for c, w in variants:
-            ax.axvspan(c - w / 2, c + w / 2, color="0.85", alpha=0.3)
-        ax.set_xlabel("wavelength (nm)")
-        ax.set_ylabel("two-way CH₄ absorption (%)")
-        ax.set_title("s2cl (6S's methane)", fontsize=9)
-        ax = axes[1]
-        x = np.arange(len(variants))
-        ax.bar(x, absorb, 0.6, label="s2cl band absorption")
-        ax.axhline(PAPER_MAX_PCT, color="tab:red", ls=":", label="paper: < 0.5 %")
-        ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in variants], fontsize=7, rotation=45)
-        ax.set_ylabel("%")
-        ax.set_title("B11 variants vs the paper's bound", fontsize=9)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        return save_png(fig, path)
+            "reflectance": list(st.reflectance), "reflectance_error_pct": errs,
+            "wavelength_nm": wl[sel].tolist(), "methane_transmittance": t_ch4[sel].tolist()}
 
     return StudyResult(
         title="Methane in B11: band transmittance and reflectance error if ignored",
         columns=["centre nm", "width nm", "T CH4", "absorption %",
                  *(f"err ρ={r:g} %" for r in st.reflectance)],
-        rows=rows, key_figures=figures, data=data, plot=plot,
+        rows=rows, key_figures=figures, data=data,
         notes=["6S's methane as is (its code fixes the mixing ratio); the paper assumed 2 ppmv (MODTRAN4)."])

@@ -3,20 +3,22 @@ true ozone column of [study] ``ozone`` (DU) are corrected with the [correction] 
 for flat targets ρ in [study] ``reflectance``.
 
 Band radiance = SRF-weighted TOA radiance at the true state; correction with band-effective terms
-of the assumed state (:class:`s2cl.correction.BandAtmosphere`). Error = (ρ_retrieved − ρ)/ρ in %.
+of the assumed state (:class:`s2cl.atmos.correction.BandAtmosphere`). Error = (ρ_retrieved − ρ)/ρ in %.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from ..correction import BandAtmosphere
-from ..plots import pyplot, save_png
-from .common import KeyFigure, StudyResult, StudySetup, apply
+from s2cl.atmos.correction import BandAtmosphere
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_MAX_B3_PCT = 6.0  # "relative errors of up to about 6 %" in B3 (Fig. 5, MODTRAN4)
+
+
+def case_key(o3: float, rho: float) -> str:
+    """The JSON key of a case: true ozone column (DU) and reflectance."""
+    return f"{o3:g}DU rho={rho:g}"
 
 
 def run(setup: StudySetup) -> StudyResult:
@@ -52,41 +54,17 @@ def run(setup: StudySetup) -> StudyResult:
     spec_max = {}
     for (o3, rho), e in spec_err.items():
         i = int(np.argmax(np.abs(e[sel])))
-        spec_max[f"{o3:g}DU rho={rho:g}"] = {"error_pct": float(e[sel][i]), "wavelength_nm": float(wl[sel][i])}
+        spec_max[case_key(o3, rho)] = {"error_pct": float(e[sel][i]), "wavelength_nm": float(wl[sel][i])}
     data = {
         "assumed_ozone_du": assumed.ozone, "bands": space.bands, "shapes": shapes.tolist(),
-        "band_error_pct": {f"{o3:g}DU rho={rho:g}": v.tolist() for (o3, rho), v in err.items()},
+        "band_error_pct": {case_key(o3, rho): v.tolist() for (o3, rho), v in err.items()},
         "spectral_error_max_pct": spec_max,
+        "cases": [[o3, rho] for o3, rho in err],
+        "wavelength_nm": wl[sel].tolist(),   # the figure's 1 nm error curves
+        "spectral_error_pct": {case_key(o3, rho): e[sel].tolist() for (o3, rho), e in spec_err.items()},
     }
-
-    def plot(path: Path) -> Path:
-        plt = pyplot()
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
-        ax = axes[0]
-        for c, w in shapes:
-            ax.axvspan(c - w / 2, c + w / 2, color="0.9")
-        for (o3, rho), e in spec_err.items():
-            ax.plot(wl[sel], e[sel], color="k" if rho == min(st.reflectance) else "0.6", lw=0.9,
-                    ls="-" if o3 < assumed.ozone else "--", label=f"{o3:g} DU, ρ={rho:g}")
-        ax.axhline(0, color="k", lw=0.5)
-        ax.set_xlabel("wavelength (nm)")
-        ax.set_ylabel("relative reflectance error (%)")
-        ax.set_title(f"s2cl (6S), 1 nm, corrected with {assumed.ozone:g} DU (shaded: B1–B5)", fontsize=9)
-        ax.legend(fontsize=7)
-        ax = axes[1]
-        x = np.arange(len(space.bands))
-        for i, ((o3, rho), e) in enumerate(err.items()):
-            ax.bar(x + (i - len(err) / 2 + 0.5) * 0.18, e, 0.18, label=f"{o3:g} DU, ρ={rho:g}")
-        ax.axhline(PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1, label="paper: ±6 % (B3)")
-        ax.axhline(-PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1)
-        ax.set_xticks(x, space.bands)
-        ax.set_ylabel("band reflectance error (%)")
-        ax.set_title("band errors, s2cl vs the paper's figure", fontsize=9)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        return save_png(fig, path)
 
     return StudyResult(
         title=f"Ozone: relative reflectance error (%), corrected with {assumed.ozone:g} DU",
-        columns=["true O3 DU", "ρ", *space.bands], rows=rows, key_figures=figures, data=data, plot=plot,
+        columns=["true O3 DU", "ρ", *space.bands], rows=rows, key_figures=figures, data=data,
         notes=["6S ozone: Chappuis band, Beer's law in the LUT; the paper used MODTRAN4."])

@@ -21,14 +21,11 @@ are retrieved with the winter and with the summer LUT terms for the nominal band
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from ..library import SpectralLibrary
-from ..plots import pyplot, save_png
-from ..srf import BandWeights
-from .common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.sensor.srf import BandWeights
+from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
 
 PAPER_RMS_PCT = (5.0, 10.0)   # "the 5–10 % accuracy of the 865-/945-nm water vapor retrievals"
 # "Relative RMS errors ... increase by 6 % if winter scenes are processed with summer LUTs"
@@ -171,51 +168,15 @@ def run(setup: StudySetup) -> StudyResult:
     data = {
         "water_vapour_true": list(setup.study.water_vapour), "retrieval_axis": axis.tolist(),
         "targets": {k2: lib.names for k2, lib in targets.items()}, "pixels": setup.study.pixels,
-        "bands": space.bands, "configurations": shapes.tolist(),
+        "bands": space.bands, "configurations": shapes.tolist(), "nominal_configuration": int(k),
+        "table_configurations": [[tag, int(j)] for tag, j in shown],   # the table's rows: case, configuration
         "rel_rms_pct": {c: [s[c] for s in scores] for c in classes},
         "winter": {"configuration": shapes[k].tolist(), "winter_lut": winter[WINTER], "summer_lut": winter[SUMMER],
                    "relative_increase_pct": rel_increase},
     }
 
-    def plot(path: Path) -> Path:
-        plt = pyplot()
-        fig, axes = plt.subplots(1, 3, figsize=(14, 4), dpi=110)
-        ax = axes[0]
-        sel = [j for j in range(space.size) if np.allclose(shapes[j, 1], shapes[k, 1])]
-        cs = sorted({shapes[j, 0, 0] for j in sel})
-        ws = sorted({shapes[j, 0, 1] for j in sel})
-        grid = np.full((len(ws), len(cs)), np.nan)
-        for j in sel:
-            grid[ws.index(shapes[j, 0, 1]), cs.index(shapes[j, 0, 0])] = scores[j]["all"]
-        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis",
-                       extent=(cs[0] - 2.5, cs[-1] + 2.5, ws[0] - 5, ws[-1] + 5))
-        fig.colorbar(im, ax=ax, label="relative RMS of WV (%)")
-        ax.set_xlabel("B9 centre (nm)")
-        ax.set_ylabel("B9 width (nm)")
-        ax.set_title(f"s2cl: B9 variants, B8a {shapes[k, 1, 0]:g}/{shapes[k, 1, 1]:g}", fontsize=9)
-        ax = axes[1]
-        tags = [t for t in shown if not t[0].startswith("best")]
-        x = np.arange(len(tags))
-        for n_c, c in enumerate(classes):
-            ax.bar(x + (n_c - len(classes) / 2 + 0.5) * 0.2, [scores[j][c] for _, j in tags], 0.2, label=c)
-        ax.axhspan(*PAPER_RMS_PCT, color="tab:red", alpha=0.15, label="paper: 5–10 %")
-        ax.set_xticks(x, ["\n".join(label(j)) for _, j in tags], fontsize=7)
-        ax.set_ylabel("relative RMS (%)")
-        ax.set_title("B9/B8a configurations (s2cl vs paper)", fontsize=9)
-        ax.legend(fontsize=7)
-        ax = axes[2]
-        x = np.arange(len(classes))
-        ax.bar(x - 0.2, [winter[WINTER][c] for c in classes], 0.4, label="winter scene, winter LUT")
-        ax.bar(x + 0.2, [winter[SUMMER][c] for c in classes], 0.4, label="winter scene, summer LUT")
-        ax.set_xticks(x, classes)
-        ax.set_ylabel("relative RMS (%)")
-        ax.set_title(f"profile mismatch: s2cl {rel_increase['all']:+.1f} % (all), paper +6 %", fontsize=9)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        return save_png(fig, path)
-
     return StudyResult(
         title="B9 water vapour (APDA, B8a reference): relative RMS of retrieved WV (%)",
-        columns=["case", "B9 c/w", "B8a c/w", *classes], rows=rows, key_figures=figures, data=data, plot=plot,
+        columns=["case", "B9 c/w", "B8a c/w", *classes], rows=rows, key_figures=figures, data=data,
         notes=[f"true WV {', '.join(f'{w:g}' for w in setup.study.water_vapour)} g/cm²; "
                f"{setup.study.pixels} noisy pixels per target and column; retrieval assumes ρ(B9) = ρ(B8a)."])

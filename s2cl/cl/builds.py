@@ -1,0 +1,78 @@
+"""Kernel builds that never print: the compiler's output is captured (file descriptor 2 included) and
+becomes a DEBUG record or part of a :class:`~s2cl.errors.BuildError`; failing sources are kept on disk.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import tempfile
+import threading
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+#: ``S2CL_BUILD_WARNINGS=error`` turns a kernel build with compiler warnings into a :class:`BuildError`
+#: (the test suite sets it); otherwise build logs are DEBUG records and never reach the terminal.
+STRICT_ENV = "S2CL_BUILD_WARNINGS"
+
+
+def pyopencl() -> Any:
+    """pyopencl, imported on first use."""
+    import pyopencl
+
+    return pyopencl
+
+
+_STDERR_LOCK = threading.Lock()
+
+
+@contextmanager
+def _stderr_captured() -> Iterator[Callable[[], str]]:
+    """Redirect file descriptor 2 into a temporary file for the duration; yields a function that
+    returns what was written. PoCL's clang prints "N warnings generated." straight to fd 2."""
+    with _STDERR_LOCK, tempfile.TemporaryFile() as tmp:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lambda: (tmp.seek(0), tmp.read().decode("utf-8", "replace"))[1]
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def quiet_build(build: Callable[[], Any], device: Any) -> tuple[Any, str, Exception | None]:
+    """Run ``build`` with the compiler's output captured: (program or None, log, error or None).
+
+    The log is the device's build log, plus whatever the compiler wrote to stderr when the log is
+    empty; pyopencl's ``CompilerWarning`` (which only says that a log exists) is not shown.
+    """
+    cl_ = pyopencl()
+    program, err = None, None
+    with _stderr_captured() as printed, warnings.catch_warnings():
+        warnings.simplefilter("ignore", cl_.CompilerWarning)
+        try:
+            program = build()
+        except cl_.Error as exc:
+            err = exc
+        stderr_text = printed()
+    if err is not None:
+        return None, str(err).strip() or stderr_text.strip(), err
+    try:
+        log = program.get_build_info(device, cl_.program_build_info.LOG) or ""
+    except cl_.Error:  # some drivers cannot report it
+        log = ""
+    return program, (log.strip() or stderr_text.strip()), None
+
+
+def save_source(source: str, template: str) -> Path:
+    """Write a rendered source to a temporary file (kept) and return its path."""
+    digest = hashlib.sha1(source.encode()).hexdigest()[:12]
+    stem = Path(template).name.replace(".cl.mako", "").replace(".cl", "")
+    path = Path(tempfile.gettempdir()) / f"s2cl-{stem}-{digest}.cl"
+    path.write_text(source, encoding="utf-8")
+    return path

@@ -1,0 +1,204 @@
+"""The one object that owns OpenCL: a device with its context, queue, program cache, memory pool and
+builds. Pass a :class:`Runtime` to every engine (``IgrmFitter(rt, ...)``); :func:`get_runtime` makes
+one per device spec for a process (see :mod:`s2cl.cl.devices` for how a device is chosen).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from s2cl.cl.builds import STRICT_ENV, pyopencl, quiet_build, save_source
+from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, select
+from s2cl.cl.vectypes import VALID_LANES, VecTypes
+from s2cl.errors import BuildError, DeviceError, InputError
+
+_log = logging.getLogger(__name__)
+
+
+class Runtime:
+    """One OpenCL device with its context, queue and program cache."""
+
+    def __init__(self, device_spec: str | None = None):
+        cl = pyopencl()
+        self.device, self.info = select(device_spec)
+        self.context = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.context)
+        self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
+        _log.debug("OpenCL device %s (%s); native vector width float %d, double %d; lanes float32 %d, float64 %d",
+                   self.info.spec, self.name, self.native_lanes("float32"), self.native_lanes("float64"),
+                   self.lanes("float32"), self.lanes("float64"))
+
+    @cached_property
+    def has_fp64(self) -> bool:
+        """Whether the device supports double precision."""
+        return "cl_khr_fp64" in self.device.extensions
+
+    def types(self, real_t: str = "float32", lanes: int | None = None, *, vector: bool = True) -> VecTypes:
+        """The kernel types for ``real_t`` on this device: the one place that refuses float64 on a device
+        without ``cl_khr_fp64`` (naming the device and the key), and that picks lanes (:meth:`lanes`;
+        ``vector=False``: one value per work-item)."""
+        if real_t not in ("float32", "float64"):
+            raise InputError(f"must be 'float32' or 'float64', got {real_t!r}", key="compute.precision")
+        if real_t == "float64" and not self.has_fp64:
+            raise DeviceError(f"{self.name} has no float64 support (cl_khr_fp64): set compute.precision = "
+                              "'float32' or choose another device (s2cl devices)")
+        return VecTypes(real_t, self.lanes(real_t, lanes) if vector else 1)
+
+    def native_lanes(self, real_t: str = "float32") -> int:
+        """The device's native vector width for ``real_t`` (elements)."""
+        if real_t == "float64":
+            return int(self.device.native_vector_width_double)
+        return int(self.device.native_vector_width_float)
+
+    def lanes(self, real_t: str = "float32", requested: int | None = None) -> int:
+        """Pixels per work-item for the vectorised kernels in ``real_t``: ``requested``, else
+        ``$S2CL_LANES``, else the device's default (:func:`choose_lanes`); a width the device
+        cannot use cleanly is replaced, with a DEBUG record saying so."""
+        if requested is None:
+            env = os.environ.get(LANES_ENV, "").strip()
+            if env:
+                if not env.isdigit():
+                    raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
+                requested = int(env)
+        lanes, why = choose_lanes(native=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
+        if why:
+            _log.debug("%s, %s: %s", self.name, real_t, why)
+        return lanes
+
+    @property
+    def name(self) -> str:
+        return f"{self.info.name} ({self.info.platform})"
+
+    @property
+    def max_alloc_bytes(self) -> int:
+        return int(self.device.max_mem_alloc_size)
+
+    @property
+    def global_mem_bytes(self) -> int:
+        return int(self.device.global_mem_size)
+
+    def build(self, source: str, *, template: str, options: list[str] | tuple[str, ...] = ()) -> Any:
+        """Build ``source`` (cached on source + options); :class:`BuildError` on failure.
+
+        The compiler's output never reaches the terminal: the build log goes to the ``s2cl.cl.runtime``
+        logger at DEBUG (``s2cl -v`` shows it) and into the error when a build fails, or when it warns
+        and ``$S2CL_BUILD_WARNINGS`` is ``error``.
+        """
+        cl = pyopencl()
+        from s2cl.cl.templates import include_options
+
+        opts = tuple(include_options()) + tuple(options)
+        key = (source, opts)
+        program = self._programs.get(key)
+        if program is not None:
+            return program
+
+        def fail(err: Exception | None, log: str, reason: str | None = None) -> BuildError:
+            return BuildError(template=template, device=self.name, options=list(opts), log=log,
+                              source_path=save_source(source, template), reason=reason)
+
+        # pyopencl's binary cache would hand back programs without their log; PoCL's own kernel
+        # cache keeps the log, so building through it stays fast and the log is always there.
+        program, log, err = quiet_build(lambda: cl.Program(self.context, source).build(
+            options=list(opts), cache_dir=False), self.device)
+        if err is not None:
+            raise fail(err, log) from err
+        if log:
+            _log.debug("build log of %s on %s (options: %s):\n%s", template, self.name, " ".join(opts), log)
+            if os.environ.get(STRICT_ENV, "").lower() == "error" and "warning" in log.lower():
+                raise fail(None, log, f"compiler warnings (${STRICT_ENV}=error)")
+        self._programs[key] = program
+        return program
+
+    def kernel(self, program: Any, name: str) -> Any:
+        """A kernel object from ``program`` (create once, reuse)."""
+        return pyopencl().Kernel(program, name)
+
+    def max_work_group_size(self, kernel: Any) -> int:
+        cl = pyopencl()
+        return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
+
+    # -- buffers ---------------------------------------------------------------------------
+    @cached_property
+    def host_memory(self) -> bool:
+        """Whether the device works in host memory (CPU devices such as PoCL)."""
+        return "CPU" in self.info.kind
+
+    def to_device(self, array: np.ndarray, *, zero_copy: bool = False) -> Any:
+        """A read-only device buffer holding ``array`` (made C-contiguous).
+
+        ``zero_copy=True`` lets a CPU device read the host array in place (``USE_HOST_PTR``):
+        copying 10⁵ spectra into fresh buffers costs ten times the resampling kernel. The caller
+        must then keep the returned buffer referenced until the work that reads it has finished
+        (e.g. until a blocking fetch of its results); pyopencl holds the array as long as the buffer
+        lives. Other devices, and the default, copy.
+        """
+        cl = pyopencl()
+        host = np.ascontiguousarray(array)
+        if host.nbytes == 0:
+            host = np.zeros(1, dtype=host.dtype)
+        where = cl.mem_flags.USE_HOST_PTR if (zero_copy and self.host_memory) else cl.mem_flags.COPY_HOST_PTR
+        return cl.Buffer(self.context, cl.mem_flags.READ_ONLY | where, hostbuf=host)
+
+    def empty(self, nbytes: int) -> Any:
+        """An uninitialised read-write device buffer of ``nbytes``."""
+        cl = pyopencl()
+        return cl.Buffer(self.context, cl.mem_flags.READ_WRITE, size=max(int(nbytes), 1))
+
+    def zeros(self, nbytes: int) -> Any:
+        cl = pyopencl()
+        buf = self.empty(nbytes)
+        cl.enqueue_fill_buffer(self.queue, buf, np.uint8(0), 0, max(int(nbytes), 1))
+        return buf
+
+    def fetch(self, buffer: Any, shape: tuple[int, ...], dtype: Any) -> np.ndarray:
+        """Copy a device buffer back into a new host array (blocking)."""
+        cl = pyopencl()
+        out = np.empty(shape, dtype=dtype)
+        if out.nbytes:
+            cl.enqueue_copy(self.queue, out, buffer)
+        return out
+
+    def upload(self, buffer: Any, array: np.ndarray) -> None:
+        """Copy a host array into an existing device buffer (blocking)."""
+        pyopencl().enqueue_copy(self.queue, buffer, np.ascontiguousarray(array))
+
+    @cached_property
+    def pool(self) -> Any:
+        """pyopencl's memory pool on this context: engines called again and again with the same sizes
+        (sweep chunks, fits) get their buffers back instead of fresh ones (a fresh buffer costs ~4x an
+        upload into an existing one on PoCL)."""
+        tools = __import__("pyopencl.tools", fromlist=["MemoryPool"])
+        return tools.MemoryPool(tools.ImmediateAllocator(self.queue))
+
+    def alloc(self, nbytes: int) -> Any:
+        """An uninitialised device buffer of ``nbytes`` from :attr:`pool` (back to the pool when released)."""
+        return self.pool.allocate(max(int(nbytes), 1))
+
+    def upload_new(self, array: np.ndarray) -> Any:
+        """``array`` (made C-contiguous) copied into a buffer from :attr:`pool`."""
+        host = np.ascontiguousarray(array)
+        buf = self.alloc(host.nbytes)
+        if host.nbytes:
+            self.upload(buf, host)
+        return buf
+
+    def finish(self) -> None:
+        self.queue.finish()
+
+
+_RUNTIMES: dict[str | None, Runtime] = {}
+
+
+def get_runtime(device: str | None = None) -> Runtime:
+    """The process-wide :class:`Runtime` for ``device`` (see module doc for the order)."""
+    spec = device if device is not None else env_spec()
+    runtime = _RUNTIMES.get(spec)
+    if runtime is None:
+        runtime = _RUNTIMES[spec] = Runtime(spec)
+    return runtime

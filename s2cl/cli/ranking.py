@@ -1,0 +1,135 @@
+"""What a finished sweep prints and writes: the ranking, the paper's table beside s2cl's, summary.json, heatmaps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from s2cl.cli.console import rich_console
+
+
+def report_sweep(df: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
+    """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder``;
+    print the ranking and the paper-style table; return the files written."""
+    from s2cl.sweep.report import heatmap, write_summary
+
+    plots = _paper(df, summary, folder)
+    written = [write_summary(folder / "summary.json", summary)]
+    moving = [b for b in bands if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
+    written += [heatmap(df, b, folder / f"heatmap_{b}.png") for b in moving] + plots
+    _print_sweep(summary)
+    _print_paper(summary)
+    return written
+
+
+def _paper(df: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
+    """Add the paper's values (scenes of Segl et al. 2012, Tables 3-6) to ``summary``; plot grids beside them."""
+    from s2cl.sweep.report import heatmap_vs_paper, paper_comparison
+
+    comparison = paper_comparison(df, summary)
+    if comparison is None:
+        return []
+    summary["paper"] = comparison
+    if "band" in comparison:
+        return [heatmap_vs_paper(comparison, folder / f"heatmap_{comparison['band']}_vs_paper.png")]
+    return []
+
+
+def _print_paper(summary: dict[str, Any]) -> None:
+    """The paper-style table: s2cl beside Segl et al. (2012)."""
+    p = summary.get("paper")
+    if p is None:
+        return
+    if p["table"] == "table3":
+        _print_table3(p, summary)
+    else:
+        _print_grid(p)
+
+
+def _print_table3(p: dict[str, Any], summary: dict[str, Any]) -> None:
+    """Table 3 (RMS of the ESA bands and of the best design, best bands) for the paper and for s2cl."""
+    from rich.table import Table
+
+    bands = summary["bands"]
+    table = Table(title=f"Table 3 ({p['library']}, {' '.join(bands)}): s2cl beside Segl et al. 2012")
+    for title in ("", "RMS ESA", "RMS best", *(f"{b} λ/Δλ" for b in bands)):
+        table.add_column(title, justify="right")
+    for label, e in (("paper", p["paper"]), ("s2cl", p["s2cl"])):
+        esa = "–" if e["rms_esa"] is None else f"{e['rms_esa']:.1f}"
+        table.add_row(label, esa, f"{e['rms_best']:.1f}",
+                      *(f"{e['best'][b][0]:g}/{e['best'][b][1]:g}" for b in bands))
+    rich_console().print(table)
+    if "paper_best_in_s2cl" in p:
+        q = p["paper_best_in_s2cl"]
+        click.echo(f"the paper's best bands in s2cl: rms {q[summary['metric']]:.2f}, rank {q['rank']:,} of "
+                   f"{summary['configurations']:,}")
+
+
+def _print_grid(p: dict[str, Any]) -> None:
+    """Tables 4-6: one band's centre × FWHM grid, s2cl's value with the paper's in brackets; the best of each."""
+    from rich.table import Table
+
+    band, unit = p["band"], p["unit"]
+    table = Table(title=f"Table {p['table'][5:]} ({band}, {p['metric']} {unit}): s2cl (paper)")
+    table.add_column(f"{band} centre ↓ FWHM →", justify="right")
+    for w in p["widths_nm"]:
+        table.add_column(f"{w:g}", justify="right")
+    for c, ours, theirs in zip(p["centres_nm"], p["s2cl"], p["paper"], strict=True):
+        cells = ("–" if o is None else f"{o:.1f} ({t:.1f})" for o, t in zip(ours, theirs, strict=True))
+        table.add_row(f"{c:g}", *cells)
+    rich_console().print(table)
+    pb, sb = p["paper_best"], p.get("s2cl_best")
+    line = f"paper best {pb['bands'][0]:g}/{pb['bands'][1]:g} ({pb['value']:.1f})"
+    if sb:
+        line += f"; s2cl best {sb['bands'][0]:g}/{sb['bands'][1]:g} ({sb['value']:.2f})"
+    if p.get("rank_correlation") is not None:
+        line += f"; rank correlation of the {p['cells']} cells {p['rank_correlation']:.2f}"
+    click.echo(line)
+
+
+def _print_sweep(summary: dict[str, Any]) -> None:
+    """The ranking: the sensor's own bands (the reference) and the five best configurations; then notes."""
+    from rich.table import Table
+
+    metric, bands = summary["metric"], summary["bands"]
+    table = Table(title=f"{summary['scene']}: best of {summary['configurations']:,} configurations by {metric}")
+    table.add_column("")
+    for b in bands:
+        table.add_column(f"{b} λ/Δλ", justify="right")
+    for col in (metric, "robust_rms" if metric == "rms" else "overall_accuracy_pct", "failed_fraction"):
+        table.add_column(col, justify="right")
+    if metric == "rms":
+        table.add_column("bound_fraction", justify="right")
+        table.add_column("converged", justify="right")
+    rows = [("reference", summary["reference"])] if "reference" in summary else []
+    rows += [(f"#{i + 1}", e) for i, e in enumerate(summary["top"][:5])]
+    for label, e in rows:
+        table.add_row(label, *_ranking_cells(e, bands, metric))
+    rich_console().print(table)
+    _print_ranking_notes(summary)
+
+
+def _ranking_cells(e: dict[str, Any], bands: list[str], metric: str) -> list[str]:
+    """One ranking row: each band's centre/width, the metric, its robust twin and the failure fractions."""
+    cells = [f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
+    cells += [f"{e[metric]:.3g}", f"{e.get('robust_rms', e.get('overall_accuracy_pct', float('nan'))):.3g}",
+              f"{e['failed_fraction']:.2%}"]
+    if metric == "rms":
+        cells.append(f"{e['bound_fraction']:.2%}")
+        cells.append(f"{e['converged_fraction']:.2%}" if "converged_fraction" in e else "")
+    return cells
+
+
+def _print_ranking_notes(summary: dict[str, Any]) -> None:
+    """Underdetermined configurations and how many do better than the sensor's own bands."""
+    u = summary.get("underdetermined", {})
+    if u.get("count"):
+        which = ", ".join(f"{k} ({v:,})" for k, v in u.get("coincident_centres", {}).items())
+        fate = "kept in the ranking, flagged" if u.get("ranking") == "keep" else "left out of the ranking"
+        click.echo(f"{u['count']:,} configurations are underdetermined (the analysis cannot fit them"
+                   + (f"; bands on one centre: {which}" if which else "") + f"): {fate}")
+    if "reference" in summary:
+        click.echo(f"reference = the sensor's own bands; {summary['reference']['configurations_better']:,} "
+                   "configurations do better")

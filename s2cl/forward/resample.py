@@ -1,0 +1,145 @@
+"""Host side of ``kernels/resample.cl.mako``: spectra → band radiance through sparse SRF supports."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.runtime import Runtime
+from s2cl.cl.templates import render
+from s2cl.errors import InputError
+from s2cl.sensor.srf import BandWeights
+
+if TYPE_CHECKING:
+    from s2cl.grid import SpectralGrid
+    from s2cl.sensor.sensor import Band
+
+TEMPLATE = "resample.cl.mako"
+
+#: Wavelengths per vector load unless asked otherwise, capped at the device's native width and at
+#: least 4 (there is no vload1): 16-wide loads were 13-15 % slower than 8-wide on an AVX-512 CPU
+#: (``python -m bench.bench_lanes``, bench/results/lanes-*.json); on AVX2 8 is the native width.
+DEFAULT_VECTOR_WIDTH = 8
+
+
+class AtmosphereArrays(Protocol):
+    """Per-wavelength TOA terms on the resampling grid (see :mod:`s2cl.atmos.atmosphere`):
+    L = path_radiance + ground_term · ρ / (1 − spherical_albedo · ρ), radiances in W m⁻² sr⁻¹ µm⁻¹."""
+
+    path_radiance: np.ndarray
+    ground_term: np.ndarray
+    spherical_albedo: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ResamplePlan:
+    """Band supports on a grid of ``n_wavelengths`` samples, packed for the kernel."""
+
+    names: tuple[str, ...]
+    weights: tuple[BandWeights, ...]
+    n_wavelengths: int
+
+    @classmethod
+    def of(cls, bands: Sequence[Band], grid: SpectralGrid) -> ResamplePlan:
+        """The plan of ``bands``' model SRFs on ``grid`` with the default support cut-off."""
+        return cls(tuple(b.name for b in bands), tuple(b.weights(grid) for b in bands), grid.size)
+
+    @property
+    def n_bands(self) -> int:
+        return len(self.weights)
+
+    def packed(self) -> tuple[list[dict], np.ndarray]:
+        """Band descriptors for the template and the concatenated weight array (float64)."""
+        bands, offset = [], 0
+        for name, w in zip(self.names, self.weights, strict=True):
+            bands.append({"name": name, "start": w.start, "length": int(w.weights.size), "offset": offset})
+            offset += int(w.weights.size)
+        return bands, np.concatenate([w.weights for w in self.weights])
+
+    def dense(self) -> np.ndarray:
+        """The dense SRF matrix ``(n_bands, n_wavelengths)`` (float64), e.g. for numpy baselines."""
+        m = np.zeros((self.n_bands, self.n_wavelengths))
+        for k, w in enumerate(self.weights):
+            m[k, w.start : w.stop] = w.weights
+        return m
+
+
+def _args(atmosphere: bool) -> list[Arg]:
+    args = [Arg("out", "out", "real"), Arg("spectra", "in", "real"), Arg("weights", "in", "real")]
+    if atmosphere:
+        args += [Arg(n, "in", "real") for n in ("path_radiance", "ground_term", "spherical_albedo")]
+    return [*args, Arg("n_pixels", "scalar", "uint")]
+
+
+class Resampler:
+    """Compiled resampling kernel for one plan, precision and (optional) atmosphere.
+
+    :param atmosphere: per-wavelength TOA terms; when given, input spectra are surface
+        reflectance and are turned into TOA radiance at each wavelength before the SRFs.
+    :param vector_width: wavelengths per vector load, 4, 8 or 16 (default :data:`DEFAULT_VECTOR_WIDTH`
+        capped at the device's native width; a width the CPU cannot use cleanly falls back, see
+        :func:`s2cl.cl.devices.choose_lanes`).
+    """
+
+    def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
+                 atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None):
+        self.T = rt.types(real_t, vector=False)
+        self.rt, self.plan, self.real_t = rt, plan, real_t
+        self.dtype = self.T.dtype.type
+        self.args = _args(atmosphere is not None)
+        bands, weights = plan.packed()
+        if vector_width not in (None, 4, 8, 16):
+            raise InputError(f"must be 4, 8 or 16, got {vector_width!r}", key="vector_width")
+        if vector_width is None:
+            vector_width = max(4, min(DEFAULT_VECTOR_WIDTH, rt.native_lanes(real_t)))
+        self.vw = max(4, rt.lanes(real_t, vector_width))  # a width this CPU cannot use falls back
+        self.source = render(TEMPLATE, args=self.args, signature=signature, T=self.T, bands=bands,
+                             n_wavelengths=plan.n_wavelengths, vw=self.vw, atmosphere=atmosphere is not None)
+        program = rt.build(self.source, template=TEMPLATE)
+        self.kernel = rt.kernel(program, "resample_bands")
+        self.weights_dev = rt.to_device(weights.astype(self.dtype))
+        self.atmosphere_dev = None
+        if atmosphere is not None:
+            self.atmosphere_dev = {
+                n: rt.to_device(np.asarray(getattr(atmosphere, n), dtype=self.dtype))
+                for n in ("path_radiance", "ground_term", "spherical_albedo")
+            }
+
+    def enqueue(self, out_dev, spectra_dev, n_pixels: int, local_size: int | None = None) -> None:
+        """Resample ``n_pixels`` rows already on the device into ``out_dev`` (bands × n_pixels)."""
+        values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels}
+        if self.atmosphere_dev:
+            values.update(self.atmosphere_dev)
+        global_size = _round_up(n_pixels, local_size or 1)
+        self.kernel(self.rt.queue, (global_size,), (local_size,) if local_size else None,
+                    *bind(self.args, values, self.T))
+
+    def __call__(self, spectra: np.ndarray, *, chunk_pixels: int | None = None,
+                 local_size: int | None = None) -> np.ndarray:
+        """Band radiance ``(n_bands, n_pixels)`` of ``spectra`` ``(n_pixels, n_wavelengths)``."""
+        spectra = np.asarray(spectra)
+        n = spectra.shape[0]
+        chunk = chunk_pixels or self.default_chunk()
+        out = np.empty((self.plan.n_bands, n), dtype=self.dtype)
+        for lo in range(0, n, chunk):
+            hi = min(n, lo + chunk)
+            block = np.ascontiguousarray(spectra[lo:hi], dtype=self.dtype)
+            spectra_dev = self.rt.to_device(block, zero_copy=True)  # referenced until the blocking fetch
+            out_dev = self.rt.empty(self.plan.n_bands * (hi - lo) * self.dtype().itemsize)
+            self.enqueue(out_dev, spectra_dev, hi - lo, local_size)
+            out[:, lo:hi] = self.rt.fetch(out_dev, (self.plan.n_bands, hi - lo), self.dtype)
+            del spectra_dev
+        return out
+
+    def default_chunk(self) -> int:
+        """Pixels per chunk: input at most 256 MiB and a quarter of the device's largest allocation."""
+        row = self.plan.n_wavelengths * self.dtype().itemsize
+        return max(1, min(256 * 2**20, self.rt.max_alloc_bytes // 4) // row)
+
+
+def _round_up(n: int, m: int) -> int:
+    return max(m, -(-n // m) * m)

@@ -1,0 +1,285 @@
+"""Simulate a scene: library spectra (× noisy copies) → band radiance → noise → DN → calibrated radiance."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from s2cl import __version__
+from s2cl.atmos.correction import BandAtmosphere
+from s2cl.cl.runtime import Runtime, get_runtime
+from s2cl.errors import InputError, token
+from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
+from s2cl.forward.sense import Radiometry, SenseResult, Sensing, clipped_counts
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.scene.effects import EffectSet
+from s2cl.scene.scene import Scene
+from s2cl.sensor.sensor import Sensor
+from s2cl.sensor.srf import point_weights
+from s2cl.status import PixelFlag
+
+Progress = Callable[[int], None]
+
+
+@dataclass
+class LibrarySimulation:
+    """Result of simulating a spectral library with ``copies`` noisy copies per spectrum.
+
+    Arrays are ``(n_bands, n_spectra)`` for the noise-free band radiance and
+    ``(n_bands, n_spectra, copies)`` for the per-pixel outputs (None when the stage is off).
+    Radiance in W m⁻² sr⁻¹ µm⁻¹.
+    """
+
+    scene: str
+    sensor: Sensor
+    library: SpectralLibrary
+    copies: int
+    effects: EffectSet
+    band_radiance: np.ndarray
+    noisy: np.ndarray | None = None
+    dn: np.ndarray | None = None
+    calibrated: np.ndarray | None = None
+    reflectance: np.ndarray | None = None
+    clipped: np.ndarray | None = None
+    #: per band and pixel, :class:`s2cl.status.PixelFlag` bits (below Lmin, saturated, no data)
+    flags: np.ndarray | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_pixels(self) -> int:
+        return self.library.size * self.copies
+
+    @property
+    def sensed(self) -> np.ndarray:
+        """The last radiance of the chain: calibrated, else noisy, else noise-free (per pixel)."""
+        for a in (self.calibrated, self.noisy):
+            if a is not None:
+                return a
+        return np.repeat(self.band_radiance[:, :, None], self.copies, axis=2)
+
+    def summary(self) -> list[dict[str, Any]]:
+        """Per band: mean radiance, measured and modelled SNR, clipping, calibration error."""
+        stats = BandSummary(self.sensor, self.band_radiance, self.copies)
+        stats.add(0, self.library.size, self.noisy, self.calibrated, self.clipped, self.flags)
+        return stats.rows()
+
+    def to_dataset(self, layout: str = "rows") -> Any:
+        """xarray Dataset: per-band images in the scene's layout plus the spectrum table."""
+        from s2cl.forward.dataset import library_dataset
+
+        return library_dataset(self, layout)
+
+
+class BandSummary:
+    """The per-band summary of a simulation, accumulated over chunks of whole spectra (each chunk holds
+    every copy of its spectra, so per-spectrum statistics are exact whatever the chunking)."""
+
+    def __init__(self, sensor: Sensor, band_radiance: np.ndarray, copies: int):
+        self.sensor, self.band_radiance, self.copies = sensor, band_radiance, copies
+        nb = band_radiance.shape[0]
+        self.n_pixels = band_radiance.shape[1] * copies
+        self._snr: list[np.ndarray] = []
+        self._sq_error = np.zeros(nb)
+        self._clipped: np.ndarray | None = None
+        self._nodata: np.ndarray | None = None
+        self._calibrated = False
+
+    def add(self, lo: int, hi: int, noisy: np.ndarray | None, calibrated: np.ndarray | None,
+            clipped: np.ndarray | None, flags: np.ndarray | None = None) -> None:
+        """Spectra ``lo … hi-1``: ``noisy``, ``calibrated`` and ``flags`` ``(n_bands, hi - lo, copies)``,
+        ``clipped`` ``(2, n_bands)`` counts (None where the stage is off)."""
+        if flags is not None:
+            nodata = np.count_nonzero(flags.reshape(flags.shape[0], -1) & PixelFlag.NODATA, axis=1)
+            self._nodata = nodata + (0 if self._nodata is None else self._nodata)
+        L = self.band_radiance[:, lo:hi].astype(np.float64)
+        if noisy is not None and self.copies > 1:
+            std = noisy.astype(np.float64).std(axis=2, ddof=1)
+            self._snr.append(np.where(std > 0, L / np.where(std > 0, std, 1.0), np.nan))
+        if calibrated is not None:
+            err = calibrated.astype(np.float64) - L[:, :, None]
+            self._sq_error += np.einsum("kij,kij->k", err, err)
+            self._calibrated = True
+        if clipped is not None:
+            self._clipped = clipped.astype(np.int64) + (0 if self._clipped is None else self._clipped)
+
+    @property
+    def clipped(self) -> np.ndarray | None:
+        """``(2, n_bands)`` pixels below Lmin / above Lmax so far (None without quantisation)."""
+        return self._clipped
+
+    def rows(self) -> list[dict[str, Any]]:
+        """Per band: mean radiance, measured and modelled SNR, clipping, calibration error."""
+        snr = np.concatenate(self._snr, axis=1) if self._snr else None
+        rows = []
+        for k, band in enumerate(self.sensor.bands):
+            L = self.band_radiance[k].astype(np.float64)
+            row: dict[str, Any] = {
+                "band": band.name, "centre_nm": band.centre_nm, "fwhm_nm": band.fwhm_nm,
+                "mean_radiance": float(L.mean()),
+            }
+            if snr is not None:
+                ok = np.isfinite(snr[k])
+                row["snr_measured_median"] = float(np.median(snr[k][ok])) if ok.any() else float("nan")
+                row["snr_model_median"] = float(np.median(band.noise.snr(L, band.fwhm_nm)))
+            if self._clipped is not None:
+                row["clipped_low_pct"] = 100.0 * float(self._clipped[0, k]) / self.n_pixels
+                row["clipped_high_pct"] = 100.0 * float(self._clipped[1, k]) / self.n_pixels
+            if self._calibrated:
+                row["rms_error_vs_noise_free"] = float(np.sqrt(self._sq_error[k] / self.n_pixels))
+            if self._nodata is not None:
+                row["nodata_pct"] = 100.0 * float(self._nodata[k]) / self.n_pixels
+            rows.append(row)
+        return rows
+
+
+class Simulator:
+    """Compiled chain for one scene (or sensor + effects) on ``rt``'s device, reusable across inputs."""
+
+    def __init__(self, rt: Runtime, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
+                 precision: str = "float32", atmosphere: AtmosphereArrays | None = None,
+                 correction: BandAtmosphere | None = None):
+        self.rt = rt
+        self.sensor, self.effects, self.precision = sensor, effects, precision
+        self.correction = correction
+        self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
+        self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere)
+        self.sensing = (
+            Sensing(self.rt, Radiometry.of(sensor.bands, sensor.bits), effects, precision, correction=correction)
+            if effects.senses else None
+        )
+
+    @classmethod
+    def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None) -> Simulator:
+        weights = [
+            b.weights(scene.grid, scene.run.support, scene.source)
+            if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
+            for b in scene.sensor.bands
+        ]
+        correction = None
+        if scene.effects.correct:
+            from s2cl.atmos.scene_terms import correction_terms
+
+            correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
+                scene.run.calibration_gain)
+        return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
+                   atmosphere=atmosphere, correction=correction)
+
+    def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
+        """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        return self.resampler(spectra)
+
+    def sense(self, radiance: np.ndarray, *, seed: int, frame: int = 0, pixel_offset: int = 0) -> SenseResult | None:
+        if self.sensing is None:
+            return None
+        return self.sensing(radiance, seed=seed, frame=frame, pixel_offset=pixel_offset)
+
+    def run_library(self, library: SpectralLibrary, *, copies: int, seed: int, frame: int = 0,
+                    scene: str = "", progress: Progress | None = None) -> LibrarySimulation:
+        """Simulate every spectrum ``copies`` times. Spectra are resampled once (copies share the
+        noise-free band radiance); pixel ``s · copies + c`` keys the noise of copy ``c`` of spectrum ``s``."""
+        if copies < 1:
+            raise InputError(f"copies must be >= 1, got {copies}", key="surface.copies")
+        t0 = time.perf_counter()
+        band_radiance = self.band_radiance(library.spectra)
+        seconds = {"resample": time.perf_counter() - t0}
+        result = LibrarySimulation(scene, self.sensor, library, copies, self.effects, band_radiance,
+                                   seconds=seconds)
+        if progress:
+            progress(0)
+        if self.sensing is not None:
+            t1 = time.perf_counter()
+            self._sense_library(result, seed, frame, progress)
+            seconds["sense"] = time.perf_counter() - t1
+        elif progress:
+            progress(result.n_pixels)
+        return result
+
+    def _sense_library(self, result: LibrarySimulation, seed: int, frame: int, progress: Progress | None) -> None:
+        nb, ns, c = self.sensor.size, result.library.size, result.copies
+        e = self.effects
+        dtype = result.band_radiance.dtype
+        result.noisy = np.empty((nb, ns, c), dtype) if e.noise else None
+        result.dn = np.empty((nb, ns, c), np.uint16) if e.quantise else None
+        result.calibrated = np.empty((nb, ns, c), dtype) if e.calibrate else None
+        result.reflectance = np.empty((nb, ns, c), dtype) if e.correct else None
+        result.flags = np.empty((nb, ns, c), np.uint8) if e.quantise else None
+        per_chunk = max(1, (1 << 20) // c)
+        for lo in range(0, ns, per_chunk):
+            hi = min(ns, lo + per_chunk)
+            expanded = np.repeat(result.band_radiance[:, lo:hi], c, axis=1)
+            out = self.sensing(expanded, seed=seed, frame=frame, pixel_offset=lo * c)
+            for name in ("noisy", "dn", "calibrated", "reflectance", "flags"):
+                part = getattr(out, name)
+                if part is not None:
+                    getattr(result, name)[:, lo:hi] = part.reshape(nb, hi - lo, c)
+            if progress:
+                progress((hi - lo) * c)
+        if result.flags is not None:
+            result.clipped = clipped_counts(result.flags.reshape(nb, -1))
+
+
+def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,
+             library: SpectralLibrary | None = None) -> LibrarySimulation:
+    """Simulate a library scene (see :class:`Scene`); ``library`` overrides the scene's surface."""
+    if not isinstance(scene, Scene):
+        scene = Scene.load(scene)
+    if scene.spec.surface.cube is not None:
+        raise InputError("this scene holds an image cube: use s2cl.forward.cube.simulate_cube", source=scene.source)
+    lib = library if library is not None else scene_library(scene)
+    _require_memory(scene, lib)
+    rt = get_runtime(device or scene.run.device)
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    r = scene.run
+    result = sim.run_library(lib, copies=r.copies, seed=r.seed, frame=r.frame, scene=scene.name, progress=progress)
+    result.attrs.update(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
+                        device=rt.name, precision=r.precision, effects=scene.effects.describe(),
+                        seed=r.seed, layout=r.layout)
+    return result
+
+
+#: bytes per pixel and band of an in-memory simulation: float32 noisy/calibrated/reflectance and uint16 DN,
+#: and the copies :meth:`LibrarySimulation.to_dataset` makes of them
+IN_MEMORY_BYTES_PER_PIXEL_BAND = 48
+
+
+def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
+    """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
+    from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
+
+    copies, nb = scene.run.copies, scene.sensor.size
+    per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
+    budget = Budget.of()
+    budget.require(BASELINE_BYTES + copies * per_copy, what=f"an in-memory simulation of {lib.size:,} spectra × "
+                   f"{copies:,} copies", key="surface.copies", source=scene.source,
+                   fits=f"at most {largest_fitting(budget.memory_bytes, BASELINE_BYTES, per_copy):,} copies fit; "
+                        "`s2cl simulate` writes any number of copies in bounded memory")
+
+
+def scene_library(scene: Scene) -> SpectralLibrary:
+    """The scene's spectral library on the scene's grid."""
+    from s2cl.libraries.registry import load_library
+
+    spec = scene.spec.surface.library
+    assert spec is not None
+    name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
+    want = scene.spec.surface.quantity
+    lib = load_library(name, scene.grid, source=scene.source, key="surface.library", quantity=want)
+    if lib.quantity != want:
+        raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
+                         source=scene.source, key="surface.quantity")
+    return lib
+
+
+def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
+    """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
+    if not scene.effects.atmosphere:
+        return None
+    from s2cl.atmos.scene_terms import scene_terms
+
+    return scene_terms(scene)

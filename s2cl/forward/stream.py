@@ -1,0 +1,268 @@
+"""``s2cl simulate`` of a library scene in bounded memory: chunks of whole spectra are sensed and
+written straight into the NetCDF file, so memory does not grow with ``surface.copies``.
+
+The file equals :meth:`LibrarySimulation.to_dataset` written with xarray (same variables, dimensions,
+attributes and values; tested). The small part (band and spectrum tables, noise-free band radiance,
+attributes) is written with xarray first; the per-pixel images ``(band, y, x)`` are then created with
+h5netcdf and filled chunk by chunk (``rows``: one image row per spectrum; ``blocks``: one square
+tile per spectrum). Clipping counts are written last. The analysis keeps only the band reflectances
+it needs (float32, ``n_analysis_bands × pixels``); its memory is part of :func:`simulate_memory`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from s2cl import __version__
+
+if TYPE_CHECKING:
+    from s2cl.cl.runtime import Runtime
+from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
+from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
+from s2cl.io.budget import (
+    ANALYSIS_BYTES_PER_PIXEL,
+    ANALYSIS_BYTES_PER_PIXEL_BAND,
+    BASELINE_BYTES,
+    SIMULATE_BYTES_PER_PIXEL_BAND,
+    SIMULATE_CHUNK_PIXELS,
+    Budget,
+    largest_fitting,
+    require_disk,
+)
+from s2cl.io.output import atomic_path, hdf5_errors
+from s2cl.scene.validate import Checked
+
+Progress = Callable[[int], None]
+
+
+@dataclass
+class StreamedSimulation:
+    """What ``s2cl simulate`` reports after streaming a library scene into ``path``."""
+
+    path: Path
+    rows: list[dict[str, Any]]
+    attrs: dict[str, Any]
+    pixels: int
+    analysis: dict[str, Any] | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def chunk_spectra(copies: int) -> int:
+    """Spectra per chunk: about :data:`SIMULATE_CHUNK_PIXELS` pixels, at least one spectrum."""
+    return max(1, SIMULATE_CHUNK_PIXELS // copies)
+
+
+def simulate_memory(checked: Checked, budget: Budget) -> float:
+    """Peak memory (bytes) of :func:`simulate_to_netcdf` for ``checked``; :class:`ResourceError`
+    naming ``surface.copies`` (with the most copies that fit) when it exceeds ``budget``."""
+    scene, lib = checked.scene, checked.library
+    assert lib is not None
+    copies, nb = scene.run.copies, scene.sensor.size
+    fixed = BASELINE_BYTES + 24.0 * lib.size * scene.grid.size
+    chunk_pixels = chunk_spectra(copies) * copies
+    n_ab = len(checked.analysis_bands)
+    per_copy = lib.size * (ANALYSIS_BYTES_PER_PIXEL + ANALYSIS_BYTES_PER_PIXEL_BAND * n_ab) if checked.analysis else 0.0
+    need = fixed + chunk_pixels * nb * SIMULATE_BYTES_PER_PIXEL_BAND + copies * per_copy
+    most = largest_fitting(budget.memory_bytes, fixed + SIMULATE_CHUNK_PIXELS * nb * SIMULATE_BYTES_PER_PIXEL_BAND,
+                           per_copy) if per_copy else 0
+    what = f"simulating {lib.size:,} spectra × {copies:,} copies" + (" with the analysis" if per_copy else "")
+    budget.require(need, what=what, key="surface.copies", source=scene.source,
+                   fits=f"at most {most:,} copies fit (or remove [analysis])" if per_copy else "")
+    return need
+
+
+def netcdf_bytes(checked: Checked) -> float:
+    """Size of ``simulation.nc`` (bytes, an upper bound) from the effects that are on."""
+    scene, lib = checked.scene, checked.library
+    assert lib is not None
+    e, copies = scene.effects, scene.run.copies
+    per_band = 4 * (e.noise + e.calibrate + e.correct) + 2 * e.quantise
+    pixels = image_pixels(lib.size, copies, scene.run.layout)
+    return 1.02 * pixels * (scene.sensor.size * per_band + 8) + 2e6
+
+
+def require_netcdf_disk(checked: Checked, out: Path) -> None:
+    """Refuse (one line, before any work) when ``simulation.nc`` would not fit on the disk of ``out``."""
+    require_disk(out, netcdf_bytes(checked), what="simulation.nc", key="surface.copies",
+                 source=checked.scene.source)
+
+
+def image_shape(n_spectra: int, copies: int, layout: str) -> tuple[int, int, int]:
+    """(rows, columns, tile side) of the image: see :func:`s2cl.forward.dataset.image_layout`."""
+    if layout == "rows":
+        return n_spectra, copies, 0
+    side = math.isqrt(copies)
+    ncols = math.ceil(math.sqrt(n_spectra))
+    return math.ceil(n_spectra / ncols) * side, ncols * side, side
+
+
+def image_pixels(n_spectra: int, copies: int, layout: str) -> int:
+    rows, cols, _ = image_shape(n_spectra, copies, layout)
+    return rows * cols
+
+
+def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = None,
+                       progress: Progress | None = None) -> StreamedSimulation:
+    """Simulate the checked library scene into NetCDF file ``path`` (written atomically); return the
+    per-band summary, the attributes and the analysis (when the scene has one)."""
+    from s2cl.cl.runtime import get_runtime
+
+    scene, lib = checked.scene, checked.library
+    assert lib is not None
+    r = scene.run
+    rt = get_runtime(device or r.device)
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    t0 = time.perf_counter()
+    band_radiance = sim.band_radiance(lib.spectra)
+    seconds = {"resample": time.perf_counter() - t0}
+    attrs = dict(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__, device=rt.name,
+                 precision=r.precision, effects=scene.effects.describe(), seed=r.seed, layout=r.layout)
+    writer = _ImageWriter(scene, lib.size, r.copies)
+    stats = BandSummary(scene.sensor, band_radiance, r.copies)
+    picked = _AnalysisBands(checked, lib.size * r.copies)
+    if progress:
+        progress(0)
+    with atomic_path(path) as tmp, hdf5_errors(path):
+        clipped = np.zeros((2, scene.sensor.size), np.int64) if scene.effects.quantise else None
+        header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs,
+                       clipped).to_netcdf(tmp, engine="h5netcdf")
+        t1 = time.perf_counter()
+        with writer.open(tmp) as images:
+            for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):
+                c = r.copies
+                parts = {name: None if getattr(out, name) is None else
+                         getattr(out, name).reshape(scene.sensor.size, hi - lo, c) for name, _, _ in PIXEL_VARIABLES}
+                images.write(lo, hi, parts)
+                stats.add(lo, hi, parts["noisy"], parts["calibrated"], out.clipped, parts["flags"])
+                picked.add(lo * c, out.reflectance)
+                if progress:
+                    progress((hi - lo) * c)
+            if clipped is not None:
+                images.set_clipped(stats.clipped)
+        seconds["sense_and_write"] = time.perf_counter() - t1
+    analysis = picked.analyse(band_radiance, rt) if checked.analysis is not None else None
+    return StreamedSimulation(path, stats.rows(), attrs, lib.size * r.copies, analysis, seconds)
+
+
+def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed: int, frame: int):
+    """(first spectrum, end spectrum, SenseResult) per chunk of whole spectra; pixel ``s · copies + c``
+    keys the noise of copy ``c`` of spectrum ``s``, as in :meth:`Simulator.run_library`."""
+    ns = band_radiance.shape[1]
+    per_chunk = chunk_spectra(copies)
+    for lo in range(0, ns, per_chunk):
+        hi = min(ns, lo + per_chunk)
+        expanded = np.repeat(band_radiance[:, lo:hi], copies, axis=1)
+        out = sim.sense(expanded, seed=seed, frame=frame, pixel_offset=lo * copies)
+        if out is None:  # no radiometric effect: the images are the noise-free radiance
+            from s2cl.forward.sense import SenseResult
+
+            out = SenseResult(noisy=None, dn=None, calibrated=None, clipped=None)
+        yield lo, hi, out
+
+
+class _ImageWriter:
+    """Creates the per-pixel variables in an open NetCDF file and writes chunks of spectra into them."""
+
+    def __init__(self, scene: Any, n_spectra: int, copies: int):
+        self.layout = scene.run.layout
+        self.n_spectra, self.copies, self.n_bands = n_spectra, copies, scene.sensor.size
+        self.rows, self.cols, self.side = image_shape(n_spectra, copies, self.layout)
+        self.effects = scene.effects
+        self.dtype = np.dtype(scene.run.precision)
+
+    def open(self, path: Path) -> _OpenImages:
+        return _OpenImages(self, path)
+
+
+class _OpenImages:
+    def __init__(self, spec: _ImageWriter, path: Path):
+        self.spec, self.path = spec, path
+
+    def __enter__(self) -> _OpenImages:
+        import h5netcdf
+
+        sp = self.spec
+        self.file = h5netcdf.File(self.path, "a")
+        self.file.dimensions["y"] = sp.rows
+        self.file.dimensions["x"] = sp.cols
+        v = self.file.create_variable("pixel_spectrum", ("y", "x"), np.int64)
+        v.attrs.update(PIXEL_SPECTRUM_ATTRS)
+        if sp.layout == "blocks":  # tiles beyond the last spectrum hold no pixel
+            for s in range(sp.n_spectra, (sp.rows // sp.side) * (sp.cols // sp.side)):
+                v[self._tile(s)] = -1
+        self.vars = {"pixel_spectrum": v}
+        on = {"noisy": sp.effects.noise, "dn": sp.effects.quantise, "flags": sp.effects.quantise,
+              "calibrated": sp.effects.calibrate, "reflectance": sp.effects.correct}
+        integer = {"dn": np.uint16, "flags": np.uint8}
+        for name, units, long_name in PIXEL_VARIABLES:
+            if not on[name]:
+                continue
+            dtype, fill = (integer[name], None) if name in integer else (sp.dtype, np.nan)
+            var = self.file.create_variable(name, ("band", "y", "x"), dtype, fillvalue=fill)
+            var.attrs.update(pixel_attrs(name, units, long_name))
+            self.vars[name] = var
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.file.close()
+
+    def write(self, lo: int, hi: int, parts: dict[str, np.ndarray | None]) -> None:
+        """Spectra ``lo … hi-1``: each array ``(n_bands, hi - lo, copies)``."""
+        sp = self.spec
+        for name, part in parts.items():
+            if part is None or name not in self.vars:
+                continue
+            if sp.layout == "rows":
+                self.vars[name][:, lo:hi, :] = part
+            else:
+                for s in range(lo, hi):
+                    self.vars[name][(slice(None), *self._tile(s))] = part[:, s - lo].reshape(-1, sp.side, sp.side)
+        if sp.layout == "rows":
+            self.vars["pixel_spectrum"][lo:hi, :] = np.broadcast_to(np.arange(lo, hi)[:, None], (hi - lo, sp.cols))
+        else:
+            for s in range(lo, hi):
+                self.vars["pixel_spectrum"][self._tile(s)] = s
+
+    def _tile(self, s: int) -> tuple[slice, slice]:
+        sp = self.spec
+        r, c = divmod(s, sp.cols // sp.side)
+        return slice(r * sp.side, (r + 1) * sp.side), slice(c * sp.side, (c + 1) * sp.side)
+
+    def set_clipped(self, clipped: np.ndarray | None) -> None:
+        if clipped is not None:
+            self.file.variables["clipped"][...] = clipped
+
+
+class _AnalysisBands:
+    """The corrected reflectance of the analysis bands, gathered chunk by chunk in the scene's precision."""
+
+    def __init__(self, checked: Checked, n_pixels: int):
+        self.checked = checked
+        self.rows: list[int] = []
+        self.data: np.ndarray | None = None
+        if checked.analysis is not None:
+            names = [b.lower() for b in checked.scene.sensor.band_names]
+            self.rows = [names.index(b.lower()) for b in checked.analysis_bands]
+            self.data = np.empty((len(self.rows), n_pixels), np.dtype(checked.scene.run.precision))
+
+    def add(self, first_pixel: int, reflectance: np.ndarray | None) -> None:
+        if self.data is not None and reflectance is not None:
+            self.data[:, first_pixel : first_pixel + reflectance.shape[1]] = reflectance[self.rows]
+
+    def analyse(self, band_radiance: np.ndarray, rt: Runtime) -> dict[str, Any]:
+        from s2cl.retrieve.scene_analysis import analyse
+
+        scene, lib = self.checked.scene, self.checked.library
+        assert self.data is not None and lib is not None
+        sensor = scene.sensor.select(list(self.checked.analysis_bands))
+        copies = scene.run.copies
+        sim = LibrarySimulation(scene.name, sensor, lib, copies, scene.effects, band_radiance[self.rows],
+                                reflectance=self.data.reshape(len(self.rows), lib.size, copies))
+        return analyse(rt, scene, sim)

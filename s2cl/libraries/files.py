@@ -1,0 +1,321 @@
+"""User spectral-library files onto a grid: CSV (:func:`load_csv_library`) and ENVI ``.sli``/``.hdr``
+(:func:`load_envi_library`), with wavelength units (nm or um) and plausibility checks (reflectance 0-1, or
+TOA radiance in W m-2 sr-1 um-1)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from s2cl.errors import InputError, key_token, token
+from s2cl.grid import SpectralGrid, check_wavelengths
+from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
+
+#: Largest wavelength gap (nm) in a user file that linear interpolation may bridge; a wider gap
+#: inside the grid (e.g. deleted water-vapour bands) is an error instead of invented data.
+DEFAULT_MAX_GAP_NM = 25.0
+#: Reflectance values outside this range suggest percent or integer scaling, not reflectance.
+REFLECTANCE_RANGE = (-0.05, 2.0)
+#: TOA radiance (W m-2 sr-1 um-1) outside this range suggests other units (the solar constant peaks
+#: near 2000 W m-2 um-1 at 450 nm; no Earth target is brighter than that over pi).
+RADIANCE_RANGE = (-1.0, 1000.0)
+
+
+def wavelengths_to_nm(values: np.ndarray, unit: str | None, *, source: str, key: str) -> np.ndarray:
+    """Convert a wavelength axis to nm; ``unit`` is ``"nm"``, ``"um"`` or ``None`` (detect).
+
+    Detection: an axis whose largest value is below 100 is in µm (no optical library reaches
+    100 nm), otherwise nm. ENVI spellings (``Micrometers``, ``Nanometers``…) are accepted.
+    """
+    w = check_wavelengths(values, source=source, key=key)
+    norm = _normalise_unit(unit, source=source, key=key)
+    if norm is None:
+        norm = "um" if w[-1] < 100.0 else "nm"
+    return w * 1000.0 if norm == "um" else w
+
+
+def _normalise_unit(unit: str | None, *, source: str, key: str) -> str | None:
+    """``nm``, ``um`` or ``None`` (unknown: detect) for a unit's spelling; anything else is refused."""
+    if unit is None:
+        return None
+    u = unit.strip().lower().replace("µ", "u").replace("μ", "u")
+    if u in {"", "unknown", "<unspecified>", "index"}:
+        return None
+    if u in {"nm", "nanometer", "nanometers", "nanometre", "nanometres"}:
+        return "nm"
+    if u in {"um", "micron", "microns", "micrometer", "micrometers", "micrometre", "micrometres"}:
+        return "um"
+    raise InputError(f"wavelength unit {token(unit)} is not nm or µm", source=source, key=key)
+
+
+def _check_user_spectra(
+    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float,
+    quantity: Quantity = "reflectance",
+) -> None:
+    """Reject non-finite values, values outside the plausible range of ``quantity``, and gaps inside the grid.
+
+    Only the samples that interpolation onto ``grid`` uses are checked (those inside the grid
+    and the one bracketing sample each side): a deleted value far outside the grid is harmless.
+    """
+    first = max(int(np.searchsorted(w_nm, grid.start_nm, side="right")) - 1, 0)
+    last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
+    used = slice(first, last + 1)
+    lo, hi = REFLECTANCE_RANGE if quantity == "reflectance" else RADIANCE_RANGE
+    for i, row in enumerate(spectra[:, used]):
+        w = w_nm[used]
+        bad = ~np.isfinite(row)
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"holds a non-finite value ({row[j]}) at {w[j]:g} nm; spectra must be finite",
+                source=source,
+                key=key_token(names[i]),
+            )
+        if row.min() < lo or row.max() > hi:
+            j = int(np.argmax((row < lo) | (row > hi)))
+            raise InputError(f"value {row[j]:g} at {w[j]:g} nm {_out_of_range(quantity, lo, hi)}", source=source,
+                             key=key_token(names[i]))
+    inside = (w_nm[1:] > grid.start_nm) & (w_nm[:-1] < grid.stop_nm)
+    gaps = np.diff(w_nm)
+    wide = inside & (gaps > max_gap_nm)
+    if wide.any():
+        j = int(np.flatnonzero(wide)[0])
+        raise InputError(
+            f"has no data between {w_nm[j]:g} and {w_nm[j + 1]:g} nm ({gaps[j]:g} nm gap > {max_gap_nm:g} nm) "
+            f"inside the grid {grid.describe()}; s2cl does not invent data across such gaps "
+            "(choose a grid outside the gap or raise max_gap_nm)",
+            source=source,
+            key="wavelength",
+        )
+
+
+def _out_of_range(quantity: Quantity, lo: float, hi: float) -> str:
+    """Why a value is implausible, and what to do about it in scene terms."""
+    if quantity == "reflectance":
+        return (f"is outside the reflectance range {lo:g}–{hi:g}: rescale percent or integer-scaled data to 0–1 in "
+                "the file; if it holds TOA radiance (W m-2 sr-1 um-1) set surface.quantity = \"radiance\"")
+    return (f"is outside the TOA radiance range {lo:g}–{hi:g} W m-2 sr-1 um-1: convert the file to those units; "
+            "if it holds surface reflectance set surface.quantity = \"reflectance\" (with effects.atmosphere)")
+
+
+def _user_library(
+    w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float,
+    quantity: Quantity = "reflectance",
+) -> SpectralLibrary:
+    """A user file's spectra, checked and resampled onto ``grid`` (group ``user``)."""
+    _check_user_spectra(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
+    resampled = resample_to_grid(w_nm, spectra, grid, source=source)
+    return SpectralLibrary(
+        grid=grid,
+        spectra=resampled,
+        names=names,
+        quantity=quantity,
+        groups=["user" for _ in names],
+        source=str(source),
+    )
+
+
+def load_csv_library(
+    path: str | Path,
+    grid: SpectralGrid,
+    *,
+    wavelength_unit: str | None = None,
+    scale: float = 1.0,
+    max_gap_nm: float = DEFAULT_MAX_GAP_NM,
+    quantity: Quantity = "reflectance",
+) -> SpectralLibrary:
+    """Read a CSV spectral library and interpolate it linearly onto ``grid``.
+
+    Layout: a header row, then one row per wavelength. The first column is the wavelength,
+    named ``wavelength_nm`` or ``wavelength_um`` (unit from the name) or ``wavelength``
+    (unit from ``wavelength_unit``, else detected: values below 100 are µm). Every other
+    column is one spectrum, named by its header. Lines starting with ``#`` are comments;
+    commas or semicolons separate fields.
+
+    :param scale: multiplies every value (``0.01`` for percent).
+    :param max_gap_nm: widest wavelength gap inside the grid that interpolation may bridge.
+    :param quantity: what the values are: surface reflectance (0–1) or TOA radiance (W m⁻² sr⁻¹ µm⁻¹).
+    :raises InputError: missing/malformed file, bad wavelengths, NaN/inf, values that are not
+        reflectance, or data not covering the grid; the message names file and column.
+    """
+    source = str(path)
+    header, rows = _read_csv_rows(Path(path))
+    first = header[0].strip().lower()
+    if first in {"wavelength_nm", "wavelength_um", "wavelength_µm"}:
+        declared = "nm" if first.endswith("nm") else "um"
+        if wavelength_unit is not None and _normalise_unit(wavelength_unit, source=source, key=header[0]) != declared:
+            raise InputError(f"column name says {declared} but wavelength_unit={token(wavelength_unit)}",
+                             source=source)
+        unit: str | None = declared
+    elif first == "wavelength":
+        unit = wavelength_unit
+    else:
+        raise InputError("first column must be named wavelength_nm, wavelength_um or wavelength (is this a "
+                         "spectral library?)", source=source)
+    names = [h.strip() for h in header[1:]]
+    if not names:
+        raise InputError("holds a wavelength column but no spectrum column", source=source)
+    if len(set(names)) != len(names) or any(not n for n in names):
+        raise InputError("spectrum column names must be non-empty and unique", source=source)
+    values = _csv_values(rows, header, source=source)
+    w_nm = wavelengths_to_nm(values[:, 0], unit, source=source, key=header[0])
+    spectra = np.ascontiguousarray(values[:, 1:].T) * float(scale)
+    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
+
+
+def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header and the (line number, fields) of each wavelength row."""
+    from s2cl.io.tables import read_csv_rows
+
+    return read_csv_rows(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
+
+
+def _csv_values(rows: list[tuple[int, list[str]]], header: list[str], *, source: str) -> np.ndarray:
+    """The rows as numbers, float64 (n_rows, n_columns); empty cells become NaN."""
+    out = np.empty((len(rows), len(header)))
+    for r, (line_no, row) in enumerate(rows):
+        if len(row) != len(header):
+            raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=source)
+        for c, cell in enumerate(row):
+            text = cell.strip()
+            try:
+                out[r, c] = float(text) if text else np.nan
+            except ValueError as err:
+                raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
+                                 key=key_token(header[c])) from err
+    return out
+
+
+def load_envi_library(
+    path: str | Path,
+    grid: SpectralGrid,
+    *,
+    wavelength_unit: str | None = None,
+    max_gap_nm: float = DEFAULT_MAX_GAP_NM,
+    quantity: Quantity = "reflectance",
+) -> SpectralLibrary:
+    """Read an ENVI spectral library (``.sli`` + ``.hdr``, through SPy) onto ``grid``.
+
+    ``path`` may name the header (``lib.hdr`` or ``lib.sli.hdr``) or the data file
+    (``lib.sli``). Wavelength units come from the header's ``wavelength units`` (else
+    ``wavelength_unit``, else detected); a ``reflectance scale factor`` is divided out,
+    values equal to ``data ignore value`` count as missing (an error where the grid needs
+    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies).
+    """
+    hdr, data = _envi_paths(Path(path))
+    meta, lib = _open_envi(hdr, data)
+    centers = lib.bands.centers
+    if not centers:
+        raise InputError("header has no 'wavelength' list", source=hdr, key="wavelength")
+    unit = meta.get("wavelength units") or wavelength_unit
+    w_nm = wavelengths_to_nm(np.asarray(centers, dtype=np.float64), unit, source=str(hdr), key="wavelength")
+    spectra = _envi_values(meta, np.asarray(lib.spectra, dtype=np.float64), hdr)
+    if "bbl" in meta:
+        good = _good_bands(meta, w_nm.size, hdr)
+        w_nm, spectra = w_nm[good], spectra[:, good]
+    names = [str(n).strip() for n in lib.names]
+    return _user_library(w_nm, spectra, names, grid, source=str(data), max_gap_nm=max_gap_nm, quantity=quantity)
+
+
+def _open_envi(hdr: Path, data: Path) -> tuple[dict, Any]:
+    """The header's metadata (lower-cased keys) and SPy's library, once the data file's size is checked."""
+    try:
+        from spectral.io import envi
+        from spectral.utilities.errors import SpyException
+    except ImportError as err:  # spectral is a core dependency, but say so clearly
+        from s2cl.errors import DependencyError
+
+        raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
+    try:
+        meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+        _check_envi_size(meta, data, hdr)
+        lib = envi.open(str(hdr), str(data))
+    except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
+        raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
+    if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
+        raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
+    return meta, lib
+
+
+def _envi_values(meta: dict, spectra: np.ndarray, hdr: Path) -> np.ndarray:
+    """The spectra with ``data ignore value`` as NaN and the ``reflectance scale factor`` divided out."""
+    factor = _header_float(meta, "reflectance scale factor", 1.0, hdr)
+    if factor <= 0 or not np.isfinite(factor):
+        raise InputError(f"must be > 0, got {factor}", source=hdr, key="reflectance scale factor")
+    if "data ignore value" in meta:
+        ignore = _header_float(meta, "data ignore value", np.nan, hdr)
+        # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
+        spectra = np.where(np.isclose(spectra, ignore, rtol=1e-6, atol=0.0), np.nan, spectra)
+    return spectra / factor
+
+
+def _good_bands(meta: dict, n_bands: int, hdr: Path) -> np.ndarray:
+    """The header's bad-band list ``bbl`` as a mask of the good bands, bool (n_bands,)."""
+    try:
+        good = np.asarray([float(b) != 0.0 for b in meta["bbl"]])
+    except (TypeError, ValueError) as err:
+        raise InputError("must list numbers (1 good, 0 bad)", source=hdr, key="bbl") from err
+    if good.size != n_bands:
+        raise InputError(f"{good.size} entries for {n_bands} bands", source=hdr, key="bbl")
+    return good
+
+
+#: bytes per value of the ENVI data types a spectral library may use (real numbers only)
+ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
+#: largest ENVI library read (bytes of data): a library is held in memory as float64 several times
+MAX_ENVI_BYTES = 256 * 2**20
+
+
+def _check_envi_size(meta: dict, data: Path, hdr: Path) -> None:
+    """The data file holds what the header declares (samples × lines × bands values of its data type, after
+    the header offset); checked before SPy allocates anything, so a header cannot ask for petabytes."""
+    try:
+        dims = [int(str(meta[k]).strip()) for k in ("samples", "lines", "bands")]
+        item = ENVI_ITEM_BYTES[str(meta["data type"]).strip()]
+        offset = int(str(meta.get("header offset", "0")).strip() or 0)
+    except (KeyError, ValueError) as err:
+        raise InputError("header lacks valid samples, lines, bands, data type or header offset", source=hdr) from err
+    if min(dims) < 1 or offset < 0:
+        raise InputError(f"samples, lines and bands must be >= 1 and the offset >= 0, got {dims} and {offset}",
+                         source=hdr)
+    need = offset + math.prod(dims) * item
+    have = data.stat().st_size
+    if need > have:
+        raise InputError(f"the header declares {need:,} bytes of data, {data.name} holds {have:,}", source=hdr)
+    if need > MAX_ENVI_BYTES:
+        raise InputError(f"the header declares {need:,} bytes of data (at most {MAX_ENVI_BYTES:,})", source=hdr)
+
+
+def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
+    """A number from the header; ``default`` when the key is absent or empty."""
+    value = meta.get(key)
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return default
+    try:
+        return float(value)
+    except (TypeError, ValueError) as err:
+        raise InputError(f"must be a number, got {token(value)}", source=hdr, key=key) from err
+
+
+def _envi_paths(path: Path) -> tuple[Path, Path]:
+    """(header, data) for a path naming either file of an ENVI library."""
+    if path.suffix.lower() == ".hdr":
+        if not path.is_file():
+            raise InputError("ENVI header not found", source=path)
+        stem = path.with_suffix("")
+        candidates = [stem] if stem.suffix.lower() == ".sli" else [stem.with_suffix(".sli"), stem.with_suffix(".SLI")]
+        data = next((c for c in candidates if c.is_file()), None)
+        if data is None:
+            looked = ", ".join(c.name for c in candidates)
+            raise InputError(f"ENVI library data file not found (looked for {looked})", source=path)
+        return path, data
+    if not path.is_file():
+        raise InputError("ENVI library data file (.sli) not found", source=path)
+    candidates = [path.with_name(path.name + ".hdr"), path.with_suffix(".hdr"), path.with_suffix(".HDR")]
+    hdr = next((c for c in candidates if c.is_file()), None)
+    if hdr is None:
+        raise InputError(f"ENVI header not found (looked for {', '.join(c.name for c in candidates)})", source=path)
+    return hdr, path

@@ -1,0 +1,132 @@
+"""The scene's analysis on a simulation with the sensor's own bands (``s2cl simulate``): IGRM, a
+normalised-difference index (GVMI, ...) or SAM on the corrected band reflectances, scored with the same
+metrics as a sweep row."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from s2cl.cl.runtime import Runtime
+from s2cl.errors import InputError
+from s2cl.forward.simulate import LibrarySimulation
+from s2cl.retrieve.analysis import AnalysisSettings, index_bands
+from s2cl.retrieve.design import check_design
+from s2cl.retrieve.indices import INDICES
+from s2cl.retrieve.metrics import classification_metrics, condition_code, regression_metrics
+from s2cl.scene.scene import Scene
+
+RED_EDGE = ["B4", "B5", "B6", "B7"]
+
+
+def analysis_bands(scene: Scene) -> list[str]:
+    a = scene.spec.analysis
+    if a.bands:
+        return a.bands
+    if scene.spec.sweep is not None:
+        return list(scene.spec.sweep.bands)
+    if a.kind == "igrm":
+        return RED_EDGE
+    if a.kind in INDICES:
+        return index_bands(a.kind, a.roles)
+    return list(scene.sensor.band_names)
+
+
+def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
+    """The bands and settings of the scene's [analysis], refused in one line (file and key) when the
+    retrieval cannot fit that design (:mod:`s2cl.retrieve.design`, the rule sweeps apply): call it before work."""
+    bands = analysis_bands(scene)
+    settings = AnalysisSettings.from_scene(scene, bands)
+    shapes = [scene.sensor.band(b) for b in bands]
+    check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
+                 source=scene.source, key="analysis.bands", slots=settings.slots)
+    return bands, settings
+
+
+@dataclass
+class PixelResults:
+    """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
+    (:class:`s2cl.sweep.raw.RawChunk`): ``index`` (λp nm, the index, or SAM class with
+    ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
+    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
+    the simulated pixels analysed (SAM: those of the chosen classes)."""
+
+    settings: AnalysisSettings
+    bands: list[str]
+    index: np.ndarray
+    status: np.ndarray
+    bounds: np.ndarray
+    condition: np.ndarray | None
+    target: np.ndarray
+    pixels: np.ndarray
+    classes: list[str] | None = None
+
+
+def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelResults:
+    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, on ``rt``, in the scene's
+    precision, with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
+    if sim.reflectance is None:
+        raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
+                         source=scene.source, key="effects.correct")
+    bands, settings = analysis_design(scene)
+    real_t, lanes = scene.run.precision, scene.run.lanes
+    rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
+    refl = sim.reflectance[rows].reshape(len(rows), -1)
+    lib = sim.library
+    if settings.kind == "sam":
+        from s2cl.retrieve.sam import SamClassifier
+
+        classes = scene.spec.analysis.classes or sorted(set(lib.groups))
+        pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
+        truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
+        threshold = settings.angle_threshold_deg
+        r = SamClassifier(rt, _class_references(scene, lib, bands, classes), real_t=real_t, lanes=lanes,
+                          threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(refl[:, pixels])
+        index = np.where(r.label >= 0, r.label, len(classes)).astype(np.float64)
+        return PixelResults(settings, bands, index, r.status, np.zeros_like(r.status), None, truth[pixels], pixels,
+                            classes)
+    target = np.repeat(np.asarray(lib.params[settings.parameter], dtype=np.float64), sim.copies)
+    everything = np.ones(refl.shape[1], dtype=bool)
+    if settings.kind == "igrm":
+        from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings
+
+        centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
+        order = np.argsort(centres, kind="stable")
+        fit = IgrmFitter(rt, len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
+                         real_t=real_t, lanes=lanes)
+        r = fit.fit(refl[order], centres[order])
+        return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
+                            everything)
+    from s2cl.retrieve.index_kernel import IndexKernel
+
+    g = IndexKernel(rt, settings.kind, real_t=real_t, lanes=lanes)(refl, *settings.slots)
+    return PixelResults(settings, bands, g.index, g.status, np.zeros_like(g.status), None, target, everything)
+
+
+def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
+    """Metrics of the scene's [analysis] on ``sim``, run on ``rt`` (the simulation's device): the same
+    columns a sweep row has."""
+    r = pixel_results(rt, scene, sim)
+    out: dict[str, Any] = {"kind": r.settings.kind, "bands": r.bands}
+    if r.settings.kind == "sam":
+        m = classification_metrics(r.index.astype(np.int64)[None], r.status[None], r.target, len(r.classes))
+        out.update(classes=r.classes, confusion=m.pop("confusion")[0].tolist())
+    else:
+        m = regression_metrics(r.index[None], r.status[None], r.bounds[None], r.target, regress=r.settings.regress,
+                               condition=None if r.condition is None else r.condition[None])
+        out["parameter"] = r.settings.parameter
+    out.update({k: np.asarray(v)[0].item() for k, v in m.items()})
+    return out
+
+
+def _class_references(scene: Scene, lib: Any, bands: list[str], classes: list[str]) -> np.ndarray:
+    """Mean noise-free band reflectance of each class's spectra (the references SAM compares to)."""
+    groups = np.array(lib.groups)
+    out = np.empty((len(classes), len(bands)))
+    for k, b in enumerate(bands):
+        w = scene.sensor.band(b).weights(scene.grid, scene.run.support, scene.source)
+        band_rho = lib.spectra[:, w.start : w.stop] @ w.weights
+        out[:, k] = [band_rho[groups == c].mean() for c in classes]
+    return out

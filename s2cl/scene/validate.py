@@ -1,0 +1,163 @@
+"""Validity before work: everything a scene asks for is checked here, once, by the same function for
+every command, before anything is allocated, computed or written.
+
+:func:`check_simulate` (``s2cl simulate``) and :func:`check_sweep` (``s2cl optimise``, ``sweep run``,
+``sweep count``) load the surface library, resolve the [sweep] section when there is one (counts
+computed, never enumerated), validate the [analysis] section against the library and the bands
+(parameter, classes, IGRM settings with their full keys), put the atmosphere states through the
+LUT's ranges, and collect the caveats (:mod:`s2cl.scene.caveats`). Errors name the scene file and the full
+key; a scene with a broken [sweep] section is refused by ``simulate`` too (it is one scene).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from s2cl.errors import InputError, key_token, token
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
+from s2cl.retrieve.design import check_design, count_underdetermined
+from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats, srf_caveats
+from s2cl.scene.scene import Scene
+from s2cl.scene.schema import ANALYSIS_KINDS
+from s2cl.sensor.variants import SweepSpace
+
+
+@dataclass(frozen=True, eq=False)
+class Checked:
+    """A scene that passed every check, with what the checks loaded (reused by the run)."""
+
+    scene: Scene
+    library: SpectralLibrary | None
+    space: SweepSpace | None
+    analysis: AnalysisSettings | None
+    analysis_bands: list[str] = field(default_factory=list)
+    caveats: list[Caveat] = field(default_factory=list)
+
+
+def check_simulate(scene: Scene) -> Checked:
+    """Everything ``s2cl simulate`` needs, checked (its analysis runs on ``analysis_bands``)."""
+    library, space = _surface(scene), _space(scene)
+    analysis, bands = None, []
+    if scene.spec.analysis is not None and scene.spec.surface.cube is None:
+        from s2cl.retrieve.scene_analysis import analysis_bands
+
+        bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
+        analysis = _analysis(scene, bands, library)
+        shapes = [scene.sensor.band(b) for b in bands]
+        check_design(analysis.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
+                     source=scene.source, key="analysis.bands", slots=analysis.slots)
+        if not scene.effects.correct:
+            raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
+                             "(or remove [analysis])", source=scene.source, key="effects.correct")
+    _atmosphere(scene)
+    caveats = _caveats(scene, space, list(scene.sensor.band_names))
+    return Checked(scene, library, space, analysis, bands, caveats)
+
+
+def check_sweep(scene: Scene) -> Checked:
+    """Everything a sweep of ``scene`` needs, checked (the same for optimise, sweep run and sweep count)."""
+    check_sweep_sections(scene)
+    library, space = _surface(scene), _space(scene)
+    assert space is not None
+    _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
+    analysis = _analysis(scene, space.bands, library)
+    check_fittable(scene, space, analysis)
+    _atmosphere(scene)
+    caveats = _caveats(scene, space, space.bands) + srf_caveats(scene, list(space.bands))
+    return Checked(scene, library, space, analysis, list(space.bands), caveats)
+
+
+def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
+    """Refuse a sweep in which no configuration can be fitted (:mod:`s2cl.retrieve.design`; e.g. a fixed design
+    with two IGRM bands on one centre), in one line naming the bands."""
+    bad = count_underdetermined(analysis.kind, space, slots=analysis.slots)
+    if bad is not None and bad == space.size:
+        first = space.shapes(0, 1)[0]
+        check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
+                     slots=analysis.slots)
+
+
+def _surface(scene: Scene) -> SpectralLibrary | None:
+    if scene.spec.surface.library is None:
+        return None
+    from s2cl.forward.simulate import scene_library
+
+    return scene_library(scene)
+
+
+def _space(scene: Scene) -> SweepSpace | None:
+    if scene.spec.sweep is None:
+        return None
+    from s2cl.sweep.tables import sweep_space
+
+    return sweep_space(scene)
+
+
+def _known_bands(scene: Scene, bands: list[str], key: str) -> list[str]:
+    names = {n.lower(): n for n in scene.sensor.band_names}
+    unknown = [b for b in bands if b.lower() not in names]
+    if unknown:
+        raise InputError(f"unknown band(s) {', '.join(token(b) for b in unknown)}; the sensor's bands here: "
+                         f"{', '.join(scene.sensor.band_names)}", source=scene.source, key=key)
+    return bands
+
+
+def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -> AnalysisSettings:
+    settings = AnalysisSettings.from_scene(scene, bands)
+    if settings.kind == "igrm":
+        igrm_settings(scene)
+    if library is not None:
+        analysis_targets(scene, library, settings)
+    return settings
+
+
+def igrm_settings(scene: Scene) -> Any:
+    """The scene's ``analysis.igrm`` table as IGRM fit settings; errors name ``analysis.igrm.KEY``."""
+    from s2cl.retrieve.igrm import IgrmSettings
+
+    values = dict(scene.spec.analysis.igrm)
+    known = [f.name for f in dataclasses.fields(IgrmSettings)]
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise InputError(f"unknown key; allowed keys here: {', '.join(known)}", source=scene.source,
+                         key=f"analysis.igrm.{key_token(unknown[0])}")
+    try:
+        return IgrmSettings(**values)
+    except InputError as err:
+        raise InputError(err.detail, source=scene.source, key=f"analysis.{err.key or 'igrm'}") from None
+    except (TypeError, ValueError) as err:
+        raise InputError(f"invalid settings ({type(err).__name__})", source=scene.source, key="analysis.igrm") from None
+
+
+def _atmosphere(scene: Scene) -> None:
+    """Both atmosphere states inside the LUT's ranges (the terms are computed: cheap, and cached)."""
+    from s2cl.atmos.scene_terms import correction_terms, scene_terms
+
+    if scene.effects.atmosphere or scene.spec.sweep is not None:
+        scene_terms(scene)
+    if scene.effects.correct or scene.spec.sweep is not None:
+        correction_terms(scene)
+
+
+def _caveats(scene: Scene, space: SweepSpace | None, bands: list[str]) -> list[Caveat]:
+    widths = {b.name: b.fwhm_nm for b in scene.sensor.bands}
+    if space is not None:
+        for r in space.ranges:
+            widths[r.band] = min(widths.get(r.band, float("inf")), r.extent()[2])
+    return grid_caveats(scene, widths) + quantisation_caveats(scene, bands)
+
+
+def check_sweep_sections(scene: Scene) -> None:
+    """The sections a sweep needs are there: [sweep], [analysis], and the whole chain's effects."""
+    if scene.spec.sweep is None:
+        raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
+                         source=scene.source, key="sweep")
+    if scene.spec.analysis is None:
+        raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(ANALYSIS_KINDS)})",
+                         source=scene.source, key="analysis")
+    if not (scene.effects.atmosphere and scene.effects.correct):
+        raise InputError("a sweep runs the whole chain: set effects.atmosphere = true and effects.correct = true",
+                         source=scene.source, key="effects")

@@ -1,0 +1,1 @@
+"""The sensor: bands, spectral response functions, the noise model, and band variants."""

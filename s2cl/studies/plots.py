@@ -1,0 +1,264 @@
+"""The studies' figures, drawn from a study's JSON ``data`` alone (what :func:`s2cl.studies.run_study`
+writes into ``NAME.json``), so that :func:`replot` redraws ``NAME.png`` from a saved JSON without
+re-running the study. The study modules compute; only this module draws (matplotlib, Agg).
+
+Every ``plot_NAME(data, path)`` takes the data dict as saved (keys that were numbers are strings after
+the JSON round trip; in-memory dicts with float keys work too) and writes a PNG to ``path``.
+Radiances W m⁻² sr⁻¹ µm⁻¹, wavelengths nm, errors and changes in %.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from s2cl.errors import InputError
+from s2cl.io.plots import pyplot, save_png
+from s2cl.studies.aerosol import PAPER_DOMINANT_ABOVE
+from s2cl.studies.cirrus_report import PAPER_CHANGE_PCT
+from s2cl.studies.cirrus_spikes import SINGLE_SPIKE_NM
+from s2cl.studies.methane import PAPER_MAX_PCT
+from s2cl.studies.ozone import PAPER_MAX_B3_PCT, case_key
+from s2cl.studies.water_vapour import PAPER_RMS_PCT
+
+Data = dict[str, Any]
+
+
+def _by_wv(d: dict) -> dict[float, Any]:
+    """``d`` keyed by water column as a float (JSON turns the keys into strings)."""
+    return {float(k): v for k, v in d.items()}
+
+
+def plot_cirrus(data: Data, path: Path) -> Path:
+    """B10 (paper Fig. 4 beside s2cl's): one panel per water column (1 nm spectrum, without spikes, band
+    radiances per width) and a bar chart of the 1380/30 vs 1375/30 change beside the paper's."""
+    plt = pyplot()
+    wl = np.asarray(data["wavelength_nm"], dtype=np.float64)
+    spectra = {wv: np.asarray(v) for wv, v in _by_wv(data["toa_radiance_1nm"]).items()}
+    despiked = {wv: np.asarray(v) for wv, v in _by_wv(data["toa_radiance_1nm_spikes_removed"]).items()}
+    bands = {wv: np.asarray(v) for wv, v in _by_wv(data["band_radiance"]).items()}
+    variants = np.asarray(data["variants"], dtype=np.float64)
+    nodes = np.asarray(data["spikes"]["nodes_nm"], dtype=np.float64)
+    change = {srf: {case: _by_wv(v) for case, v in cases.items()} for srf, cases in data["change_pct"].items()}
+    n = len(spectra)
+    fig, axes = plt.subplots(1, n + 1, figsize=(4.2 * (n + 1), 4), dpi=110)
+    for ax, (wv, L) in zip(axes[:n], spectra.items(), strict=True):
+        _cirrus_spectrum(ax, wl, L, despiked[wv], variants, bands[wv], nodes)
+        ax.set_title(f"s2cl (6S): WV {wv:g} g/cm²", fontsize=9)
+    _cirrus_change(axes[n], list(spectra), change)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def _cirrus_spectrum(ax: Any, wl: np.ndarray, L: np.ndarray, despiked: np.ndarray, variants: np.ndarray,
+                     bands: np.ndarray, nodes: np.ndarray) -> None:
+    """One water column: the 1 nm radiance, the same without 6S's spikes (between the spike nodes), and the
+    band radiance per width."""
+    markers = {10.0: "D", 20.0: "^", 30.0: "s"}
+    span = (wl >= nodes[0]) & (wl <= nodes[-1])
+    ax.plot(wl, L, "-", color="0.3", lw=0.8, label="1 nm")
+    ax.plot(wl[span], despiked[span], "--", color="C3", lw=0.8, label="1 nm, 6S spikes removed")
+    for w in sorted(set(variants[:, 1].tolist())):
+        sel = variants[:, 1] == w
+        ax.plot(variants[sel, 0], bands[sel], "-", marker=markers.get(w, "o"), ms=3, lw=0.8, label=f"{w:g} nm")
+    ax.set_xlabel("centre wavelength (nm)")
+    ax.set_ylabel("TOA radiance (W m⁻² sr⁻¹ µm⁻¹)")
+    ax.set_xlim(wl[0], wl[-1])
+    ax.legend(fontsize=7)
+
+
+def _cirrus_change(ax: Any, wvs: list[float], change: dict) -> None:
+    """The 1380/30 vs 1375/30 change per water column: s2cl's cases beside the paper's (bars)."""
+    x = np.arange(len(wvs))
+    series = [("s2cl (6S), eq. 1 SRF", change["eq1"]["as_6s"]),
+              (f"{SINGLE_SPIKE_NM:g} nm removed", change["eq1"]["single_removed"]),
+              ("spikes removed", change["eq1"]["spikes_removed"]),
+              ("spikes removed, Gaussian SRF", change["gaussian"]["spikes_removed"]),
+              ("paper (MODTRAN4, Fig. 4)", {w: PAPER_CHANGE_PCT.get(w, np.nan) for w in wvs})]
+    width = 0.8 / len(series)
+    for j, (label, values) in enumerate(series):
+        ax.bar(x + (j - (len(series) - 1) / 2) * width, [values[w] for w in wvs], width, label=label)
+    ax.set_xticks(x, [f"{w:g}" for w in wvs])
+    ax.set_xlabel("water vapour (g/cm²)")
+    ax.set_ylabel("1380/30 vs 1375/30 band radiance (%)")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_title("paper vs s2cl", fontsize=9)
+    ax.legend(fontsize=6)
+
+
+def plot_water_vapour(data: Data, path: Path) -> Path:
+    """B9/B8a: relative RMS over the B9 variants (nominal B8a), the table's configurations beside the paper's
+    5–10 %, and winter scenes with the winter and the summer LUT."""
+    plt = pyplot()
+    shapes = np.asarray(data["configurations"], dtype=np.float64)   # (n, 2 bands, centre/width)
+    k = int(data["nominal_configuration"])
+    rms = data["rel_rms_pct"]
+    classes = list(rms)
+    winter = data["winter"]
+
+    def label(j: int) -> list[str]:
+        return [f"{shapes[j, 0, 0]:g}/{shapes[j, 0, 1]:g}", f"{shapes[j, 1, 0]:g}/{shapes[j, 1, 1]:g}"]
+
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4), dpi=110)
+    ax = axes[0]
+    sel = [j for j in range(len(shapes)) if np.allclose(shapes[j, 1], shapes[k, 1])]
+    cs = sorted({shapes[j, 0, 0] for j in sel})
+    ws = sorted({shapes[j, 0, 1] for j in sel})
+    grid = np.full((len(ws), len(cs)), np.nan)
+    for j in sel:
+        grid[ws.index(shapes[j, 0, 1]), cs.index(shapes[j, 0, 0])] = rms["all"][j]
+    im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis",
+                   extent=(cs[0] - 2.5, cs[-1] + 2.5, ws[0] - 5, ws[-1] + 5))
+    fig.colorbar(im, ax=ax, label="relative RMS of WV (%)")
+    ax.set_xlabel("B9 centre (nm)")
+    ax.set_ylabel("B9 width (nm)")
+    ax.set_title(f"s2cl: B9 variants, B8a {shapes[k, 1, 0]:g}/{shapes[k, 1, 1]:g}", fontsize=9)
+    ax = axes[1]
+    tags = [(tag, int(j)) for tag, j in data["table_configurations"] if not tag.startswith("best")]
+    x = np.arange(len(tags))
+    for n_c, c in enumerate(classes):
+        ax.bar(x + (n_c - len(classes) / 2 + 0.5) * 0.2, [rms[c][j] for _, j in tags], 0.2, label=c)
+    ax.axhspan(*PAPER_RMS_PCT, color="tab:red", alpha=0.15, label="paper: 5–10 %")
+    ax.set_xticks(x, ["\n".join(label(j)) for _, j in tags], fontsize=7)
+    ax.set_ylabel("relative RMS (%)")
+    ax.set_title("B9/B8a configurations (s2cl vs paper)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[2]
+    x = np.arange(len(classes))
+    ax.bar(x - 0.2, [winter["winter_lut"][c] for c in classes], 0.4, label="winter scene, winter LUT")
+    ax.bar(x + 0.2, [winter["summer_lut"][c] for c in classes], 0.4, label="winter scene, summer LUT")
+    ax.set_xticks(x, classes)
+    ax.set_ylabel("relative RMS (%)")
+    ax.set_title(f"profile mismatch: s2cl {winter['relative_increase_pct']['all']:+.1f} % (all), paper +6 %",
+                 fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def plot_aerosol(data: Data, path: Path) -> Path:
+    """DDV: AOT550 relative RMS against the correlation-factor error beside the calibration case, and per
+    B1 variant as the blue band."""
+    plt = pyplot()
+    eps = np.asarray(data["factor_errors"], dtype=np.float64)
+    gain = data["calibration_gain"]
+    b1_rms = data["rel_rms_pct_b1"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
+    ax = axes[0]
+    ax.plot(100 * eps, data["rel_rms_pct_vs_factor_error"], "o-", label="s2cl: correlation-factor error")
+    ax.axhline(data["rel_rms_pct_calibration"], color="tab:orange", ls="--", label=f"s2cl: calibration gain {gain:g}")
+    ax.axvline(100 * PAPER_DOMINANT_ABOVE, color="tab:red", ls=":", label="paper: dominates above 10 %")
+    ax.set_xlabel("correlation-factor error (%)")
+    ax.set_ylabel("AOT550 relative RMS (%)")
+    ax.set_title("DDV aerosol retrieval (blue B2, red B4, B12)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[1]
+    x = np.arange(len(b1_rms))
+    ax.bar(x, b1_rms, 0.6)
+    ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in data["b1_variants"]], fontsize=7, rotation=45)
+    ax.set_ylabel("AOT550 relative RMS (%)")
+    ax.set_title("B1 as blue band: centre/width (paper: not critical)", fontsize=9)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def plot_ozone(data: Data, path: Path) -> Path:
+    """Ozone (paper Fig. 5 beside s2cl's): the 1 nm reflectance error of each case with B1–B5 shaded, and
+    the band errors beside the paper's ±6 %."""
+    plt = pyplot()
+    wl = np.asarray(data["wavelength_nm"], dtype=np.float64)
+    assumed = data["assumed_ozone_du"]
+    cases = [(o3, rho) for o3, rho in data["cases"]]
+    darkest = min(rho for _, rho in cases)
+    bands = data["bands"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
+    ax = axes[0]
+    for c, w in data["shapes"]:
+        ax.axvspan(c - w / 2, c + w / 2, color="0.9")
+    for o3, rho in cases:
+        ax.plot(wl, np.asarray(data["spectral_error_pct"][case_key(o3, rho)]), color="k" if rho == darkest else "0.6",
+                lw=0.9, ls="-" if o3 < assumed else "--", label=f"{o3:g} DU, ρ={rho:g}")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("wavelength (nm)")
+    ax.set_ylabel("relative reflectance error (%)")
+    ax.set_title(f"s2cl (6S), 1 nm, corrected with {assumed:g} DU (shaded: B1–B5)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[1]
+    x = np.arange(len(bands))
+    for i, (o3, rho) in enumerate(cases):
+        ax.bar(x + (i - len(cases) / 2 + 0.5) * 0.18, data["band_error_pct"][case_key(o3, rho)], 0.18,
+               label=f"{o3:g} DU, ρ={rho:g}")
+    ax.axhline(PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1, label="paper: ±6 % (B3)")
+    ax.axhline(-PAPER_MAX_B3_PCT, color="tab:red", ls=":", lw=1)
+    ax.set_xticks(x, bands)
+    ax.set_ylabel("band reflectance error (%)")
+    ax.set_title("band errors, s2cl vs the paper's figure", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def plot_methane(data: Data, path: Path) -> Path:
+    """B11: the two-way CH₄ absorption spectrum with the variants shaded, and each variant's band absorption
+    beside the paper's bound."""
+    plt = pyplot()
+    variants = data["variants"]
+    absorb = 100 * (1 - np.asarray(data["band_transmittance"], dtype=np.float64))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=110)
+    ax = axes[0]
+    t_ch4 = np.asarray(data["methane_transmittance"], dtype=np.float64)
+    ax.plot(np.asarray(data["wavelength_nm"], dtype=np.float64), 100 * (1 - t_ch4), "k-", lw=0.8)
+    for c, w in variants:
+        ax.axvspan(c - w / 2, c + w / 2, color="0.85", alpha=0.3)
+    ax.set_xlabel("wavelength (nm)")
+    ax.set_ylabel("two-way CH₄ absorption (%)")
+    ax.set_title("s2cl (6S's methane)", fontsize=9)
+    ax = axes[1]
+    x = np.arange(len(variants))
+    ax.bar(x, absorb, 0.6, label="s2cl band absorption")
+    ax.axhline(PAPER_MAX_PCT, color="tab:red", ls=":", label="paper: < 0.5 %")
+    ax.set_xticks(x, [f"{c:g}/{w:g}" for c, w in variants], fontsize=7, rotation=45)
+    ax.set_ylabel("%")
+    ax.set_title("B11 variants vs the paper's bound", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+PLOTS: dict[str, Callable[[Data, Path], Path]] = {
+    "cirrus": plot_cirrus,
+    "water-vapour": plot_water_vapour,
+    "aerosol": plot_aerosol,
+    "ozone": plot_ozone,
+    "methane": plot_methane,
+}
+"""Study kind (the ``study`` key of ``NAME.json``) → its figure."""
+
+
+def plot_study(kind: str, data: Data, path: str | Path) -> Path:
+    """Draw study ``kind``'s figure from its ``data`` to ``path`` (PNG, written atomically)."""
+    if kind not in PLOTS:
+        raise InputError(f"no figure for study {kind!r}; studies: {', '.join(PLOTS)}")
+    return PLOTS[kind](data, Path(path))
+
+
+def replot(json_path: str | Path, png_path: str | Path) -> Path:
+    """Redraw a study's figure from its saved ``NAME.json`` (:func:`s2cl.studies.run_study`) to ``png_path``."""
+    src = Path(json_path)
+    try:
+        saved = json.loads(src.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise InputError(f"cannot read a study JSON: {err}", source=src) from None
+    if not isinstance(saved, dict) or "study" not in saved or "data" not in saved:
+        raise InputError("not a study JSON (no 'study' and 'data' keys)", source=src)
+    try:
+        return plot_study(saved["study"], saved["data"], png_path)
+    except InputError as err:
+        raise InputError(err.detail, source=src, key="study") from None
+    except KeyError as err:   # a JSON written before the figure needed that key
+        raise InputError(f"the data lack {err.args[0]!r} (written by an older s2cl?)", source=src,
+                         key="data") from None

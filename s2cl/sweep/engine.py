@@ -1,0 +1,306 @@
+"""The sweep engine: configurations in chunks → per-configuration metrics → Parquet, resumable,
+on one process or on a Dask cluster.
+
+Each chunk (a contiguous range of configuration numbers) is evaluated independently and
+deterministically, and written as its own Parquet file the moment it finishes (temp file +
+rename). A sweep killed at any moment and started again with the same command finds the
+finished chunks, computes only the others, and ends with the same ``results.parquet``. The
+folder's ``manifest.json`` holds the sweep's fingerprint (scene, tables, analysis, chunking,
+s2cl version): a folder that holds another sweep is refused, not mixed.
+
+On Dask (``--workers N`` for a local cluster, ``--scheduler ADDRESS`` for a running one) the
+same chunks are tasks; the tables travel once to every worker, each worker builds its own
+OpenCL context, and the client writes the chunk files, so the output equals the single-process
+run bit for bit.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import shutil
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from s2cl import __version__
+from s2cl.errors import DependencyError, InputError, ResourceError
+from s2cl.io.budget import available_memory, require_disk
+from s2cl.io.output import atomic_path, write_json
+from s2cl.resources import code_fingerprint
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.design import underdetermined
+from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.status import REGRESS_NAMES
+from s2cl.sweep.raw import ChunkEvaluator, variant_indices
+from s2cl.sweep.tables import SweepTables
+
+REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
+MANIFEST = "manifest.json"
+RESULTS = "results.parquet"
+CHUNKS = "chunks"
+HOST_BYTES_PER_EVALUATION = 64  # float64 work arrays of the metrics, per configuration-pixel
+
+
+@dataclass(frozen=True, eq=False)
+class SweepJob:
+    """Everything needed to evaluate any chunk of a sweep (picklable)."""
+
+    tables: SweepTables
+    analysis: AnalysisSettings
+    chunk: int
+    precision: str = "float32"
+    #: pixels per work-item of the sweep kernel (None: the device's choice); not in the fingerprint,
+    #: because lanes never change a result beyond the tested tolerance
+    lanes: int | None = None
+    #: the OpenCL device the scene asks for (None: default); the caller's ``device`` wins
+    device: str | None = None
+    scene_name: str = ""
+    scene_text: str = ""
+    #: ranking policy for designs the analysis cannot fit ("exclude" or "keep"; sweep.underdetermined)
+    underdetermined: str = "exclude"
+
+    @property
+    def n_configs(self) -> int:
+        return self.tables.n_configs
+
+    def chunks(self) -> list[tuple[int, int]]:
+        return [(lo, min(lo + self.chunk, self.n_configs)) for lo in range(0, self.n_configs, self.chunk)]
+
+    def fingerprint(self) -> str:
+        h = hashlib.sha256()
+        h.update(self.tables.fingerprint().encode())
+        h.update(repr((self.analysis, self.chunk, self.precision, __version__, code_fingerprint())).encode())
+        return h.hexdigest()
+
+    def columns(self) -> list[str]:
+        cols = ["config"]
+        for b in self.tables.bands:
+            cols += [f"{b}_centre_nm", f"{b}_width_nm"]
+        return cols
+
+
+# -- evaluating one chunk (in any process) -------------------------------------------------------
+
+_EVALUATORS: dict[tuple[str, str | None], ChunkEvaluator] = {}
+
+
+def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator:
+    """The fused sweep kernel for ``job`` on ``device`` (built once per process and job)."""
+    device = device or job.device
+    key = (job.fingerprint(), device)
+    ev = _EVALUATORS.get(key)
+    if ev is None:
+        from s2cl.cl.runtime import get_runtime
+        from s2cl.sweep.kernel import SweepKernel
+
+        ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision,
+                         lanes=job.lanes)
+        _EVALUATORS.clear()
+        _EVALUATORS[key] = ev
+    return ev
+
+
+def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = None,
+                   evaluator: ChunkEvaluator | None = None) -> dict[str, np.ndarray]:
+    """Rows of configurations ``start … stop-1``: band centres/widths and metrics (columns → arrays).
+
+    :param evaluator: computes the per-pixel results (default: :func:`kernel_evaluator` on ``device``;
+        tests and bench pass the float64 numpy twin).
+    """
+    raw = (evaluator or kernel_evaluator(job, device))(start, stop)
+    t = job.tables
+    rows: dict[str, np.ndarray] = {"config": np.arange(start, stop, dtype=np.int64)}
+    idx = variant_indices(t, start, stop)
+    centres = np.stack([t.centre[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
+    widths = np.stack([t.width[k][idx[:, k]] for k in range(t.n_slots)], axis=1)
+    for k, b in enumerate(t.bands):
+        rows[f"{b}_centre_nm"] = centres[:, k]
+        rows[f"{b}_width_nm"] = widths[:, k]
+    a = job.analysis
+    rows["underdetermined"] = underdetermined(a.kind, centres, widths, slots=a.slots)
+    if a.kind == "sam":
+        m = classification_metrics(raw.index.astype(np.int64), raw.status, t.target.astype(np.int64),
+                                   len(t.class_names))
+        m.pop("confusion")
+    else:
+        m = regression_metrics(raw.index, raw.status, raw.bounds, t.target, regress=a.regress,
+                               condition=raw.condition if a.kind == "igrm" else None)
+    for k, v in m.items():
+        rows[k] = np.asarray(v)
+    return rows
+
+
+# -- the folder: manifest, chunk files, results ------------------------------------------------------
+
+def _chunk_path(out: Path, start: int) -> Path:
+    return out / CHUNKS / f"part-{start:010d}.parquet"
+
+
+def _manifest(job: SweepJob) -> dict[str, Any]:
+    return {"fingerprint": job.fingerprint(), "code": code_fingerprint(), "scene": job.scene_name,
+            "s2cl_version": __version__,
+            "configurations": job.n_configs, "chunk": job.chunk, "bands": list(job.tables.bands),
+            "counts": list(job.tables.counts), "analysis": job.analysis.kind,
+            "precision": job.precision, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
+
+
+def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> list[tuple[int, int]]:
+    """Create or check the output folder; return the chunks still to compute."""
+    manifest = out / MANIFEST
+    if manifest.exists():
+        try:
+            old = json.loads(manifest.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise InputError(f"unreadable sweep manifest ({err}); use --overwrite to start afresh",
+                             source=manifest) from err
+        if old.get("fingerprint") != job.fingerprint():
+            if not overwrite and old.get("code") != code_fingerprint():
+                raise InputError(
+                    f"the folder holds a sweep of scene {old.get('scene')!r} computed by other s2cl code (sources or "
+                    f"kernels changed since {old.get('created')}), whose chunks cannot be mixed with this code's; "
+                    "pass --overwrite to recompute it, or choose another --output", source=out)
+            if not overwrite:
+                raise InputError(
+                    f"the folder holds a different sweep (scene {old.get('scene')!r}, {old.get('configurations')} "
+                    f"configurations, created {old.get('created')}); rerun the same scene to resume it, or pass "
+                    "--overwrite to replace it, or choose another --output",
+                    source=out)
+            shutil.rmtree(out / CHUNKS, ignore_errors=True)
+            (out / RESULTS).unlink(missing_ok=True)
+        elif overwrite:
+            shutil.rmtree(out / CHUNKS, ignore_errors=True)
+            (out / RESULTS).unlink(missing_ok=True)
+    elif out.exists() and any(out.iterdir()) and not overwrite:
+        if (out / CHUNKS).exists() or (out / RESULTS).exists():
+            raise InputError("the folder holds sweep files without a manifest; pass --overwrite", source=out)
+    (out / CHUNKS).mkdir(parents=True, exist_ok=True)
+    if not manifest.exists() or overwrite or json.loads(manifest.read_text()).get("fingerprint") != job.fingerprint():
+        write_json(manifest, _manifest(job))
+    return [(lo, hi) for lo, hi in job.chunks() if not _chunk_done(out, lo, hi)]
+
+
+def _chunk_done(out: Path, start: int, stop: int) -> bool:
+    path = _chunk_path(out, start)
+    if not path.exists():
+        return False
+    import pyarrow.parquet as pq
+
+    try:
+        meta = pq.read_metadata(path)
+    except Exception:  # a damaged file is recomputed
+        return False
+    return meta.num_rows == stop - start
+
+
+def write_chunk(out: Path, start: int, rows: dict[str, np.ndarray]) -> Path:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.table(rows)
+    path = _chunk_path(out, start)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+    return path
+
+
+def merge_results(job: SweepJob, out: Path) -> Path:
+    """All chunk files, in configuration order, as ``results.parquet`` with the sweep's metadata."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    tables = [pq.read_table(_chunk_path(out, lo)) for lo, _ in job.chunks()]
+    table = pa.concat_tables(tables)
+    meta = {b"s2cl_version": __version__.encode(), b"scene": job.scene_name.encode(),
+            b"scene_toml": job.scene_text.encode(), b"fingerprint": job.fingerprint().encode(),
+            b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode(),
+            b"underdetermined": job.underdetermined.encode(),
+            b"regress": json.dumps([REGRESS_LABELS[c] for c in job.analysis.regress]).encode()}
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
+    path = out / RESULTS
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+    return path
+
+
+# -- estimates --------------------------------------------------------------------------------------
+
+def results_disk_bytes(n_configs: int, n_slots: int) -> float:
+    """Disk the chunk files and ``results.parquet`` of a sweep take at most (bytes): both hold every row
+    (config, centre and width per band, about ten metrics), float64, with Parquet overhead."""
+    return n_configs * (2 * n_slots + 11) * 8 * 1.3 + 1e6
+
+
+def check_resources(job: SweepJob, out: Path) -> dict[str, float]:
+    """Disk and memory the sweep needs; :class:`InputError` before starting when they are not there."""
+    disk = results_disk_bytes(job.n_configs, len(job.tables.bands))
+    require_disk(out, disk, what=f"the results of {job.n_configs:,} configurations", key="sweep")
+    memory = job.chunk * job.tables.n_pixels * HOST_BYTES_PER_EVALUATION
+    available = _available_memory()
+    if available and memory > 0.8 * available:
+        raise ResourceError(f"a chunk of {job.chunk} configurations needs about {memory / 1e9:.1f} GB of memory, "
+                            f"{available / 1e9:.1f} GB are available; lower sweep.chunk", key="sweep.chunk")
+    return {"disk_bytes": disk, "chunk_memory_bytes": memory}
+
+
+def _available_memory() -> float | None:
+    return float(available_memory())
+
+
+# -- running ------------------------------------------------------------------------------------------
+
+Progress = Callable[[int], None]
+
+
+def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
+              overwrite: bool = False, device: str | None = None, progress: Progress | None = None,
+              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None) -> Path:
+    """Run (or resume) a sweep into folder ``out``; returns the path of ``results.parquet``.
+
+    :param device: the OpenCL device of every chunk, here and on Dask workers (each builds its own context).
+    :param on_start: called with (configurations to compute, configurations already done).
+    :param evaluator: a picklable chunk evaluator instead of the kernel (tests and bench: the numpy twin).
+    """
+    out = Path(out)
+    check_resources(job, out)
+    todo = prepare_folder(job, out, overwrite=overwrite)
+    done = job.n_configs - sum(hi - lo for lo, hi in todo)
+    if on_start:
+        on_start(job.n_configs - done, done)
+    if todo:
+        if workers or scheduler:
+            results = _run_dask(job, todo, workers, scheduler, device, evaluator)
+        else:
+            results = ((lo, evaluate_chunk(job, lo, hi, device, evaluator)) for lo, hi in todo)
+        for lo, rows in results:
+            write_chunk(out, lo, rows)
+            if progress:
+                progress(len(rows["config"]))
+    return merge_results(job, out)
+
+
+def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None, scheduler: str | None,
+              device: str | None, evaluator: ChunkEvaluator | None) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as err:
+        raise DependencyError('Dask sweeps need dask.distributed: pip install "s2cl[dask]"') from err
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+    else:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        shared = client.scatter(job, broadcast=True)
+        futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo for lo, hi in todo}
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,99 @@
+"""Host side of ``kernels/sweep.cl.mako``: evaluates chunks of sweep configurations on the device."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.runtime import Runtime
+from s2cl.cl.templates import render
+from s2cl.cl.vectypes import VecTypes
+from s2cl.errors import InputError
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.indices import INDICES
+from s2cl.status import MAX_ABS_REFLECTANCE
+from s2cl.sweep.raw import RawChunk
+from s2cl.sweep.tables import SweepTables
+
+TEMPLATE = "sweep.cl.mako"
+#: per-(variant, spectrum) and per-variant tables on the device, in the kernel's argument order
+TABLES = ("radiance", "sigma", "z", "centre", "lp", "g", "s", "refs")
+
+
+#: the kernel's arguments (kernels/sweep.cl.mako), in order
+ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
+        Arg("condition", "out", "uchar"), *(Arg(n, "in", "real") for n in TABLES),
+        Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
+
+
+class SweepKernel:
+    """The fused per-configuration kernel for one sweep's tables and analysis, on ``rt``'s device."""
+
+    def __init__(self, tables: SweepTables, analysis: AnalysisSettings, rt: Runtime, *, precision: str = "float32",
+                 lanes: int | None = None):
+        self.rt = rt
+        self.tables, self.analysis = tables, analysis
+        self.T = rt.types(precision, lanes)
+        t = tables
+        self.pitch = max(-(-t.n_pixels // self.T.lanes) * self.T.lanes, self.T.lanes)
+        counts = list(t.counts)
+        strides = [int(np.prod(counts[k + 1:])) for k in range(len(counts))]
+        row0 = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
+        variables = dict(T=self.T, T1=VecTypes(precision, 1), n_slots=t.n_slots, counts=counts, strides=strides,
+                         row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
+                         lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
+                         noise=t.noise, quantise=t.quantise, kind=analysis.kind, nd=INDICES.get(analysis.kind),
+                         slot_a=analysis.slots[0], slot_b=analysis.slots[1], n_classes=len(t.class_names),
+                         cos_min=self._cos_min(),
+                         max_abs=MAX_ABS_REFLECTANCE, args=ARGS, signature=signature)
+        variables.update(self._igrm_variables(precision))
+        self.source = render(TEMPLATE, **variables)
+        self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
+        self._upload()
+
+    def _cos_min(self) -> float:
+        """cos of the SAM angle threshold; -2 (below -1) for none."""
+        a = self.analysis.angle_threshold_deg
+        return -2.0 if a is None else float(np.cos(np.deg2rad(a)))
+
+    def _igrm_variables(self, precision: str) -> dict:
+        if self.analysis.kind != "igrm":
+            return {"c": None, "exp_coef": None, "exp_consts": None}
+        from s2cl.cl.vecmath import EXP_DEGREE, exp_template_vars
+        from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
+
+        settings = IgrmSettings.from_mapping(dict(self.analysis.igrm))
+        c = kernel_config(settings, self.tables.n_slots, precision, "poly")
+        return {"c": c, **exp_template_vars(precision, EXP_DEGREE[precision])}
+
+    def _upload(self) -> None:
+        t, dtype, rt = self.tables, self.T.dtype, self.rt
+        z = np.zeros((t.n_slots, self.pitch), dtype)
+        z[:, : t.n_pixels] = t.z
+        refs = np.concatenate(t.references) if t.references else np.zeros(1)
+        self.buffers = {
+            "radiance": rt.to_device(np.concatenate(t.radiance).astype(dtype)),
+            "sigma": rt.to_device(np.concatenate(t.sigma).astype(dtype)),
+            "z": rt.to_device(z),
+            "centre": rt.to_device(np.concatenate(t.centre).astype(dtype)),
+            "lp": rt.to_device(np.concatenate(t.lp).astype(dtype)),
+            "g": rt.to_device(np.concatenate(t.g).astype(dtype)),
+            "s": rt.to_device(np.concatenate(t.s).astype(dtype)),
+            "refs": rt.to_device(refs.astype(dtype)),
+        }
+
+    def __call__(self, start: int, stop: int) -> RawChunk:
+        """Per-pixel results of configurations ``start … stop-1``."""
+        n = stop - start
+        if n <= 0 or stop > self.tables.n_configs:
+            raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
+        rt, T, pitch = self.rt, self.T, self.pitch
+        out = {"index": rt.alloc(n * pitch * T.dtype.itemsize), "status": rt.alloc(n * pitch),
+               "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
+        values = {**out, **self.buffers, "config_start": start, "n_configs": n}
+        self.kernel(rt.queue, (pitch // T.lanes, n), None, *bind(ARGS, values, T))
+        m = self.tables.n_pixels
+        index = rt.fetch(out["index"], (n, pitch), T.dtype)[:, :m].astype(np.float64)
+        status, bounds, condition = (rt.fetch(out[k], (n, pitch), np.uint8)[:, :m]
+                                     for k in ("status", "bounds", "condition"))
+        return RawChunk(start, stop, index, status, bounds, condition)

@@ -1,0 +1,68 @@
+"""From a scene to a sweep: tables, analysis, chunking, and the scene's own band set as reference."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from s2cl.atmos.scene_terms import correction_terms, scene_terms
+from s2cl.forward.simulate import scene_library
+from s2cl.libraries.library import SpectralLibrary
+from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
+from s2cl.retrieve.design import count_underdetermined
+from s2cl.scene.scene import Scene
+from s2cl.scene.validate import Checked, check_sweep
+from s2cl.sensor.variants import BandRange, SweepSpace
+from s2cl.sweep.budget import Budget, sweep_resources
+from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
+
+
+def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
+            library: SpectralLibrary | None = None) -> SweepTables:
+    lib, target, classes = analysis_targets(scene, library or scene_library(scene), analysis)
+    return build_tables(scene, space, lib, scene_terms(scene), correction_terms(scene), target=target,
+                        class_names=classes)
+
+
+def plan_sweep(scene: Scene, *, chunk: int | None = None,
+               checked: Checked | None = None, budget: Budget | None = None) -> SweepJob:
+    """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.scene.validate`),
+    its memory estimated against ``budget`` before the tables are built, the chunk chosen to fit."""
+    checked = checked or check_sweep(scene)
+    plan = sweep_resources(checked, chunk=chunk, budget=budget)
+    assert checked.space is not None and checked.analysis is not None
+    tables = _tables(scene, checked.space, checked.analysis, checked.library)
+    text = scene.path.read_text(encoding="utf-8") if scene.path else ""
+    run = scene.run
+    return SweepJob(tables, checked.analysis, chunk=plan.chunk, precision=run.precision, lanes=run.lanes,
+                    device=run.device, scene_name=scene.name, scene_text=text,
+                    underdetermined=scene.spec.sweep.underdetermined)
+
+
+def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
+    """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.retrieve.design`), counted without
+    enumerating them; None when there are too many distinct centres to count."""
+    return count_underdetermined(analysis.kind, space, slots=analysis.slots)
+
+
+def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
+    """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise."""
+    fixed = SweepSpace(tuple(BandRange.fixed(b, scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm)
+                             for b in job.tables.bands)).validate(scene.source)
+    tables = _tables(scene, fixed, job.analysis)
+    ref = replace(job, tables=tables, chunk=1)
+    rows = evaluate_chunk(ref, 0, 1, device)
+    return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+
+
+def count_table(scene: Scene) -> list[dict[str, Any]]:
+    """Variants per band (count and extremes) for ``s2cl sweep count``."""
+    space = sweep_space(scene)
+    rows = []
+    for r, n in zip(space.ranges, space.counts, strict=True):
+        c0, c1, w0, w1 = r.extent()
+        rows.append({"band": r.band, "variants": n, "centres_nm": f"{c0:g}–{c1:g}", "widths_nm": f"{w0:g}–{w1:g}"})
+    return rows

@@ -1,0 +1,50 @@
+"""Per-pixel results of a chunk of sweep configurations, and the configuration numbering.
+
+Configurations are numbered in mixed radix over the band slots, last slot fastest: configuration
+``c`` takes variant ``(c // strides[k]) % counts[k]`` of slot ``k`` (the kernel decodes the same).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass
+class RawChunk:
+    """Per (configuration, pixel) results of configurations ``start … stop-1``.
+
+    ``index``: λp (nm) for igrm, GVMI for gvmi, class index for sam (float64); ``status``
+    (:class:`s2cl.status.Status`), ``bounds`` (IGRM active-bound bits) and ``condition`` (IGRM:
+    round(20 log10 of the fit's condition estimate), 240 = capped) are uint8; all ``(n_configs, n_pixels)``.
+    """
+
+    start: int
+    stop: int
+    index: np.ndarray
+    status: np.ndarray
+    bounds: np.ndarray
+    condition: np.ndarray | None = None
+
+
+#: evaluates configurations ``start … stop-1`` of one sweep: the fused kernel, or a float64 numpy twin
+ChunkEvaluator = Callable[[int, int], RawChunk]
+
+
+class _Counted(Protocol):
+    counts: tuple[int, ...]
+
+    @property
+    def n_slots(self) -> int: ...
+
+
+def variant_indices(t: _Counted, start: int, stop: int) -> np.ndarray:
+    """Variant index per slot, ``(n_configs, n_slots)``, last slot fastest."""
+    flat = np.arange(start, stop, dtype=np.int64)
+    out = np.empty((flat.size, t.n_slots), dtype=np.int64)
+    for k in range(t.n_slots - 1, -1, -1):
+        flat, out[:, k] = np.divmod(flat, t.counts[k])
+    return out

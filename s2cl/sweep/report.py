@@ -1,0 +1,340 @@
+"""What a sweep found: best configurations, the reference (e.g. ESA) configuration, centre × width
+tables and heatmaps, and JSON for the record."""
+
+from __future__ import annotations
+
+import functools
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from s2cl.errors import InputError, token
+from s2cl.io.output import write_json
+from s2cl.io.plots import pyplot, save_png
+
+LOWER_IS_BETTER = {"rms": True, "robust_rms": True, "omission_error_pct": True}
+
+
+def metric_of(columns: list[str]) -> str:
+    """The ranking metric of a results table."""
+    return "omission_error_pct" if "omission_error_pct" in columns else "rms"
+
+
+def load(path: str | Path) -> tuple[Any, dict[str, str]]:
+    """Results as a pandas DataFrame and the file's metadata.
+
+    :raises InputError: no results in a folder (a sweep that did not finish says how to resume it), a
+        file that is not Parquet, or a Parquet file that s2cl did not write (metadata and columns).
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p = Path(path)
+    if p.is_dir():
+        p = _results_in(p)
+    if not p.is_file():
+        raise InputError("is not a regular file", source=p)
+    try:
+        table = pq.read_table(p)
+    except (pa.ArrowException, OSError, ValueError) as err:
+        raise InputError(f"not a readable Parquet file ({type(err).__name__}); a damaged results.parquet is "
+                         "rebuilt by running the sweep again (finished chunks are kept)", source=p) from None
+    meta = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (table.schema.metadata or {}).items()
+            if not k.startswith(b"pandas")}
+    _check_results(table, meta, p)
+    return table.to_pandas(), meta
+
+
+def _results_in(folder: Path) -> Path:
+    results = folder / "results.parquet"
+    if results.exists():
+        return results
+    if (folder / "manifest.json").exists() or (folder / "chunks").is_dir():
+        raise InputError("the sweep in this folder did not finish (no results.parquet yet); run the same `s2cl "
+                         "sweep run SCENE -o FOLDER` again to resume it", source=folder)
+    raise InputError("no results.parquet here: not a sweep's output folder", source=folder)
+
+
+def _check_results(table: Any, meta: dict[str, str], source: Path) -> None:
+    """A results table s2cl wrote: its metadata, the config column, a metric, band centre/width pairs."""
+    missing = [k for k in ("fingerprint", "scene", "analysis") if k not in meta]
+    if missing:
+        raise InputError(f"not an s2cl sweep result (no {', '.join(missing)} in its metadata)", source=source)
+    columns = set(table.column_names)
+    bands = [c[: -len("_centre_nm")] for c in columns if c.endswith("_centre_nm")]
+    needed = ["config", metric_of(list(columns)), *(f"{b}_width_nm" for b in bands)]
+    lacking = [c for c in needed if c not in columns]
+    if lacking or not bands:
+        raise InputError(f"not an s2cl sweep result (columns missing: {', '.join(lacking) or 'band centres'})",
+                         source=source)
+    if table.num_rows == 0:
+        raise InputError("holds no configurations", source=source)
+
+
+def check_band(df: Any, band: str, source: str | Path) -> str:
+    """``band`` as the results spell it; :class:`InputError` (key ``--band``) when it is not swept."""
+    bands = bands_of(df)
+    for b in bands:
+        if b.lower() == band.lower():
+            return b
+    raise InputError(f"{token(band)} is not a band of these results; bands: {', '.join(bands)}", source=source,
+                     key="--band")
+
+
+def reference_of(summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The reference row (the sensor's own bands) of a previous ``summary.json``, in the row form
+    :func:`summarise` takes; None when there is none."""
+    ref = summary.get("reference")
+    if not isinstance(ref, dict) or not isinstance(ref.get("bands"), dict):
+        return None
+    row = {k: v for k, v in ref.items() if k not in ("bands", "configurations_better")}
+    try:
+        for b, (c, w) in ref["bands"].items():
+            row |= {f"{b}_centre_nm": c, f"{b}_width_nm": w}
+    except (TypeError, ValueError):  # not what s2cl writes: no reference
+        return None
+    return row
+
+
+def bands_of(df: Any) -> list[str]:
+    return [c[: -len("_centre_nm")] for c in df.columns if c.endswith("_centre_nm")]
+
+
+def shapes(row: Any, bands: list[str]) -> dict[str, list[float]]:
+    return {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands}
+
+
+def rankable(df: Any, meta: dict[str, str]) -> Any:
+    """The configurations a ranking may use: without the designs the analysis cannot fit
+    (``underdetermined``, :mod:`s2cl.retrieve.design`) unless the sweep keeps them (``sweep.underdetermined``).
+    Every ranking, heatmap and paper comparison goes through this one function."""
+    if "underdetermined" not in df.columns or meta.get("underdetermined", "exclude") == "keep":
+        return df
+    return df[~df["underdetermined"].to_numpy(dtype=bool)]
+
+
+def underdetermined_summary(df: Any, meta: dict[str, str]) -> dict[str, Any]:
+    """How many designs were flagged, what the ranking did with them, and which bands coincided."""
+    flags = df["underdetermined"].to_numpy(dtype=bool) if "underdetermined" in df.columns else np.zeros(len(df), bool)
+    out: dict[str, Any] = {"count": int(flags.sum()), "ranking": meta.get("underdetermined", "exclude")}
+    bands = bands_of(df)
+    pairs: dict[str, int] = {}
+    for i, a in enumerate(bands):
+        for b in bands[i + 1:]:
+            same = flags & (np.abs(df[f"{a}_centre_nm"].to_numpy() - df[f"{b}_centre_nm"].to_numpy()) < 1e-6)
+            if same.any():
+                pairs[f"{a}={b}"] = int(same.sum())
+    out["coincident_centres"] = pairs
+    return out
+
+
+def summarise(df: Any, meta: dict[str, str], reference: dict[str, Any] | None = None, top: int = 10
+              ) -> dict[str, Any]:
+    """Best configurations and the reference, with every robustness and fit-accounting column; ranks only
+    :func:`rankable` configurations."""
+    metric = metric_of(list(df.columns))
+    bands = bands_of(df)
+    pool = rankable(df, meta)
+    ranked = pool.sort_values([metric, "config"], na_position="last")
+    keep = [c for c in df.columns if not c.endswith(("_centre_nm", "_width_nm"))]
+
+    def entry(row: Any) -> dict[str, Any]:
+        return {"bands": shapes(row, bands), **{k: _plain(row[k]) for k in keep}}
+
+    out: dict[str, Any] = {"scene": meta.get("scene", ""), "configurations": len(df), "ranked": len(pool),
+                           "metric": metric, "bands": bands, "underdetermined": underdetermined_summary(df, meta)}
+    if "regress" in meta:
+        out["regress"] = json.loads(meta["regress"])
+    if len(ranked):
+        out["best"] = entry(ranked.iloc[0])
+    out["top"] = [entry(r) for _, r in ranked.head(top).iterrows()]
+    if reference is not None:
+        out["reference"] = {"bands": {b: [reference[f"{b}_centre_nm"], reference[f"{b}_width_nm"]] for b in bands},
+                            **{k: _plain(reference[k]) for k in keep if k in reference}}
+        better = np.sum(pool[metric].to_numpy() < reference[metric])
+        out["reference"]["configurations_better"] = int(better)
+    return out
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def centre_width_grid(df: Any, band: str, metric: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centres, widths, best metric over the other bands) for one band: ``values[i, j]`` at centre ``i``
+    and width ``j`` (NaN where that pair is not a variant)."""
+    c, w = df[f"{band}_centre_nm"].to_numpy(), df[f"{band}_width_nm"].to_numpy()
+    centres, widths = np.unique(c), np.unique(w)
+    values = np.full((centres.size, widths.size), np.nan)
+    ci, wi = np.searchsorted(centres, c), np.searchsorted(widths, w)
+    m = df[metric].to_numpy(dtype=np.float64)
+    order = np.argsort(-np.nan_to_num(m, nan=np.inf))  # fill worst first so the best value wins
+    values[ci[order], wi[order]] = m[order]
+    return centres, widths, values
+
+
+def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
+               digits: int | None = None) -> Any:
+    """Centre × width table ``values`` on ``ax``: cells written where there are at most 150, the
+    lowest boxed in red; its own colour scale. Returns the image (for a colour bar)."""
+    plt = pyplot()
+    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r")
+    ax.set_xticks(range(len(widths)), [f"{w:g}" for w in widths], fontsize=fontsize)
+    ax.set_yticks(range(len(centres)), [f"{c:g}" for c in centres], fontsize=fontsize)
+    ax.set_xlabel(f"{band} FWHM (nm)", fontsize=fontsize + 1)
+    ax.set_ylabel(f"{band} centre (nm)", fontsize=fontsize + 1)
+    finite = values[np.isfinite(values)]
+    if values.size <= 150:
+        mid = np.median(finite) if finite.size else 0.0
+        if digits is None:
+            spread = np.ptp(finite) if finite.size else 0.0
+            digits = 1 if spread >= 2 else (2 if spread >= 0.2 else 3)
+        for i, j in zip(*np.nonzero(np.isfinite(values)), strict=True):
+            ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=fontsize - 1,
+                    color="white" if values[i, j] > mid else "black")
+    if finite.size:
+        i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
+    return im
+
+
+def heatmap(df: Any, band: str, path: str | Path, *, metric: str | None = None, title: str = "",
+            unit: str = "") -> Path:
+    """Centre × width heatmap of ``band`` (best over the other bands), the best pair marked."""
+    metric = metric or metric_of(list(df.columns))
+    centres, widths, values = centre_width_grid(df, band, metric)
+    fig, ax = pyplot().subplots(figsize=(1.0 + 0.62 * widths.size, 1.2 + 0.42 * centres.size), dpi=120)
+    im = _draw_grid(ax, centres, widths, values, band, fontsize=8)
+    fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
+    ax.set_title(title or f"{band}: {metric} (best over the other bands; red: best)", fontsize=9)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def write_summary(path: str | Path, summary: dict[str, Any]) -> Path:
+    return write_json(path, summary)
+
+
+def read_summary(path: str | Path) -> dict[str, Any]:
+    """A previous ``summary.json``; an unreadable one counts as none (the report rewrites it)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+# -- the paper's values beside s2cl's (Segl et al. 2012, Tables 3-6) -------------------------------
+
+PAPER_FILE = "segl2012_results.json"
+#: scene name → (paper table, key); the built-in scenes are named after the tables they reproduce
+_TABLE3 = {f"table3-{lib}-b{bands}": (lib.capitalize(), bands) for lib in ("lib1", "lib2")
+           for bands in ("4567", "4568", "4568a")}
+_GRIDS = {"table4-b4": ("table4", "B4", "rms"), "table5-b11": ("table5", "B11", "rms"),
+          "table6-b12": ("table6", "B12", "omission_error")}
+
+
+@functools.cache
+def paper_results() -> dict[str, Any]:
+    """The paper's printed results (s2cl/data/segl2012_results.json), read once; do not modify."""
+    import importlib.resources
+
+    return json.loads((importlib.resources.files("s2cl") / "data" / PAPER_FILE).read_text(encoding="utf-8"))
+
+
+def _band_key(bands: list[str]) -> str:
+    return "".join(b[1:] for b in bands)
+
+
+def paper_comparison(df: Any, summary: dict[str, Any]) -> dict[str, Any] | None:
+    """The paper's values for this sweep beside s2cl's, or None when the scene is not one of the
+    paper's (matched by the built-in scene names ``table3-lib{1,2}-b*``, ``table4-b4``,
+    ``table5-b11``, ``table6-b12`` and the swept bands)."""
+    name, bands = summary.get("scene", ""), summary["bands"]
+    paper = paper_results()
+    if name in _TABLE3:
+        lib, key = _TABLE3[name]
+        if _band_key(bands) != key:
+            return None
+        row = next(r for r in paper["table3"] if r["library"] == lib and _band_key(r["bands"]) == key)
+        return _table3(df, summary, row)
+    if name in _GRIDS:
+        table, band, paper_metric = _GRIDS[name]
+        if band not in bands:
+            return None
+        return _grid_table(df, summary, table, band, paper[table], paper_metric)
+    return None
+
+
+def _match(df: Any, bands: list[str], shape: list[list[float]], tol_nm: float = 0.5) -> Any:
+    """Rows of ``df`` whose bands equal ``shape`` (the paper prints 832 for 832.5: tolerance 0.5 nm)."""
+    mask = np.ones(len(df), bool)
+    for b, (c, w) in zip(bands, shape, strict=True):
+        mask &= (np.abs(df[f"{b}_centre_nm"].to_numpy() - c) <= tol_nm) & (df[f"{b}_width_nm"].to_numpy() == w)
+    return df[mask]
+
+
+def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, Any]:
+    bands, metric = summary["bands"], summary["metric"]
+    out: dict[str, Any] = {
+        "table": "table3", "library": row["library"], "configurations_paper": row["configurations"],
+        "paper": {"rms_esa": row["rms_esa"], "rms_best": row["rms_best"],
+                  "best": dict(zip(bands, row["best"], strict=True))},
+        "s2cl": {"rms_esa": summary.get("reference", {}).get(metric), "rms_best": summary["best"][metric],
+                 "best": summary["best"]["bands"]},
+    }
+    hit = _match(df, bands, row["best"])
+    if len(hit):
+        r = hit.iloc[0]
+        rank = int(np.sum(df[metric].to_numpy() < r[metric])) + 1  # df: the rankable configurations
+        out["paper_best_in_s2cl"] = {k: _plain(r[k]) for k in (metric, "robust_rms", "bound_fraction",
+                                                              "failed_fraction") if k in r.index}
+        out["paper_best_in_s2cl"]["rank"] = rank
+    return out
+
+
+def _grid_table(df: Any, summary: dict[str, Any], table: str, band: str, paper: dict[str, Any],
+                paper_metric: str) -> dict[str, Any]:
+    import pandas as pd
+    from scipy.stats import spearmanr
+
+    metric = summary["metric"]
+    centres, widths, values = centre_width_grid(df, band, metric)
+    pc, pw = np.asarray(paper["centres"], float), np.asarray(paper["widths"], float)
+    pv = np.asarray(paper[paper_metric], float)
+    ours = pd.DataFrame(values, index=centres, columns=widths).reindex(index=pc, columns=pw).to_numpy()
+    pi, pj = np.unravel_index(np.argmin(pv), pv.shape)
+    out: dict[str, Any] = {
+        "table": table, "band": band, "metric": metric, "unit": paper.get("unit", ""),
+        "centres_nm": pc.tolist(), "widths_nm": pw.tolist(),
+        "paper": pv.tolist(), "s2cl": [[None if not np.isfinite(v) else float(v) for v in r] for r in ours],
+        "paper_best": {"bands": [float(pc[pi]), float(pw[pj])], "value": float(pv[pi, pj]),
+                       "s2cl_value": None if not np.isfinite(ours[pi, pj]) else float(ours[pi, pj])},
+    }
+    both = np.isfinite(ours)
+    if both.any():
+        si, sj = np.unravel_index(np.nanargmin(ours), ours.shape)
+        out["s2cl_best"] = {"bands": [float(pc[si]), float(pw[sj])], "value": float(ours[si, sj]),
+                            "paper_value": float(pv[si, sj])}
+        out["cells"] = int(both.sum())
+        if both.sum() >= 3:  # Spearman rank correlation (ties averaged) of the cells both have: same shape?
+            rho = spearmanr(ours[both], pv[both]).statistic if np.ptp(ours[both]) and np.ptp(pv[both]) else np.nan
+            out["rank_correlation"] = None if np.isnan(rho) else float(rho)
+    return out
+
+
+def heatmap_vs_paper(comparison: dict[str, Any], path: str | Path) -> Path:
+    """s2cl's centre × width table beside the paper's (own colour scale each, best marked)."""
+    pc, pw = comparison["centres_nm"], comparison["widths_nm"]
+    grids = {"s2cl": np.array(comparison["s2cl"], dtype=float), "Segl et al. 2012": np.array(comparison["paper"])}
+    fig, axes = pyplot().subplots(1, 2, figsize=(2.0 + 1.1 * len(pw), 1.4 + 0.38 * len(pc)), dpi=110)
+    for ax, (label, v) in zip(axes, grids.items(), strict=True):
+        im = _draw_grid(ax, pc, pw, v, comparison["band"], fontsize=7, digits=1)
+        fig.colorbar(im, ax=ax, fraction=0.05)
+        ax.set_title(f"{label}: {comparison['metric']} {comparison['unit']}".strip(), fontsize=8)
+    fig.tight_layout()
+    return save_png(fig, path)

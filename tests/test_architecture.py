@@ -1,0 +1,110 @@
+"""The package's shape (issue 14): packages by subject, no import circles, the product never imports the
+numpy twins in reference/, and no module so long that a newcomer cannot read it in one go."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "s2cl"
+MAX_LINES = 400
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+def _imports(path: Path, name: str, modules: dict[str, Path]) -> set[str]:
+    """s2cl modules ``name`` imports, at module level or inside functions (lazy imports count too)."""
+    tree = ast.parse(path.read_text())
+    found: set[str] = set()
+    is_pkg = path.name == "__init__.py"
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".") if is_pkg else name.split(".")[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            for alias in node.names:
+                sub = f"{mod}.{alias.name}"
+                found.add(sub if sub in modules else mod)
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+    return {m for m in found if m in modules and m != name}
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = _modules()
+    return {name: _imports(path, name, modules) for name, path in modules.items()}
+
+
+def _package_of(module: str) -> str:
+    """``s2cl.sweep.engine`` -> ``s2cl.sweep``; top-level modules are their own package."""
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def test_product_never_imports_the_numpy_twins() -> None:
+    offenders = sorted(f"{m} -> {d}" for m, deps in _graph().items() if not m.startswith("s2cl.reference")
+                       for d in deps if d.startswith("s2cl.reference"))
+    assert not offenders, offenders
+
+
+def test_no_import_circles_between_modules() -> None:
+    graph = _graph()
+    # a package's __init__ may re-export its modules: an edge from a package to its own children is not a circle
+    edges = {m: {d for d in deps if not d.startswith(m + ".")} for m, deps in graph.items()}
+    cycles = _cycles(edges)
+    assert not cycles, cycles
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(_modules()))
+def test_modules_are_short(name: str) -> None:
+    lines = _modules()[name].read_text().count("\n")
+    assert lines <= MAX_LINES, f"{name}: {lines} lines (at most {MAX_LINES}: split it by subject)"
