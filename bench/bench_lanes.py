@@ -4,9 +4,9 @@ The runtime's default is the device's native vector width (PoCL: 16 floats with 
 AVX2; :func:`s2cl.cl.devices.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
 resampler's vector-load width and its spectra per work-item (1-16, read interleaved). Every width is
-first checked bit-identical to one pixel per work-item (the resampler: against its float64 oracle; the one-lane sweep kernel itself by
-:func:`bench.sweep_check.validate_sweep`), then all widths are timed in interleaved
-rounds (medians). Widths above the native one are capped by the runtime and not timed.
+first checked bit-identical to one pixel per work-item (the resampler: against its float64 oracle;
+the one-lane sweep kernel itself by :func:`bench.sweep_check.validate_sweep`), then all widths are
+timed in interleaved rounds (medians). Widths above the native one are capped by the runtime and not timed.
 Writes bench/results/lanes-<machine>-<date>.json.
 
     python -m bench.bench_lanes            # ~1 minute on 2 cores
