@@ -1,0 +1,116 @@
+"""Issue 13 red team, resources and crash safety: memory estimated before every large step (heatmaps and
+reports stream the results; libraries and LUTs are sized from their headers), nothing created by a run
+that fails, a killed sweep resumed by the same command whatever the budget, no stale or leftover files.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from sweep_fixtures import SMALL_SWEEP_TOML
+
+SMALL = SMALL_SWEEP_TOML.format(copies=2)
+
+
+def run(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "s2cl", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=600, env={**os.environ, **(env or {})})
+
+
+def one_line_error(out: subprocess.CompletedProcess, *parts: str) -> str:
+    assert out.returncode == 2, (out.returncode, out.stdout, out.stderr)
+    lines = out.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), out.stderr
+    for part in parts:
+        assert part in lines[0], (part, lines[0])
+    return lines[0]
+
+
+def scene(tmp_path: Path, text: str = SMALL, **replace: str) -> Path:
+    for old, new in replace.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return path
+
+
+def _results_frame(n_centres: int, n_widths: int, seed: int = 0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    c = np.repeat(600.0 + 0.1 * np.arange(n_centres), n_widths)
+    w = np.tile(10.0 + 0.1 * np.arange(n_widths), n_centres)
+    n = c.size
+    return pd.DataFrame({"config": np.arange(n), "B4_centre_nm": c, "B4_width_nm": w,
+                         "B5_centre_nm": np.full(n, 705.0), "B5_width_nm": np.full(n, 15.0),
+                         "rms": rng.random(n), "robust_rms": rng.random(n), "failed_fraction": np.zeros(n),
+                         "bound_fraction": np.zeros(n), "underdetermined": rng.random(n) < 0.1})
+
+
+def _lut_with(tmp_path: Path, name: str, shape: tuple[int, ...], descr: str = "<f4") -> Path:
+    """The shipped LUT with member ``name`` replaced by a header declaring ``shape`` and 16 bytes of data."""
+    from s2cl.atmos.atmosphere import default_lut_path
+
+    path = tmp_path / "bomb.npz"
+    with zipfile.ZipFile(default_lut_path()) as src, zipfile.ZipFile(path, "w") as dst:
+        for info in src.infolist():
+            if info.filename != f"{name}.npy":
+                dst.writestr(info.filename, src.read(info))
+                continue
+            with dst.open(info.filename, "w", force_zip64=True) as f:
+                np.lib.format.write_array_header_2_0(f, {"descr": descr, "fortran_order": False, "shape": shape})
+                f.write(b"\0" * 16)
+    return path
+
+
+def test_a_failed_run_removes_the_folder_it_created(tmp_path) -> None:
+    from s2cl.io.outdir import claim
+
+    with pytest.raises(RuntimeError), claim(tmp_path / "a" / "b") as out:
+        (out / "manifest.json").write_text("{}")
+        (out / "chunks").mkdir()
+        raise RuntimeError("failed before any result")
+    assert not (tmp_path / "a").exists()
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(RuntimeError), claim(tmp_path / "kept" / "out") as out:
+        (out / "results.parquet").write_text("a result")
+        raise RuntimeError("failed after a result")
+    assert (tmp_path / "kept" / "out" / "results.parquet").exists()
+    assert not (tmp_path / "kept" / "out" / ".s2cl.lock").exists()
+
+
+def test_sigterm_removes_the_temporary_file_and_exits_143(tmp_path) -> None:
+    path = scene(tmp_path, **{"copies = 2": "copies = 5000"})
+    proc = subprocess.Popen([sys.executable, "-m", "s2cl", "simulate", "-q", str(path), "-o", "out"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not list((tmp_path / "out").glob(".simulation.nc.*.tmp")):
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before SIGTERM arrived")
+    assert proc.returncode == 143 and err.strip() == "terminated", err
+    assert not (tmp_path / "out").exists()  # no temporary file, and the folder it had created is gone
+
+
+def test_the_lock_file_lives_only_while_a_run_holds_the_folder(tmp_path) -> None:
+    from s2cl.errors import OutputError
+    from s2cl.io.outdir import LOCK_NAME, claim
+
+    with claim(tmp_path / "out") as out:
+        assert (out / LOCK_NAME).exists()
+        with pytest.raises(OutputError, match="another s2cl run"), claim(out):
+            pass
+    assert not (tmp_path / "out" / LOCK_NAME).exists()
+    with claim(tmp_path / "out"):  # the next run takes the folder
+        pass
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == []
