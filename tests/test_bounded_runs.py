@@ -18,6 +18,8 @@ import pandas as pd
 import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 
+from s2cl.errors import InputError
+
 SMALL = SMALL_SWEEP_TOML.format(copies=2)
 
 
@@ -69,6 +71,41 @@ def _lut_with(tmp_path: Path, name: str, shape: tuple[int, ...], descr: str = "<
                 np.lib.format.write_array_header_2_0(f, {"descr": descr, "fortran_order": False, "shape": shape})
                 f.write(b"\0" * 16)
     return path
+
+
+@pytest.mark.parametrize(("name", "shape", "message"), [
+    ("wavelength_nm", (1_250_000_000,), "wavelength_nm: must be a list of 1 to 3,751 values"),
+    ("t_down", (2, 7, 12, 2101 * 10**5), "t_down: expected float array of shape (2, 7, 12, 2101)"),
+    ("provenance", (), "provenance: must be text of at most"),
+])
+def test_a_lut_zip_bomb_is_refused_before_loading(tmp_path, monkeypatch, name, shape, message) -> None:
+    import s2cl.atmos.atmosphere as atmosphere
+
+    descr = "<U100000000" if name == "provenance" else "<f4"
+    path = _lut_with(tmp_path, name, shape, descr)
+    monkeypatch.setattr(atmosphere.np, "load", lambda *a, **k: pytest.fail("loaded before the headers were checked"))
+    with pytest.raises(InputError, match="bomb.npz: " + message.replace("(", r"\(").replace(")", r"\)")):
+        atmosphere.AtmosphereLUT.load(path)
+
+
+def test_a_lut_over_the_size_limit_or_with_objects_is_refused(tmp_path, monkeypatch) -> None:
+    import s2cl.atmos.lut_format as lut_format
+    from s2cl.atmos.atmosphere import AtmosphereLUT, default_lut_path
+
+    monkeypatch.setattr(lut_format, "MAX_LUT_BYTES", 1_000_000)
+    with pytest.raises(InputError, match=r"its arrays declare 4,\d{3},\d{3} bytes \(at most 1,000,000\)"):
+        AtmosphereLUT.load(default_lut_path())
+    path = _lut_with(tmp_path, "e0", (2101,), "|O")
+    with pytest.raises(InputError, match="e0: holds an array of Python objects"):
+        AtmosphereLUT.load(path)
+
+
+def test_lut_bomb_through_the_command_line(tmp_path) -> None:
+    path = _lut_with(tmp_path, "path_reflectance_scattering", (2, 7, 12, 10**9))
+    text = SMALL.replace("[effects]", f'[atmosphere]\nlut = "{path.name}"\n[effects]')
+    for command in (["simulate", "-q"], ["sweep", "count", "-q"]):
+        one_line_error(run(*command, str(scene(tmp_path, text)), cwd=tmp_path), "bomb.npz: path_reflectance")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.npz", "s.toml"]
 
 
 def test_a_failed_run_removes_the_folder_it_created(tmp_path) -> None:
