@@ -18,7 +18,9 @@ import pandas as pd
 import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 
-from s2cl.errors import InputError
+from s2cl.errors import InputError, ResourceError
+from s2cl.grid import DEFAULT_GRID
+from s2cl.io.budget import Budget
 
 SMALL = SMALL_SWEEP_TOML.format(copies=2)
 
@@ -55,6 +57,50 @@ def _results_frame(n_centres: int, n_widths: int, seed: int = 0) -> pd.DataFrame
                          "B5_centre_nm": np.full(n, 705.0), "B5_width_nm": np.full(n, 15.0),
                          "rms": rng.random(n), "robust_rms": rng.random(n), "failed_fraction": np.zeros(n),
                          "bound_fraction": np.zeros(n), "underdetermined": rng.random(n) < 0.1})
+
+
+def test_a_csv_library_is_refused_from_its_header_before_parsing(tmp_path, monkeypatch) -> None:
+    import s2cl.libraries.files as files
+
+    names = ",".join(f"s{i}" for i in range(3000))
+    rows = "".join(f"{w}," + ",".join(["0.1"] * 3000) + "\n" for w in range(400, 2501, 20))
+    (tmp_path / "wide.csv").write_text(f"wavelength_nm,{names}\n{rows}")
+    monkeypatch.setattr(files, "_csv_values", lambda *a, **k: pytest.fail("parsed before the budget check"))
+    with pytest.raises(ResourceError, match=r"wide.csv: reading its 3,000 spectra onto the grid .* more than "
+                                            r"450 MB \(test\); at most 1,\d\d\d spectra fit") as err:
+        files.load_csv_library(tmp_path / "wide.csv", DEFAULT_GRID, budget=Budget(450_000_000, "test"))
+    assert err.value.key is None and str(err.value).startswith(str(tmp_path / "wide.csv"))
+    monkeypatch.undo()
+    lib = files.load_csv_library(tmp_path / "wide.csv", DEFAULT_GRID, budget=Budget(10**9, "test"))
+    assert lib.size == 3000 and np.allclose(lib.spectra, 0.1)
+
+
+def test_an_envi_library_is_refused_from_its_header(tmp_path) -> None:
+    from s2cl.libraries.files import load_envi_library
+
+    (tmp_path / "big.hdr").write_text(
+        "ENVI\nfile type = ENVI Spectral Library\nsamples = 2101\nlines = 100000\nbands = 1\nheader offset = 0\n"
+        "data type = 1\ninterleave = bsq\nbyte order = 0\nwavelength units = Nanometers\nwavelength = {"
+        + ",".join(str(w) for w in range(400, 2501)) + "}\n")
+    with open(tmp_path / "big.sli", "wb") as f:  # sparse: 210 MB declared, nothing on disk
+        f.truncate(2101 * 100000)
+    with pytest.raises(ResourceError, match=r"big.hdr: reading its 100,000 spectra .* more than 1.0 GB"):
+        load_envi_library(tmp_path / "big.hdr", DEFAULT_GRID, budget=Budget(10**9, "test"))
+
+
+def test_only_libraries_stream_and_large_tables_are_refused(tmp_path, monkeypatch) -> None:
+    import s2cl.io.tables as tables
+    from s2cl.libraries.files import load_csv_library
+    from s2cl.sensor.sensor import Sensor
+
+    (tmp_path / "lib.csv").write_text("wavelength_nm,a,b\n" + "".join(f"{w},0.1,0.2\n" for w in range(400, 2501, 20)))
+    monkeypatch.setattr(tables, "read_csv_rows", lambda *a, **k: pytest.fail("a library read whole"))
+    assert load_csv_library(tmp_path / "lib.csv", DEFAULT_GRID).size == 2
+    monkeypatch.undo()
+    with open(tmp_path / "sensor.csv", "wb") as f:
+        f.truncate(tables.MAX_TABLE_BYTES + 1)
+    with pytest.raises(InputError, match="larger than 16 MiB"):
+        Sensor.from_csv(tmp_path / "sensor.csv")
 
 
 def _lut_with(tmp_path: Path, name: str, shape: tuple[int, ...], descr: str = "<f4") -> Path:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
+from s2cl.io.budget import Budget
 from s2cl.libraries.files import load_csv_library, load_envi_library
 from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
 from s2cl.libraries.minerals import iron_backgrounds, mineral_library, mineral_library_swir
@@ -59,7 +60,7 @@ def available_libraries() -> dict[str, str]:
 
 def load_library(
     spec: str, grid: SpectralGrid, *, source: str | Path | None = None, key: str = "library",
-    quantity: Quantity = "reflectance",
+    quantity: Quantity = "reflectance", budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Load the library named by ``spec`` onto ``grid``.
 
@@ -69,6 +70,8 @@ def load_library(
         relative paths.
     :param key: the key inside ``source`` that held ``spec``.
     :param quantity: what a user file holds (``surface.quantity``); built-in libraries are reflectance.
+    :param budget: the memory a file may take once read onto ``grid``, sized from its metadata (header line,
+        file size, ENVI header) before it is read; default :meth:`Budget.of`.
     :raises InputError: unknown builtin (the message lists the available ones), unknown file type,
         or any problem of the file itself.
     """
@@ -80,9 +83,9 @@ def load_library(
         path = Path(source).parent / path
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        return load_csv_library(path, grid, quantity=quantity)
+        return load_csv_library(path, grid, quantity=quantity, budget=budget)
     if suffix in {".sli", ".hdr"}:
-        return load_envi_library(path, grid, quantity=quantity)
+        return load_envi_library(path, grid, quantity=quantity, budget=budget)
     raise InputError(
         f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
         source=source,
