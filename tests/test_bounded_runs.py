@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from sweep_fixtures import SMALL_SWEEP_TOML
+from sweep_fixtures import SMALL_SWEEP_TOML, gvmi_job, numpy_evaluator
 
 from s2cl.errors import InputError, ResourceError
 from s2cl.grid import DEFAULT_GRID
@@ -170,6 +170,32 @@ def test_a_failed_run_removes_the_folder_it_created(tmp_path) -> None:
     assert not (tmp_path / "kept" / "out" / ".s2cl.lock").exists()
 
 
+def test_an_empty_chunks_folder_without_manifest_is_a_fresh_folder(tmp_path) -> None:
+    from s2cl.sweep.engine import MANIFEST, run_sweep
+
+    out = tmp_path / "out"
+    (out / "chunks").mkdir(parents=True)  # killed after mkdir, before the manifest (older versions)
+    (out / ".manifest.json.abcd1234.tmp").write_text('{"half": ')  # killed while writing it
+    job = gvmi_job()
+    run_sweep(job, out, evaluator=numpy_evaluator(job))
+    assert (out / MANIFEST).exists() and (out / "results.parquet").exists()
+
+
+def test_metrics_and_results_do_not_depend_on_the_chunk(tmp_path) -> None:
+    from s2cl.sweep.engine import evaluate_chunk, run_sweep
+
+    job = gvmi_job(chunk=1)
+    ev = numpy_evaluator(job)
+    n = job.n_configs
+    whole = evaluate_chunk(job, 0, n, evaluator=ev)
+    for size in (1, 7):
+        parts = [evaluate_chunk(job, a, min(a + size, n), evaluator=ev) for a in range(0, n, size)]
+        for k, v in whole.items():
+            assert np.array_equal(np.concatenate([p[k] for p in parts]), v, equal_nan=True), (size, k)
+    files = [run_sweep(gvmi_job(chunk=c), tmp_path / f"c{c}", evaluator=ev).read_bytes() for c in (3, 100)]
+    assert files[0] == files[1]
+
+
 def test_sigterm_removes_the_temporary_file_and_exits_143(tmp_path) -> None:
     path = scene(tmp_path, **{"copies = 2": "copies = 5000"})
     proc = subprocess.Popen([sys.executable, "-m", "s2cl", "simulate", "-q", str(path), "-o", "out"], cwd=tmp_path,
@@ -185,6 +211,20 @@ def test_sigterm_removes_the_temporary_file_and_exits_143(tmp_path) -> None:
     assert not (tmp_path / "out").exists()  # no temporary file, and the folder it had created is gone
 
 
+def test_overwrite_removes_the_previous_sweeps_derived_files(tmp_path) -> None:
+    from s2cl.sweep.engine import run_sweep
+
+    out = tmp_path / "out"
+    job = gvmi_job()
+    run_sweep(job, out, evaluator=numpy_evaluator(job))
+    for stale in ("heatmap_B6.png", "summary.json"):
+        (out / stale).write_text("from the previous sweep")
+    (out / "simulation.json").write_text("not a sweep file")
+    other = gvmi_job(b11_max_width=100.0)
+    run_sweep(other, out, evaluator=numpy_evaluator(other), overwrite=True)
+    assert sorted(p.name for p in out.iterdir()) == ["chunks", "manifest.json", "results.parquet", "simulation.json"]
+
+
 def test_the_lock_file_lives_only_while_a_run_holds_the_folder(tmp_path) -> None:
     from s2cl.errors import OutputError
     from s2cl.io.outdir import LOCK_NAME, claim
@@ -197,3 +237,24 @@ def test_the_lock_file_lives_only_while_a_run_holds_the_folder(tmp_path) -> None
     with claim(tmp_path / "out"):  # the next run takes the folder
         pass
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_local_dask_cluster_keeps_its_scratch_in_the_output_folder(tmp_path, monkeypatch) -> None:
+    pytest.importorskip("dask.distributed")
+    import dask.distributed
+
+    from s2cl.sweep.engine import DASK_SCRATCH, run_sweep
+
+    used: list[str] = []
+    real = dask.distributed.LocalCluster
+
+    def cluster(*args, **kwargs):
+        used.append(kwargs["local_directory"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(dask.distributed, "LocalCluster", cluster)
+    job = gvmi_job(chunk=200)
+    run_sweep(job, tmp_path / "out", evaluator=numpy_evaluator(job), workers=1)
+    assert used == [str(tmp_path / "out" / DASK_SCRATCH)]
+    assert not (tmp_path / "out" / DASK_SCRATCH).exists()
