@@ -154,6 +154,47 @@ def test_lut_bomb_through_the_command_line(tmp_path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.npz", "s.toml"]
 
 
+def test_a_bad_cube_creates_no_folder(tmp_path) -> None:
+    text = ('[scene]\nname = "cube"\n[surface]\ncube = "missing.nc"\ngsd_m = 10\nquantity = "reflectance"\n'
+            "[effects]\natmosphere = true\n")
+    one_line_error(run("simulate", "-q", str(scene(tmp_path, text)), cwd=tmp_path), "missing.nc")
+    (tmp_path / "zero.nc").write_bytes(b"\0" * 4096)
+    one_line_error(run("simulate", "-q", str(scene(tmp_path, text.replace("missing", "zero"))), cwd=tmp_path),
+                   "zero.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml", "zero.nc"]
+
+
+def test_a_device_that_cannot_compile_creates_nothing(tmp_path, monkeypatch) -> None:
+    import importlib
+
+    import s2cl.sweep.engine as engine
+    from s2cl.cl.runtime import Runtime
+
+    def broken(self, source, *, template, options=()):
+        from s2cl.cl.builds import save_source
+        from s2cl.errors import BuildError
+
+        raise BuildError(template=template, device="test device", options=list(options), log="unknown target CPU",
+                         source_path=save_source(source, template))
+
+    monkeypatch.setenv("S2CL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(Runtime, "build", broken)
+    monkeypatch.setattr(Runtime, "check_builds", lambda self: self.build("__kernel void probe() {}\n",
+                                                                         template="probe.cl"))
+    monkeypatch.setattr(engine, "_EVALUATORS", {})
+    cli_main = importlib.import_module("s2cl.cli.main")
+    monkeypatch.setattr(cli_main, "_on_sigterm", lambda: None)  # pytest keeps its own SIGTERM handling
+    monkeypatch.chdir(tmp_path)
+    path = scene(tmp_path)
+    for command in ("simulate", "optimise"):
+        with pytest.raises(SystemExit) as code:
+            cli_main.main([command, "-q", str(path), "-o", "out"])
+        assert code.value.code == 2
+    assert not (tmp_path / "out").exists()
+    kept = list((tmp_path / "cache" / "failed-builds").glob("probe-*.cl"))
+    assert len(kept) == 1 and "__kernel void probe" in kept[0].read_text()
+
+
 def test_a_failed_run_removes_the_folder_it_created(tmp_path) -> None:
     from s2cl.io.outdir import claim
 

@@ -30,7 +30,10 @@ def output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
 
 
 def runtime(device: str | None) -> Any:
-    """The OpenCL runtime of ``device``; a device that does not exist is refused here, before any work."""
+    """The OpenCL runtime of ``device``; a device that does not exist, or cannot compile a kernel, is refused
+    here, before any work."""
     from s2cl.cl.runtime import get_runtime
 
-    return get_runtime(device)
+    rt = get_runtime(device)
+    rt.check_builds()
+    return rt
