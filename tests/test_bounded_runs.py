@@ -5,6 +5,7 @@ that fails, a killed sweep resumed by the same command whatever the budget, no s
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML, gvmi_job, numpy_evaluator
 
@@ -48,6 +50,8 @@ def scene(tmp_path: Path, text: str = SMALL, **replace: str) -> Path:
     return path
 
 
+# -- V2.1: the report streams the results; heatmaps are bounded; the estimate holds the report -------------
+
 def _results_frame(n_centres: int, n_widths: int, seed: int = 0) -> pd.DataFrame:
     rng = np.random.default_rng(seed)
     c = np.repeat(600.0 + 0.1 * np.arange(n_centres), n_widths)
@@ -58,6 +62,77 @@ def _results_frame(n_centres: int, n_widths: int, seed: int = 0) -> pd.DataFrame
                          "rms": rng.random(n), "robust_rms": rng.random(n), "failed_fraction": np.zeros(n),
                          "bound_fraction": np.zeros(n), "underdetermined": rng.random(n) < 0.1})
 
+
+def test_heatmap_grid_is_binned_to_a_bounded_size(tmp_path) -> None:
+    from PIL import Image
+
+    from s2cl.sweep.digest import HEATMAP_CENTRES, HEATMAP_WIDTHS, Digest
+    from s2cl.sweep.report import heatmap
+
+    df = _results_frame(301, 151)
+    d = Digest.of_frame(df, {"underdetermined": "keep"})
+    centres, widths, values, (gc, gw) = d.binned_grid("B4")
+    assert values.shape == (len(centres), len(widths))
+    assert values.shape[0] <= HEATMAP_CENTRES and values.shape[1] <= HEATMAP_WIDTHS and (gc, gw) == (6, 4)
+    assert np.nanmin(values) == df["rms"].min()  # the best pair is in the best cell
+    assert centres[0] == "600–600.5" and widths[-1] == "24.8–25"
+    png = heatmap(d, "B4", tmp_path / "h.png")
+    assert max(Image.open(png).size) < 2200  # the figure does not grow with the variants
+
+
+def test_the_digest_streams_and_equals_the_in_memory_summary(tmp_path, monkeypatch) -> None:
+    import s2cl.sweep.digest as digest
+    import s2cl.sweep.folder as folder
+    from s2cl.sweep.engine import run_sweep
+    from s2cl.sweep.report import Digest, open_results, summarise
+
+    monkeypatch.setattr(folder, "ROW_GROUP_ROWS", 50)
+    monkeypatch.setattr(digest, "BATCH_ROWS", 37)
+    job = gvmi_job(chunk=64)
+    path, meta = open_results(run_sweep(job, tmp_path / "out", evaluator=numpy_evaluator(job)))
+    assert pq.ParquetFile(path).metadata.num_row_groups == -(-job.n_configs // 50)
+    seen: list[int] = []
+    real = digest._batches
+
+    def batches(p):
+        for b in real(p):
+            seen.append(len(b))
+            yield b
+
+    monkeypatch.setattr(digest, "_batches", batches)
+    monkeypatch.setattr(pq, "read_table", lambda *a, **k: pytest.fail("the report read the whole table"))
+    reference = {"B8_centre_nm": 842.0, "B8_width_nm": 115.0, "B11_centre_nm": 1610.0, "B11_width_nm": 90.0,
+                 "rms": 0.002}
+    streamed = summarise(Digest.of_file(path, meta, reference=reference), meta, reference)
+    assert max(seen) <= 37 and sum(seen) == job.n_configs
+    monkeypatch.undo()
+    df = pq.read_table(path).to_pandas()
+    whole = summarise(df, meta, reference)
+    assert json.dumps(streamed, sort_keys=True) == json.dumps(whole, sort_keys=True)
+    assert streamed["configurations"] == job.n_configs and streamed["reference"]["configurations_better"] >= 0
+    by_pair = df.groupby(["B11_centre_nm", "B11_width_nm"])["rms"].min()
+    d = Digest.of_frame(df, meta)
+    (c, w), best = next(iter(by_pair.items()))
+    assert d.value("B11", c, w) == best and d.variants("B11") == len(by_pair)
+
+
+def test_the_sweep_estimate_holds_the_report_and_refuses_what_does_not_fit(tmp_path) -> None:
+    from s2cl.scene.scene import Scene
+    from s2cl.scene.validate import check_sweep
+    from s2cl.sweep.budget import HEATMAP_BYTES, sweep_resources
+
+    fine = scene(tmp_path, **{"B4 = { centres = [665, 675, 685], widths = [20, 30] }":
+                              "B4 = { left = 640, right = 700, min_width = 10, max_width = 40 }",
+                              "[sweep]": "[sweep]\nstep_nm = 0.5"})
+    checked = check_sweep(Scene.load(fine))
+    plan = sweep_resources(checked, budget=Budget(10**10, "test"))
+    assert plan.memory_bytes > 350e6 + HEATMAP_BYTES
+    out = run("sweep", "count", "-q", str(fine), "--max-memory", "500M", cwd=tmp_path)
+    one_line_error(out, "s.toml: ", "more than 500 MB")
+    assert list(tmp_path.iterdir()) == [fine]
+
+
+# -- V2.2: libraries are sized from their metadata before they are parsed ---------------------------------
 
 def test_a_csv_library_is_refused_from_its_header_before_parsing(tmp_path, monkeypatch) -> None:
     import s2cl.libraries.files as files
@@ -102,6 +177,8 @@ def test_only_libraries_stream_and_large_tables_are_refused(tmp_path, monkeypatc
     with pytest.raises(InputError, match="larger than 16 MiB"):
         Sensor.from_csv(tmp_path / "sensor.csv")
 
+
+# -- V2.3: a LUT's arrays are checked from their .npy headers before anything is loaded -------------------
 
 def _lut_with(tmp_path: Path, name: str, shape: tuple[int, ...], descr: str = "<f4") -> Path:
     """The shipped LUT with member ``name`` replaced by a header declaring ``shape`` and 16 bytes of data."""
@@ -154,6 +231,8 @@ def test_lut_bomb_through_the_command_line(tmp_path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.npz", "s.toml"]
 
 
+# -- V5: a run that fails creates nothing -------------------------------------------------------------------
+
 def test_a_bad_cube_creates_no_folder(tmp_path) -> None:
     text = ('[scene]\nname = "cube"\n[surface]\ncube = "missing.nc"\ngsd_m = 10\nquantity = "reflectance"\n'
             "[effects]\natmosphere = true\n")
@@ -162,6 +241,17 @@ def test_a_bad_cube_creates_no_folder(tmp_path) -> None:
     one_line_error(run("simulate", "-q", str(scene(tmp_path, text.replace("missing", "zero"))), cwd=tmp_path),
                    "zero.nc")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml", "zero.nc"]
+
+
+def test_an_unreachable_scheduler_is_refused_before_anything_is_created(tmp_path) -> None:
+    pytest.importorskip("dask.distributed")
+    t0 = time.monotonic()
+    for address, why in (("tcp://127.0.0.1:1", "cannot connect to the Dask scheduler 'tcp://127.0.0.1:1'"),
+                         ("bogus", "'bogus' is not a scheduler address")):
+        one_line_error(run("optimise", "-q", str(scene(tmp_path)), "--scheduler", address, "-o", "out",
+                           cwd=tmp_path), "--scheduler: " + why)
+    assert time.monotonic() - t0 < 60
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_device_that_cannot_compile_creates_nothing(tmp_path, monkeypatch) -> None:
@@ -211,6 +301,8 @@ def test_a_failed_run_removes_the_folder_it_created(tmp_path) -> None:
     assert not (tmp_path / "kept" / "out" / ".s2cl.lock").exists()
 
 
+# -- V7: a killed sweep resumes with the same command ---------------------------------------------------------
+
 def test_an_empty_chunks_folder_without_manifest_is_a_fresh_folder(tmp_path) -> None:
     from s2cl.sweep.engine import MANIFEST, run_sweep
 
@@ -236,6 +328,24 @@ def test_metrics_and_results_do_not_depend_on_the_chunk(tmp_path) -> None:
     files = [run_sweep(gvmi_job(chunk=c), tmp_path / f"c{c}", evaluator=ev).read_bytes() for c in (3, 100)]
     assert files[0] == files[1]
 
+
+def test_a_sweep_resumes_in_its_own_chunks_under_another_budget(tmp_path) -> None:
+    path = scene(tmp_path)
+    first = run("optimise", "-q", str(path), "-o", "out", "--chunk", "2", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    out = tmp_path / "out"
+    reference = (out / "results.parquet").read_bytes()
+    (out / "results.parquet").unlink()
+    (out / "chunks" / "part-0000000002.parquet").unlink()
+    again = run("sweep", "run", str(path), "-o", "out", "--max-memory", "3G", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "4 configurations already done, 2 to go" in again.stdout and "chunks of 2" in again.stdout
+    assert (out / "results.parquet").read_bytes() == reference
+    line = one_line_error(run("sweep", "run", "-q", str(path), "-o", "out", "--chunk", "3", cwd=tmp_path), "--chunk")
+    assert "runs in chunks of 2" in line
+
+
+# -- V8: no stale or leftover files ---------------------------------------------------------------------------
 
 def test_sigterm_removes_the_temporary_file_and_exits_143(tmp_path) -> None:
     path = scene(tmp_path, **{"copies = 2": "copies = 5000"})
