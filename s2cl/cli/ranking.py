@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import rich_console
+from s2cl.sensor.names import safe_file_part
 
 
 def report_sweep(df: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
@@ -18,7 +19,7 @@ def report_sweep(df: Any, summary: dict[str, Any], folder: Path, bands: list[str
     plots = _paper(df, summary, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
-    written += [heatmap(df, b, folder / f"heatmap_{b}.png") for b in moving] + plots
+    written += [heatmap(df, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
     _print_sweep(summary)
     _print_paper(summary)
     return written
@@ -33,7 +34,7 @@ def _paper(df: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
         return []
     summary["paper"] = comparison
     if "band" in comparison:
-        return [heatmap_vs_paper(comparison, folder / f"heatmap_{comparison['band']}_vs_paper.png")]
+        return [heatmap_vs_paper(comparison, folder / f"heatmap_{safe_file_part(comparison['band'])}_vs_paper.png")]
     return []
 
 

@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, output_dir, quiet_option, runtime
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, output_dir, quiet_option, runtime
 from s2cl.cli.ranking import report_sweep
 
 
@@ -111,6 +111,8 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
+    if scheduler:
+        scheduler = check_scheduler(scheduler)
     sc = Scene.load(scene)
     out, where = output_dir(sc, output)
     checked = check_sweep(sc)
@@ -177,7 +179,7 @@ def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     df, meta = load(results)
     folder = results if results.is_dir() else results.parent
     bands = [check_band(df, band, results)] if band else bands_of(df)
-    check_output_dir(folder)
+    check_output_dir(folder, writes=(results.name,))
     with claim(folder):
         previous = folder / "summary.json"
         # the reference row (the sensor's own bands), run time and warnings come from the run, not the table

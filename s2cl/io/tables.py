@@ -6,6 +6,7 @@ import csv
 from pathlib import Path
 
 from s2cl.errors import InputError
+from s2cl.io.inputs import input_file
 
 #: largest CSV file read (bytes): parsing takes about ten times its size in memory
 MAX_CSV_BYTES = 256 * 2**20
@@ -20,11 +21,9 @@ def read_csv_rows(path: str | Path, *, min_rows: int = 1, what: str = "file",
 
     :raises InputError: the file is missing, unreadable, or has fewer than ``min_rows`` data rows.
     """
-    p = Path(path)
+    p = input_file(path, what=what)
     try:
-        if p.exists() and not p.is_file():
-            raise InputError(f"{what} is not a regular file", source=p)
-        if p.exists() and p.stat().st_size > MAX_CSV_BYTES:
+        if p.stat().st_size > MAX_CSV_BYTES:
             raise InputError(f"{what} is larger than {MAX_CSV_BYTES >> 20} MiB", source=p)
         text = p.read_text(encoding="utf-8-sig")
     except FileNotFoundError as err:
@@ -49,10 +48,10 @@ def read_csv_rows(path: str | Path, *, min_rows: int = 1, what: str = "file",
     return header, [(n, row) for (n, _), row in zip(lines[1:], rows[1:], strict=True)]
 
 
-def read_csv_table(path: str | Path) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of a CSV table whose rows all have the header's length."""
+def read_csv_table(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header and (line number, fields) of each row of a CSV table whose rows all have the header's length."""
     header, rows = read_csv_rows(path)
     for line_no, row in rows:
         if len(row) != len(header):
             raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=path)
-    return header, [row for _, row in rows]
+    return header, rows
