@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.builds import STRICT_ENV, pyopencl, quiet_build, save_source
-from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, select
+from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, pyopencl_cache_problem, select
 from s2cl.cl.vectypes import VALID_LANES, VecTypes
 from s2cl.errors import BuildError, DeviceError, InputError
 
@@ -27,6 +27,9 @@ class Runtime:
     def __init__(self, device_spec: str | None = None):
         cl = pyopencl()
         self.device, self.info = select(device_spec)
+        cache = pyopencl_cache_problem()  # found here, before any work, not at the first kernel call
+        if cache:
+            raise DeviceError(cache)
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
@@ -64,7 +67,7 @@ class Runtime:
         if requested is None:
             env = os.environ.get(LANES_ENV, "").strip()
             if env:
-                if not env.isdigit():
+                if not env.isdigit() or int(env) not in VALID_LANES:
                     raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
                 requested = int(env)
         lanes, why = choose_lanes(native=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)

@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import rich_console
+from s2cl.sensor.names import safe_file_part
 
 
 def report_sweep(digest: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
@@ -19,7 +20,7 @@ def report_sweep(digest: Any, summary: dict[str, Any], folder: Path, bands: list
     plots = _paper(digest, summary, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
-    written += [heatmap(digest, b, folder / f"heatmap_{b}.png") for b in moving] + plots
+    written += [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
     _print_sweep(summary)
     _print_paper(summary)
     return written
@@ -34,7 +35,7 @@ def _paper(digest: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
         return []
     summary["paper"] = comparison
     if "band" in comparison:
-        return [heatmap_vs_paper(comparison, folder / f"heatmap_{comparison['band']}_vs_paper.png")]
+        return [heatmap_vs_paper(comparison, folder / f"heatmap_{safe_file_part(comparison['band'])}_vs_paper.png")]
     return []
 
 

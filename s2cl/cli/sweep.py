@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, output_dir, quiet_option, runtime
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, output_dir, quiet_option, runtime
 from s2cl.cli.ranking import report_sweep
 
 
@@ -110,12 +110,14 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     from s2cl.scene.scene import Scene
     from s2cl.scene.validate import check_sweep
     from s2cl.sweep.budget import require_sweep_disk, sweep_resources
-    from s2cl.sweep.engine import check_folder, check_scheduler, kernel_evaluator, resumable_chunk
+    from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk
     from s2cl.sweep.plan import plan_sweep
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
     budget = Budget.of(max_memory)
+    if scheduler:
+        scheduler = check_scheduler(scheduler)
     sc = Scene.load(scene)
     out, where = output_dir(sc, output)
     checked = check_sweep(sc, budget=budget)
@@ -124,7 +126,7 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     require_sweep_disk(checked, out)
     runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
     if scheduler:
-        check_scheduler(scheduler)
+        reach_scheduler(scheduler)
     t0 = time.perf_counter()
     job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget)
     check_folder(job, out, overwrite=overwrite)
@@ -198,7 +200,7 @@ def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     columns = Digest.of_columns(path)
     folder = results if results.is_dir() else results.parent
     bands = [check_band(columns, band, results)] if band else bands_of(columns)
-    check_output_dir(folder)
+    check_output_dir(folder, writes=(results.name,))
     previous = folder / "summary.json"
     # the reference row (the sensor's own bands), run time and warnings come from the run, not the table
     kept = read_summary(previous) if previous.exists() else {}

@@ -268,9 +268,9 @@ def scene_library(scene: Scene, *, budget: Budget | None = None) -> SpectralLibr
 
     spec = scene.spec.surface.library
     assert spec is not None
-    name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
     want = scene.spec.surface.quantity
-    lib = load_library(name, scene.grid, source=scene.source, key="surface.library", quantity=want, budget=budget)
+    lib = load_library(spec, scene.grid, source=scene.source, key="surface.library", quantity=want,
+                       base_dir=scene.base_dir, budget=budget)
     if lib.quantity != want:
         raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
                          source=scene.source, key="surface.quantity")

@@ -33,11 +33,18 @@ def _existing_ancestor(path: Path) -> Path:
     return p
 
 
-def check_output_dir(path: str | Path, *, where: str = "") -> Path:
-    """Check that ``path`` is, or can become, a writable folder; create nothing.
+def check_output_dir(path: str | Path, *, where: str = "", writes: tuple[str, ...] = ()) -> Path:
+    """Check that ``path`` is, or can become, a writable folder that s2cl may write into; create nothing.
+
+    s2cl writes only into a new folder, an empty one, or one of its own output folders (one that holds
+    ``.s2cl.lock`` or a file s2cl writes: :data:`OUTPUT_NAMES`, or ``writes``); never into the filesystem's
+    root, a system folder (:data:`SYSTEM_FOLDERS`) or the home folder itself, where its files would land
+    beside the user's.
 
     :param where: how the user chose the folder (``--output``, ``output.directory in s.toml``),
         appended to the message so the user knows what to change.
+    :param writes: further names of files the command writes (a study's ``NAME.json``), which mark
+        the folder as an s2cl output folder too.
     :raises OutputError: naming the folder and what is wrong.
     """
     out = Path(path)
@@ -47,18 +54,71 @@ def check_output_dir(path: str | Path, *, where: str = "") -> Path:
     base = _existing_ancestor(out)
     if not base.is_dir():
         raise OutputError(f"cannot be created: {base} is not a folder{hint}", path=out)
-    if hasattr(os, "statvfs"):  # POSIX: what kind of filesystem the folder would be on
-        try:
-            fs = os.statvfs(base)
-        except OSError as err:
-            raise OutputError(f"cannot be checked ({os.strerror(err.errno or 0)}){hint}", path=out) from err
-        if fs.f_blocks == 0:
-            raise OutputError(f"is on a virtual filesystem (such as /proc) that holds no files{hint}", path=out)
-        if fs.f_flag & os.ST_RDONLY:
-            raise OutputError(f"is on a read-only filesystem{hint}", path=out)
+    _check_filesystem(base, out, hint)
     for folder in (base, out / "chunks"):
         if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
             raise OutputError(f"{folder} is not writable{hint}", path=out)
+    _check_not_foreign(out, hint, writes)
+    return out
+
+
+def _check_filesystem(base: Path, out: Path, hint: str) -> None:
+    """Refuse a folder on a virtual (``/proc``) or read-only filesystem (POSIX; ``base`` exists)."""
+    if not hasattr(os, "statvfs"):
+        return
+    try:
+        fs = os.statvfs(base)
+    except OSError as err:
+        raise OutputError(f"cannot be checked ({os.strerror(err.errno or 0)}){hint}", path=out) from err
+    if fs.f_blocks == 0:
+        raise OutputError(f"is on a virtual filesystem (such as /proc) that holds no files{hint}", path=out)
+    if fs.f_flag & os.ST_RDONLY:
+        raise OutputError(f"is on a read-only filesystem{hint}", path=out)
+
+
+#: files and folders s2cl writes into an output folder (besides a study's NAME.json / NAME.png)
+OUTPUT_NAMES = (LOCK_NAME, "simulation.nc", "simulation.json", "results.parquet", "summary.json", "manifest.json",
+                "chunks")
+#: folders no run may write into (nor the filesystem's root, nor the home folder itself)
+SYSTEM_FOLDERS = ("/bin", "/boot", "/dev", "/etc", "/lib", "/lib32", "/lib64", "/opt", "/proc", "/root", "/run",
+                  "/sbin", "/srv", "/sys", "/tmp", "/usr", "/var", "/home", "/Users", "/System", "/Library",
+                  "/Applications", "/private", "C:\\Windows")
+
+
+def _check_not_foreign(out: Path, hint: str, writes: tuple[str, ...]) -> None:
+    """Refuse the root, a system folder, the home folder, and an existing folder that holds files but none
+    of s2cl's (its files would be mixed with, or replace, the user's)."""
+    real = Path(os.path.realpath(out))
+    home = Path(os.path.expanduser("~"))
+    if real == Path(real.anchor) or str(real) in SYSTEM_FOLDERS or (home != Path(home.anchor) and real == home):
+        raise OutputError(f"is the filesystem's root, a system folder or the home folder: s2cl writes into a "
+                          f"folder of its own (e.g. s2cl-out/NAME){hint}", path=out)
+    if not out.is_dir():
+        return
+    try:
+        entries = [e.name for e in os.scandir(out)]
+    except OSError as err:
+        raise OutputError(f"cannot be listed ({os.strerror(err.errno or 0)}){hint}", path=out) from err
+    ours = set(OUTPUT_NAMES) | set(writes)
+    if entries and not any(e in ours or e.startswith("heatmap_") for e in entries):
+        raise OutputError(f"holds files that s2cl did not write (such as {sorted(entries)[0]!r}): s2cl writes into a "
+                          f"new or empty folder, or one of its own output folders; choose another folder{hint}",
+                          path=out)
+
+
+def check_output_file(path: str | Path, *, where: str = "") -> Path:
+    """Check that file ``path`` can be written into its folder, which must exist (nothing is created)."""
+    out = Path(path)
+    hint = f" (set by {where})" if where else ""
+    folder = out.parent
+    if out.is_dir():
+        raise OutputError(f"is a folder, not a file{hint}", path=out)
+    if not folder.is_dir():
+        raise OutputError(f"cannot be written: its folder {folder} does not exist (s2cl does not create it){hint}",
+                          path=out)
+    _check_filesystem(folder, out, hint)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot be written: {folder} is not writable{hint}", path=out)
     return out
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from s2cl.errors import InputError
+from s2cl.io.inputs import input_file
 
 #: largest CSV spectral library read (bytes); it is parsed line by line into one float64 array
 MAX_CSV_BYTES = 256 * 2**20
@@ -51,14 +52,12 @@ def open_csv(path: str | Path, *, min_rows: int = 1, what: str = "file", rows_ar
     :raises InputError: the file is missing, unreadable, larger than ``max_bytes``, or has fewer than
         ``min_rows`` data rows.
     """
-    p = Path(path)
+    p = input_file(path, what=what)
     try:
-        if not p.exists():
-            raise InputError(f"{what} not found", source=p)
-        if not p.is_file():
-            raise InputError(f"{what} is not a regular file", source=p)
         if p.stat().st_size > max_bytes:
             raise InputError(f"{what} is larger than {max_bytes >> 20} MiB", source=p)
+    except FileNotFoundError as err:
+        raise InputError(f"{what} not found", source=p) from err
     except OSError as err:
         raise InputError(f"cannot read the file ({err.strerror or type(err).__name__})", source=p) from err
     header_line, rows = None, 0
@@ -112,10 +111,10 @@ def read_csv_rows(path: str | Path, *, min_rows: int = 1, what: str = "file",
     return stream.header, list(stream)
 
 
-def read_csv_table(path: str | Path) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of a CSV table whose rows all have the header's length."""
+def read_csv_table(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header and (line number, fields) of each row of a CSV table whose rows all have the header's length."""
     header, rows = read_csv_rows(path)
     for line_no, row in rows:
         if len(row) != len(header):
             raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=path)
-    return header, [row for _, row in rows]
+    return header, rows

@@ -4,7 +4,6 @@ TOA radiance in W m-2 sr-1 um-1)."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +12,7 @@ import numpy as np
 from s2cl.errors import InputError, ResourceError, key_token, token
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
+from s2cl.io.inputs import parse_number
 from s2cl.io.tables import CsvStream, open_csv
 from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
 
@@ -206,7 +206,7 @@ def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> np.ndar
         for c, cell in enumerate(row):
             text = cell.strip()
             try:
-                out[c, r] = float(text) if text else np.nan
+                out[c, r] = parse_number(text) if text else np.nan
             except ValueError as err:
                 raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
                                  key=key_token(header[c])) from err
@@ -249,27 +249,36 @@ def load_envi_library(
 
 
 def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None) -> tuple[dict, Any]:
-    """The header's metadata (lower-cased keys) and SPy's library, once the data file's size is checked
-    and the memory of reading it onto ``grid`` is within ``budget``."""
-    try:
-        from spectral.io import envi
-        from spectral.utilities.errors import SpyException
-    except ImportError as err:  # spectral is a core dependency, but say so clearly
-        from s2cl.errors import DependencyError
+    """The header's metadata (lower-cased keys) and SPy's library, once the header's layout and the data
+    file's size are checked (:mod:`s2cl.io.envi`: errors name the header key) and the memory of reading it
+    onto ``grid`` is within ``budget``."""
+    from spectral.io import envi
+    from spectral.utilities.errors import SpyException
 
-        raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
+    from s2cl.io.envi import envi_layout, read_envi_header
+
+    # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+    meta = read_envi_header(hdr, "ENVI spectral library")
+    if str(meta.get("file type", "")).strip().lower() != "envi spectral library":
+        raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
+    layout = envi_layout(meta, hdr, data, max_bytes=MAX_ENVI_BYTES)
+    if layout.bands != 1:
+        raise InputError(f"an ENVI spectral library has bands = 1 (spectra are lines, wavelengths samples), got "
+                         f"{layout.bands}", source=hdr, key="bands")
+    for key, want, what in (("wavelength", layout.samples, "samples"), ("spectra names", layout.lines, "lines")):
+        if key in meta and len(meta[key]) != want:
+            raise InputError(f"lists {len(meta[key])} values for {what} = {want}", source=hdr, key=key)
     try:
-        meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
-        values, item = _check_envi_size(meta, data, hdr)
         # SPy's array in the file's type, float64 spectra, a float64 copy without the bad bands (bbl)
-        read = values * (item + 8.0 + (8.0 if "bbl" in meta else 0.0))
-        require_library_memory(budget, int(str(meta["lines"]).strip()), read, grid, source=str(hdr))
+        values = layout.samples * layout.lines * layout.bands
+        read = values * (layout.item_bytes + 8.0 + (8.0 if "bbl" in meta else 0.0))
+        require_library_memory(budget, layout.lines, read, grid, source=str(hdr))
         lib = envi.open(str(hdr), str(data))
     except ResourceError:  # the memory check: its own message
         raise
     except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
-    if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
+    if not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
     return meta, lib
 
@@ -297,35 +306,14 @@ def _good_bands(meta: dict, n_bands: int, hdr: Path) -> np.ndarray:
         raise InputError("must list numbers (1 good, 0 bad)", source=hdr, key="bbl") from err
     if good.size != n_bands:
         raise InputError(f"{good.size} entries for {n_bands} bands", source=hdr, key="bbl")
+    if good.sum() < 2:
+        raise InputError(f"flags {n_bands - int(good.sum())} of {n_bands} bands bad; a library needs at least two "
+                         "good bands (1 good, 0 bad)", source=hdr, key="bbl")
     return good
 
 
-#: bytes per value of the ENVI data types a spectral library may use (real numbers only)
-ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
 #: largest ENVI library read (bytes of data): a library is held in memory as float64 several times
 MAX_ENVI_BYTES = 256 * 2**20
-
-
-def _check_envi_size(meta: dict, data: Path, hdr: Path) -> tuple[int, int]:
-    """The data file holds what the header declares (samples × lines × bands values of its data type, after
-    the header offset); checked before SPy allocates anything, so a header cannot ask for petabytes.
-    Returns (number of values, bytes per value)."""
-    try:
-        dims = [int(str(meta[k]).strip()) for k in ("samples", "lines", "bands")]
-        item = ENVI_ITEM_BYTES[str(meta["data type"]).strip()]
-        offset = int(str(meta.get("header offset", "0")).strip() or 0)
-    except (KeyError, ValueError) as err:
-        raise InputError("header lacks valid samples, lines, bands, data type or header offset", source=hdr) from err
-    if min(dims) < 1 or offset < 0:
-        raise InputError(f"samples, lines and bands must be >= 1 and the offset >= 0, got {dims} and {offset}",
-                         source=hdr)
-    need = offset + math.prod(dims) * item
-    have = data.stat().st_size
-    if need > have:
-        raise InputError(f"the header declares {need:,} bytes of data, {data.name} holds {have:,}", source=hdr)
-    if need > MAX_ENVI_BYTES:
-        raise InputError(f"the header declares {need:,} bytes of data (at most {MAX_ENVI_BYTES:,})", source=hdr)
-    return math.prod(dims), item
 
 
 def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
@@ -340,21 +328,21 @@ def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
 
 
 def _envi_paths(path: Path) -> tuple[Path, Path]:
-    """(header, data) for a path naming either file of an ENVI library."""
+    """(header, data) for a path naming either file of an ENVI library; both must be regular files."""
+    from s2cl.io.inputs import input_file
+
     if path.suffix.lower() == ".hdr":
-        if not path.is_file():
-            raise InputError("ENVI header not found", source=path)
+        input_file(path, what="ENVI header")
         stem = path.with_suffix("")
         candidates = [stem] if stem.suffix.lower() == ".sli" else [stem.with_suffix(".sli"), stem.with_suffix(".SLI")]
-        data = next((c for c in candidates if c.is_file()), None)
+        data = next((c for c in candidates if c.exists()), None)
         if data is None:
             looked = ", ".join(c.name for c in candidates)
             raise InputError(f"ENVI library data file not found (looked for {looked})", source=path)
-        return path, data
-    if not path.is_file():
-        raise InputError("ENVI library data file (.sli) not found", source=path)
+        return path, input_file(data, what="ENVI library data file")
+    input_file(path, what="ENVI library data file (.sli)")
     candidates = [path.with_name(path.name + ".hdr"), path.with_suffix(".hdr"), path.with_suffix(".HDR")]
-    hdr = next((c for c in candidates if c.is_file()), None)
+    hdr = next((c for c in candidates if c.exists()), None)
     if hdr is None:
         raise InputError(f"ENVI header not found (looked for {', '.join(c.name for c in candidates)})", source=path)
-    return hdr, path
+    return input_file(hdr, what="ENVI header"), path

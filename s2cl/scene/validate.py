@@ -85,6 +85,11 @@ def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) 
 
 def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
     if scene.spec.surface.library is None:
+        from s2cl.io.inputs import input_file
+
+        cube = scene.spec.surface.cube
+        assert cube is not None  # the scene has one of them (s2cl.scene.scene)
+        input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
     from s2cl.forward.simulate import scene_library
 
@@ -94,6 +99,9 @@ def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
 def _space(scene: Scene) -> SweepSpace | None:
     if scene.spec.sweep is None:
         return None
+    if scene.spec.surface.cube is not None:
+        raise InputError("a [sweep] runs over a spectral library (surface.library), not an image cube: remove "
+                         "[sweep] to simulate the cube, or sweep a library", source=scene.source, key="sweep")
     from s2cl.sweep.tables import sweep_space
 
     return sweep_space(scene)

@@ -308,7 +308,7 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
     return merge_results(job, out)
 
 
-def check_scheduler(address: str, timeout: float = 10.0) -> None:
+def reach_scheduler(address: str, timeout: float = 10.0) -> None:
     """Reach the Dask scheduler at ``address`` (a TCP connection within ``timeout`` seconds, then closed): a
     one-line :class:`InputError` (key ``--scheduler``) before anything is created when the address is
     malformed or nothing listens there."""
