@@ -18,6 +18,7 @@ from s2cl.cl.vectypes import VALID_LANES, VecTypes
 from s2cl.errors import BuildError, DeviceError, InputError
 
 _log = logging.getLogger(__name__)
+_PROBE_SOURCE = "__kernel void probe(__global float *x) { x[get_global_id(0)] = 1.0f; }\n"
 
 
 class Runtime:
@@ -32,6 +33,7 @@ class Runtime:
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
+        self._probed = False
         _log.debug("OpenCL device %s (%s); native vector width float %d, double %d; lanes float32 %d, float64 %d",
                    self.info.spec, self.name, self.native_lanes("float32"), self.native_lanes("float64"),
                    self.lanes("float32"), self.lanes("float64"))
@@ -117,6 +119,13 @@ class Runtime:
                 raise fail(None, log, f"compiler warnings (${STRICT_ENV}=error)")
         self._programs[key] = program
         return program
+
+    def check_builds(self) -> None:
+        """Build a minimal kernel (once per runtime): :class:`BuildError` now, before a run creates anything,
+        when the device is listed but cannot compile (a driver without a backend for this CPU)."""
+        if not self._probed:
+            self.build(_PROBE_SOURCE, template="probe.cl")
+            self._probed = True
 
     def kernel(self, program: Any, name: str) -> Any:
         """A kernel object from ``program`` (create once, reuse)."""

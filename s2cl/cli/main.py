@@ -8,6 +8,7 @@ The commands live by subject: :mod:`~s2cl.cli.simulate`, :mod:`~s2cl.cli.sweep` 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 import click
@@ -51,6 +52,24 @@ for _command in (simulate, optimise, sweep, scenes, libraries, devices, sensor, 
     cli.add_command(_command)
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: raised in the main thread, so that every ``finally`` and :func:`s2cl.io.output.atomic_path`
+    cleanup runs as for Ctrl-C (a BaseException: no ``except Exception`` swallows it)."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def _on_sigterm() -> None:
+    """Turn SIGTERM into :class:`Terminated` (only where Python owns the main thread's signals)."""
+    try:
+        if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread (an embedding application): leave its handlers alone
+        pass
+
+
 #: click >= 8.2 raises this for a group called without a command (8.1 prints the help and exits 0 itself)
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
@@ -60,9 +79,11 @@ def main(argv: list[str] | None = None) -> None:
 
     The safety nets below catch what a user's environment can still cause after every check (a disk
     filled by another process, memory taken by another process, a file removed during the run): one
-    line naming the file where there is one, exit code 2, never a traceback. Ctrl-C prints "aborted"
-    and exits 130.
+    line naming the file where there is one, exit code 2, never a traceback. Ctrl-C (exit code 130) and
+    SIGTERM (exit code 143) remove the temporary files of the writes under way and leave finished
+    files and sweep chunks in place.
     """
+    _on_sigterm()
     _tolerant_streams()
     args = sys.argv[1:] if argv is None else list(argv)
     try:
@@ -75,6 +96,9 @@ def main(argv: list[str] | None = None) -> None:
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         sys.exit(130)
+    except Terminated:
+        click.echo("terminated", err=True)
+        sys.exit(143)
     except _NO_ARGS_IS_HELP as err:  # `s2cl sweep` alone: its help, not an error
         click.echo(err.ctx.get_help())
     except click.UsageError as err:

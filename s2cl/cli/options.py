@@ -31,10 +31,13 @@ def output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
 
 
 def runtime(device: str | None) -> Any:
-    """The OpenCL runtime of ``device``; a device that does not exist is refused here, before any work."""
+    """The OpenCL runtime of ``device``; a device that does not exist, or cannot compile a kernel, is refused
+    here, before any work."""
     from s2cl.cl.runtime import get_runtime
 
-    return get_runtime(device)
+    rt = get_runtime(device)
+    rt.check_builds()
+    return rt
 
 
 #: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address
@@ -46,7 +49,7 @@ SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 def check_scheduler(address: str) -> str:
     """``address`` when it has the form of a Dask scheduler address (``tcp://HOST:PORT`` or ``HOST:PORT``),
     else a one-line :class:`~s2cl.errors.InputError` naming ``--scheduler``; checked before anything is
-    created (whether the scheduler answers is found out when the sweep connects)."""
+    created (whether it answers: :func:`s2cl.sweep.engine.reach_scheduler`)."""
     from s2cl.errors import InputError, token
 
     m = _SCHEDULER.fullmatch(address.strip())

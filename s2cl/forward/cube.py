@@ -10,6 +10,7 @@ band's grid.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -160,9 +161,20 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
 
 
-def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None,
-                  *, progress: Progress | None = None) -> xr.Dataset:
-    """Simulate an image cube (the scene's ``surface.cube`` file, or ``cube`` given in memory) on ``rt``."""
+@dataclass(frozen=True)
+class SceneCube:
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``."""
+
+    spectra: np.ndarray
+    rows: int
+    cols: int
+    source: str
+
+
+def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
+                    wavelengths_nm: np.ndarray | None = None) -> SceneCube:
+    """The scene's ``surface.cube`` file (or ``cube`` given in memory) loaded onto the scene's grid, with
+    every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it creates the folder."""
     s = scene.spec
     source = scene.source
     if cube is None:
@@ -175,6 +187,24 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wav
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
+    bands = scene.sensor.bands
+    for gsd in sorted({b.gsd_m for b in bands}):
+        factor = _factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
+        if factor > 1 and (rows < factor or cols < factor):
+            raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
+                             f"{gsd:g} m bands", source=source, key="surface.gsd_m")
+    return SceneCube(spectra, rows, cols, source)
+
+
+def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
+                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None) -> xr.Dataset:
+    """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
+    already loaded by :func:`load_scene_cube`) on ``rt``."""
+    s = scene.spec
+    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
+    rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
+    gsd_in = s.surface.gsd_m
+    assert gsd_in is not None
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
     if progress:

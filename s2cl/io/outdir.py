@@ -3,17 +3,19 @@
 A command that writes into a folder first calls :func:`check_output_dir` (nothing is created: a
 folder that cannot be written, on a read-only or virtual filesystem such as ``/proc``, or below
 a file, is a one-line :class:`~s2cl.errors.OutputError` before any work). When the work starts it
-holds :func:`claim` for the folder: an advisory lock (``.s2cl.lock``, the ``filelock`` package)
-that a second run into the same folder cannot take, so two runs never compute or write the same
-files; it also removes the temporary files (``.NAME.XXXX.tmp``, see :mod:`s2cl.io.output`) that a
-killed run left behind.
+holds :func:`claim` for the folder: an advisory lock (``.s2cl.lock``) that a second run into the same
+folder cannot take, so two runs never compute or write the same files; it also removes the temporary
+files (``.NAME.XXXX.tmp``, see :mod:`s2cl.io.output`) that a killed run left behind. The lock file
+exists only while a run holds it (only a killed run leaves it, and the next run takes it over). A run
+that fails before it has written a result removes the folder it created.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -123,30 +125,123 @@ def check_output_file(path: str | Path, *, where: str = "") -> Path:
 @contextmanager
 def claim(path: str | Path) -> Iterator[Path]:
     """Create folder ``path`` and hold its advisory lock for the duration; remove stale temporary
-    files found there. A second claim on the same folder (another process) fails at once.
+    files found there. A second claim on the same folder (another process) fails at once. When the
+    body fails and the folder was created here and holds no result yet, the folder is removed.
 
     :raises OutputError: the folder cannot be created, or another run holds it.
     """
-    from filelock import FileLock, Timeout
-
     out = Path(path)
+    created = _missing_parts(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(f"cannot create the folder ({os.strerror(err.errno or 0)})", path=out) from err
-    lock = FileLock(out / LOCK_NAME, timeout=0)
     try:
-        lock.acquire()
-    except Timeout:
-        raise OutputError("another s2cl run is writing into this folder (it holds .s2cl.lock); wait for it to "
-                          "finish or choose another --output", path=out) from None
-    except OSError as err:
-        raise OutputError(f"cannot lock the folder ({os.strerror(err.errno or 0)})", path=out) from err
+        release = _lock(out / LOCK_NAME)
+    except BaseException:
+        _remove_empty(created)
+        raise
     try:
         remove_stale_temps(out)
         yield out
-    finally:
-        lock.release()
+    except BaseException:
+        if created and _holds_no_result(out):
+            _remove_unfinished(out)
+        release()
+        _remove_empty(created)
+        raise
+    release()
+
+
+def _missing_parts(out: Path) -> list[Path]:
+    """The folders of ``out`` (deepest first) that do not exist yet and a claim would create."""
+    missing = []
+    p = Path(os.path.abspath(out))
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    return missing
+
+
+_UNFINISHED = ("manifest.json", "chunks", LOCK_NAME)
+
+
+def _holds_no_result(out: Path) -> bool:
+    """Only what a run writes before its first result: the lock, a sweep's manifest, an empty ``chunks/``."""
+    return all(p.name in _UNFINISHED and not (p.is_dir() and any(p.iterdir())) for p in out.iterdir())
+
+
+def _remove_unfinished(out: Path) -> None:
+    """Remove a failed run's manifest and empty ``chunks/`` (the caller holds the lock)."""
+    (out / "manifest.json").unlink(missing_ok=True)
+    try:
+        (out / "chunks").rmdir()
+    except OSError:
+        pass
+
+
+def _remove_empty(created: list[Path]) -> None:
+    """Remove the folders a claim created, deepest first, as long as they are empty (another run's files stay)."""
+    for p in created:
+        try:
+            p.rmdir()
+        except FileNotFoundError:
+            continue
+        except OSError:
+            return
+
+
+def _lock(path: Path) -> Callable[[], None]:
+    """Take the advisory lock ``path`` (created, held, and removed on release); returns the release.
+
+    POSIX: ``flock`` on the file, then a check that the locked file is still the one at ``path`` (a run
+    that released the lock removed it; one that locked the removed file retries on the new one), so
+    removing the file on release never lets two runs hold the folder. Elsewhere: :mod:`filelock`.
+    """
+    busy = ("another s2cl run is writing into this folder (it holds .s2cl.lock); wait for it to finish or "
+            "choose another --output")
+    try:
+        import fcntl
+    except ImportError:  # Windows
+        from filelock import FileLock, Timeout
+
+        lock = FileLock(path, timeout=0)
+        try:
+            lock.acquire()
+        except Timeout:
+            raise OutputError(busy, path=path.parent) from None
+        except OSError as err:
+            raise OutputError(f"cannot lock the folder ({os.strerror(err.errno or 0)})", path=path.parent) from err
+        return lock.release
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as err:
+            raise OutputError(f"cannot lock the folder ({os.strerror(err.errno or 0)})", path=path.parent) from err
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            os.close(fd)
+            if err.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                raise OutputError(busy, path=path.parent) from None
+            raise OutputError(f"cannot lock the folder ({os.strerror(err.errno or 0)})", path=path.parent) from err
+        held = os.fstat(fd)
+        try:
+            now = os.stat(path)
+        except FileNotFoundError:
+            now = None
+        if now is not None and (now.st_ino, now.st_dev) == (held.st_ino, held.st_dev):
+            break
+        os.close(fd)  # the holder before us removed it: lock the file now at ``path``
+
+    def release() -> None:
+        try:
+            os.unlink(path)  # while still holding it: nobody can lock this file and believe it current
+        except OSError:
+            pass
+        os.close(fd)
+
+    return release
 
 
 def remove_stale_temps(folder: Path) -> list[Path]:

@@ -9,9 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.errors import InputError, key_token, token
+from s2cl.errors import InputError, ResourceError, key_token, token
 from s2cl.grid import SpectralGrid, check_wavelengths
+from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.io.inputs import parse_number
+from s2cl.io.tables import CsvStream, open_csv
 from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
 
 #: Largest wavelength gap (nm) in a user file that linear interpolation may bridge; a wider gap
@@ -64,8 +66,9 @@ def _check_user_spectra(
     last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
     used = slice(first, last + 1)
     lo, hi = REFLECTANCE_RANGE if quantity == "reflectance" else RADIANCE_RANGE
-    for i, row in enumerate(spectra[:, used]):
-        w = w_nm[used]
+    w = w_nm[used]
+    for i in range(spectra.shape[0]):
+        row = spectra[i, used]  # one row at a time: no copy of the whole library
         bad = ~np.isfinite(row)
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
@@ -126,6 +129,7 @@ def load_csv_library(
     scale: float = 1.0,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
     quantity: Quantity = "reflectance",
+    budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Read a CSV spectral library and interpolate it linearly onto ``grid``.
 
@@ -138,11 +142,15 @@ def load_csv_library(
     :param scale: multiplies every value (``0.01`` for percent).
     :param max_gap_nm: widest wavelength gap inside the grid that interpolation may bridge.
     :param quantity: what the values are: surface reflectance (0–1) or TOA radiance (W m⁻² sr⁻¹ µm⁻¹).
+    :param budget: memory the reading may take (default :meth:`Budget.of`): the file's values (rows ×
+        columns from its header and row count) and the spectra on ``grid`` are sized before any value is
+        parsed, and a file that would not fit is a one-line :class:`~s2cl.errors.ResourceError`.
     :raises InputError: missing/malformed file, bad wavelengths, NaN/inf, values that are not
         reflectance, or data not covering the grid; the message names file and column.
     """
     source = str(path)
-    header, rows = _read_csv_rows(Path(path))
+    stream = open_csv(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
+    header = stream.header
     first = header[0].strip().lower()
     if first in {"wavelength_nm", "wavelength_um", "wavelength_µm"}:
         declared = "nm" if first.endswith("nm") else "um"
@@ -160,29 +168,45 @@ def load_csv_library(
         raise InputError("holds a wavelength column but no spectrum column", source=source)
     if len(set(names)) != len(names) or any(not n for n in names):
         raise InputError("spectrum column names must be non-empty and unique", source=source)
-    values = _csv_values(rows, header, source=source)
-    w_nm = wavelengths_to_nm(values[:, 0], unit, source=source, key=header[0])
-    spectra = np.ascontiguousarray(values[:, 1:].T) * float(scale)
+    require_library_memory(budget, len(names), stream.rows * len(header) * 8.0, grid, source=source)
+    values = _csv_values(stream, header, source=source)
+    w_nm = wavelengths_to_nm(values[0], unit, source=source, key=header[0])
+    spectra = values[1:]  # (spectra, rows), C-contiguous: no copy
+    if float(scale) != 1.0:
+        spectra *= float(scale)
     return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
 
 
-def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """The header and the (line number, fields) of each wavelength row."""
-    from s2cl.io.tables import read_csv_rows
+#: bytes per spectrum and grid wavelength of a library read for a run: the float64 spectra on the grid (the
+#: finiteness checks and the interpolation work row by row) and, right after, their TOA radiance, as
+#: ``s2cl simulate`` and the sweeps count them (:mod:`s2cl.forward.stream`, :mod:`s2cl.sweep.budget`)
+LIBRARY_BYTES_PER_GRID_VALUE = 24
 
-    return read_csv_rows(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
+
+def require_library_memory(budget: Budget | None, n_spectra: int, read_bytes: float, grid: SpectralGrid, *,
+                           source: str) -> None:
+    """Refuse (one line naming the file, before it is read) a library whose reading would exceed ``budget``:
+    ``read_bytes`` for the file's values as read, plus its spectra on ``grid``."""
+    budget = budget or Budget.of()
+    on_grid = float(LIBRARY_BYTES_PER_GRID_VALUE) * grid.size
+    need = BASELINE_BYTES + read_bytes + n_spectra * on_grid
+    most = largest_fitting(budget.memory_bytes, BASELINE_BYTES, on_grid + read_bytes / max(n_spectra, 1))
+    budget.require(need, what=f"reading its {n_spectra:,} spectra onto the grid {grid.describe()}", key=None,
+                   source=source, fits=f"at most {min(most, n_spectra):,} spectra fit on this grid; use fewer "
+                   "spectra or a coarser grid (grid.step_nm)")
 
 
-def _csv_values(rows: list[tuple[int, list[str]]], header: list[str], *, source: str) -> np.ndarray:
-    """The rows as numbers, float64 (n_rows, n_columns); empty cells become NaN."""
-    out = np.empty((len(rows), len(header)))
-    for r, (line_no, row) in enumerate(rows):
+def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> np.ndarray:
+    """The rows as numbers, float64 ``(n_columns, n_rows)`` (a column per row of the file: the spectra are
+    rows of the result); empty cells become NaN. Read one line at a time."""
+    out = np.empty((len(header), stream.rows))
+    for r, (line_no, row) in enumerate(stream):
         if len(row) != len(header):
             raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=source)
         for c, cell in enumerate(row):
             text = cell.strip()
             try:
-                out[r, c] = parse_number(text) if text else np.nan
+                out[c, r] = parse_number(text) if text else np.nan
             except ValueError as err:
                 raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
                                  key=key_token(header[c])) from err
@@ -196,6 +220,7 @@ def load_envi_library(
     wavelength_unit: str | None = None,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
     quantity: Quantity = "reflectance",
+    budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Read an ENVI spectral library (``.sli`` + ``.hdr``, through SPy) onto ``grid``.
 
@@ -203,26 +228,30 @@ def load_envi_library(
     (``lib.sli``). Wavelength units come from the header's ``wavelength units`` (else
     ``wavelength_unit``, else detected); a ``reflectance scale factor`` is divided out,
     values equal to ``data ignore value`` count as missing (an error where the grid needs
-    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies).
+    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies). The memory of
+    reading it (from the header: lines × samples × data type) is checked against ``budget`` first.
     """
     hdr, data = _envi_paths(Path(path))
-    meta, lib = _open_envi(hdr, data)
+    meta, lib = _open_envi(hdr, data, grid, budget)
     centers = lib.bands.centers
     if not centers:
         raise InputError("header has no 'wavelength' list", source=hdr, key="wavelength")
     unit = meta.get("wavelength units") or wavelength_unit
     w_nm = wavelengths_to_nm(np.asarray(centers, dtype=np.float64), unit, source=str(hdr), key="wavelength")
-    spectra = _envi_values(meta, np.asarray(lib.spectra, dtype=np.float64), hdr)
+    names = [str(n).strip() for n in lib.names]
+    spectra = np.asarray(lib.spectra, dtype=np.float64)  # SPy's array in the file's type is let go with ``lib``
+    del lib
+    spectra = _envi_values(meta, spectra, hdr)
     if "bbl" in meta:
         good = _good_bands(meta, w_nm.size, hdr)
         w_nm, spectra = w_nm[good], spectra[:, good]
-    names = [str(n).strip() for n in lib.names]
     return _user_library(w_nm, spectra, names, grid, source=str(data), max_gap_nm=max_gap_nm, quantity=quantity)
 
 
-def _open_envi(hdr: Path, data: Path) -> tuple[dict, Any]:
+def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None) -> tuple[dict, Any]:
     """The header's metadata (lower-cased keys) and SPy's library, once the header's layout and the data
-    file's size are checked (:mod:`s2cl.io.envi`: errors name the header key)."""
+    file's size are checked (:mod:`s2cl.io.envi`: errors name the header key) and the memory of reading it
+    onto ``grid`` is within ``budget``."""
     from spectral.io import envi
     from spectral.utilities.errors import SpyException
 
@@ -240,7 +269,13 @@ def _open_envi(hdr: Path, data: Path) -> tuple[dict, Any]:
         if key in meta and len(meta[key]) != want:
             raise InputError(f"lists {len(meta[key])} values for {what} = {want}", source=hdr, key=key)
     try:
+        # SPy's array in the file's type, float64 spectra, a float64 copy without the bad bands (bbl)
+        values = layout.samples * layout.lines * layout.bands
+        read = values * (layout.item_bytes + 8.0 + (8.0 if "bbl" in meta else 0.0))
+        require_library_memory(budget, layout.lines, read, grid, source=str(hdr))
         lib = envi.open(str(hdr), str(data))
+    except ResourceError:  # the memory check: its own message
+        raise
     except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
     if not hasattr(lib, "names"):
@@ -253,11 +288,14 @@ def _envi_values(meta: dict, spectra: np.ndarray, hdr: Path) -> np.ndarray:
     factor = _header_float(meta, "reflectance scale factor", 1.0, hdr)
     if factor <= 0 or not np.isfinite(factor):
         raise InputError(f"must be > 0, got {factor}", source=hdr, key="reflectance scale factor")
-    if "data ignore value" in meta:
-        ignore = _header_float(meta, "data ignore value", np.nan, hdr)
-        # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
-        spectra = np.where(np.isclose(spectra, ignore, rtol=1e-6, atol=0.0), np.nan, spectra)
-    return spectra / factor
+    ignore = _header_float(meta, "data ignore value", np.nan, hdr) if "data ignore value" in meta else None
+    for a in range(0, spectra.shape[0], 1024):  # in place, a block of rows at a time: no full-size temporaries
+        block = spectra[a : a + 1024]
+        if ignore is not None:
+            # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
+            block[np.isclose(block, ignore, rtol=1e-6, atol=0.0)] = np.nan
+        block /= factor
+    return spectra
 
 
 def _good_bands(meta: dict, n_bands: int, hdr: Path) -> np.ndarray:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
+from s2cl.io.budget import Budget
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.files import load_csv_library, load_envi_library
 from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
@@ -60,7 +61,7 @@ def available_libraries() -> dict[str, str]:
 
 def load_library(
     spec: str, grid: SpectralGrid, *, source: str | Path | None = None, key: str = "library",
-    quantity: Quantity = "reflectance", base_dir: str | Path | None = None,
+    quantity: Quantity = "reflectance", base_dir: str | Path | None = None, budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Load the library named by ``spec`` onto ``grid``.
 
@@ -72,6 +73,8 @@ def load_library(
     :param base_dir: the folder relative paths are resolved against (default: the folder of ``source``,
         else the working folder); a scene passes its own (:attr:`s2cl.scene.scene.Scene.base_dir`).
     :param quantity: what a user file holds (``surface.quantity``); built-in libraries are reflectance.
+    :param budget: the memory a file may take once read onto ``grid``, sized from its metadata (header line,
+        file size, ENVI header) before it is read; default :meth:`Budget.of`.
     :raises InputError: unknown builtin (the message lists the available ones), unknown file type,
         or any problem of the file itself.
     """
@@ -88,8 +91,8 @@ def load_library(
     if suffix in {".csv", ".sli", ".hdr"}:
         input_file(path, what="spectral library file", source=source, key=key)
         if suffix == ".csv":
-            return load_csv_library(path, grid, quantity=quantity)
-        return load_envi_library(path, grid, quantity=quantity)
+            return load_csv_library(path, grid, quantity=quantity, budget=budget)
+        return load_envi_library(path, grid, quantity=quantity, budget=budget)
     raise InputError(
         f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
         source=source,
