@@ -77,7 +77,7 @@ class BuildError(S2CLError):
     the path of the rendered source (so that the log's line numbers make sense).
     """
 
-    def __init__(self, *, template: str, device: str, options: list[str], log: str, source_path: Path,
+    def __init__(self, *, template: str, device: str, options: list[str], log: str, source_path: Path | None,
                  reason: str | None = None):
         self.template = template
         self.device = device
@@ -88,7 +88,7 @@ class BuildError(S2CLError):
         why = f" ({reason})" if reason else ""
         super().__init__(
             f"OpenCL build of {template} failed{why} on {device} (options: {' '.join(options) or 'none'}); "
-            f"rendered source: {source_path}\n{log}"
+            f"rendered source: {source_path or 'not kept (the cache folder cannot be written)'}\n{log}"
         )
 
 

@@ -75,13 +75,16 @@ DEFAULT_GRID = SpectralGrid()
 
 
 def check_wavelengths(wavelengths_nm: np.ndarray, *, source: str | None = None, key: str = "wavelength") -> np.ndarray:
-    """Validate a user wavelength axis: 1-D, finite, strictly increasing. Returns float64 nm."""
+    """Validate a user wavelength axis: 1-D, finite, > 0, strictly increasing. Returns float64."""
     w = np.asarray(wavelengths_nm, dtype=np.float64)
     if w.ndim != 1 or w.size < 2:
         raise InputError(f"needs a 1-D axis of at least 2 wavelengths, got shape {w.shape}", source=source, key=key)
     if not np.all(np.isfinite(w)):
         bad = int(np.flatnonzero(~np.isfinite(w))[0])
         raise InputError(f"holds a non-finite value at position {bad}", source=source, key=key)
+    if np.any(w <= 0):
+        bad = int(np.flatnonzero(w <= 0)[0])
+        raise InputError(f"wavelengths must be > 0, got {w[bad]:g} at position {bad}", source=source, key=key)
     steps = np.diff(w)
     if np.any(steps <= 0):
         bad = int(np.flatnonzero(steps <= 0)[0])

@@ -112,7 +112,23 @@ def corpus_run(tmp_path_factory) -> tuple[Path, dict[str, int], dict]:
 
 
 def test_the_corpus_is_large_enough() -> None:
-    assert len(CASES) >= 60
+    assert len(CASES) >= 120
+
+
+def test_each_case_names_its_own_folder() -> None:
+    """The check that no output folder was created looks for s2cl-out/NAME, NAME the case's name after its
+    number: every case whose scene name is a valid folder name uses that name."""
+    import tomllib
+
+    from s2cl.scene.schema import SCENE_NAME
+
+    for case in CASES:
+        try:
+            name = tomllib.loads(case.read_text(encoding="utf-8"))["scene"]["name"]
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
+            continue  # not TOML (or nested too deeply), or no name: no folder of its own can be created
+        if isinstance(name, str) and SCENE_NAME.fullmatch(name):
+            assert name == case.stem.split("-", 1)[1], case.name
 
 
 def test_no_case_wrote_anything(corpus_run) -> None:
@@ -133,7 +149,7 @@ def test_bad_input_is_one_line_and_leaves_nothing(corpus_run, case: Path, comman
     line = lines[0]
     assert expectation(case) in line, line
     assert case.name in line or "files/" in line or "missing.csv" in line, line  # names the file at fault
-    assert not (work / "s2cl-out" / case.stem[3:]).exists(), "an output folder was created"
+    assert not (work / "s2cl-out" / case.stem.split("-", 1)[1]).exists(), "an output folder was created"
     assert left == [], "temporary files were left"
 
 

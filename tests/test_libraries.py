@@ -61,8 +61,11 @@ def test_relative_path_resolves_against_the_scene_file(tmp_path):
     lib = load_library("data/lib.csv", grid, source=tmp_path / "scene.toml")
     assert lib.names == ["leaf"]
     np.testing.assert_array_equal(lib.spectra, 0.25)
-    with pytest.raises(InputError, match="spectral library file not found"):
+    with pytest.raises(InputError, match=r"scene\.toml: library: spectral library file .*lib\.csv not found"):
         load_library("data/lib.csv", grid, source=tmp_path / "elsewhere" / "scene.toml")
+    # a scene passes its own folder: a relative path is resolved once, never against the scene's folder twice
+    lib = load_library("data/lib.csv", grid, source="scene.toml", base_dir=tmp_path)
+    assert lib.names == ["leaf"]
 
 
 def test_builtin_respects_grid_limits():

@@ -55,7 +55,8 @@ def test_no_platform_says_how_to_install(monkeypatch) -> None:
     assert "pyopencl[pocl]" in str(err.value)
 
 
-def test_build_error_carries_device_options_log_and_source(rt: Runtime) -> None:
+def test_build_error_carries_device_options_log_and_source(rt: Runtime, tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("S2CL_CACHE", str(tmp_path))  # the failing source is kept in the user cache, not in /tmp
     source = "__kernel void broken(__global float *x) { x[0] = undefined_name; }\n"
     with pytest.raises(BuildError) as err:
         rt.build(source, template="broken.cl.mako", options=["-DS2_TEST_OPTION"])
@@ -63,7 +64,7 @@ def test_build_error_carries_device_options_log_and_source(rt: Runtime) -> None:
     assert e.device == rt.name
     assert "-DS2_TEST_OPTION" in e.options
     assert "undefined_name" in e.log
-    assert e.source_path.read_text() == source
+    assert e.source_path.read_text() == source and e.source_path.parent == tmp_path / "failed-builds"
     assert str(e.source_path) in str(e)
 
 
@@ -142,8 +143,9 @@ def test_build_log_is_debug_not_terminal(tmp_path) -> None:
     assert any("warns.cl" in line for line in logged) and "does not return a value" in out.stdout
 
 
-def test_strict_builds_refuse_warnings(rt: Runtime, monkeypatch) -> None:
+def test_strict_builds_refuse_warnings(rt: Runtime, tmp_path, monkeypatch) -> None:
     monkeypatch.setenv(STRICT_ENV, "error")
+    monkeypatch.setenv("S2CL_CACHE", str(tmp_path))
     with pytest.raises(BuildError) as err:
         rt.build(WARNING_SOURCE + "/* strict */\n", template="warns.cl")  # (PoCL's cache keeps the log)
     assert err.value.reason and STRICT_ENV in err.value.reason

@@ -45,17 +45,21 @@ import numpy as np
 
 from s2cl.atmos.lut_format import (
     ALBEDO_KEYS,
+    ARRAY_DIMS,
     AXIS_KEYS,
     FIXED_GASES,
     FORMAT_NAME,
     FORMAT_VERSION,
+    LUT_KEYS,
     SCATTERING_KEYS,
+    check_declared,
     fixed_gas_key,
 )
 from s2cl.atmos.state import AtmosphereState, airmass
 from s2cl.atmos.terms import GAS_NAMES, AtmosphericTerms
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
+from s2cl.io.npz import npz_members
 
 Method = Literal["linear", "nearest"]
 
@@ -283,27 +287,17 @@ def _regrid(native: dict, lut_wl: np.ndarray, grid: SpectralGrid, source: str) -
     )
 
 
-#: dimensions of each LUT array, by axis name
-ARRAY_DIMS = {
-    "path_reflectance_scattering": ("p", "sza", "aot", "wl"),
-    "t_down": ("p", "sza", "aot", "wl"),
-    "t_up": ("p", "aot", "wl"),
-    "spherical_albedo": ("p", "aot", "wl"),
-    "t_water": ("p", "wv", "wl"),
-    "t_ozone": ("p", "wl"),
-    "e0": ("wl",),
-    **{fixed_gas_key(g): ("p", "sza", "wl") for g in FIXED_GASES},
-}
-
-
 def _read_lut(path: Path) -> AtmosphereLUT:
-    """Load the ``.npz`` at ``path`` and check its provenance and arrays; arrays become read-only."""
+    """Load the ``.npz`` at ``path`` and check its provenance and arrays; arrays become read-only. What each
+    array declares (its ``.npy`` header) is checked first (:func:`check_declared`): nothing is loaded
+    from a file that declares more than the LUT format allows."""
     source = str(path)
     if not path.is_file():
         raise InputError(f"atmosphere LUT file not found; {REBUILD_HINT}", source=source)
+    check_declared(npz_members(path, "s2cl atmosphere LUT"), source)
     try:
         with np.load(path, allow_pickle=False) as npz:
-            arrays = {key: np.asarray(npz[key]) for key in npz.files}
+            arrays = {key: np.asarray(npz[key]) for key in LUT_KEYS}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as err:
         raise InputError(f"not a readable s2cl atmosphere LUT (corrupt or not .npz): {err}", source=source) from err
     provenance = _check_provenance(arrays, source)

@@ -34,6 +34,11 @@ key                               shape                         meaning
 
 from __future__ import annotations
 
+import numpy as np
+
+from s2cl.errors import InputError
+from s2cl.io.npz import declared_bytes
+
 FORMAT_NAME = "s2cl-atmosphere-lut"
 FORMAT_VERSION = 1
 
@@ -49,3 +54,57 @@ def fixed_gas_key(gas: str) -> str:
     return "t_" + gas
 
 
+#: most values an axis of a LUT file may hold (checked from the file's headers before it is loaded):
+#: the 1 nm wavelength grid within 6S's 250-4000 nm, the profiles s2cl knows, and at most 1,000 nodes a side
+AXIS_LIMITS = {"profiles": 16, "aot550": 1000, "solar_zenith": 1000, "water_vapour": 1000, "wavelength_nm": 3751,
+               "reference": 3, "ozone_range": 2}
+#: largest text array (profile names, provenance JSON; bytes as numpy stores them, 4 per character)
+MAX_TEXT_BYTES = 4 * 2**20
+#: most bytes the arrays of one LUT file may declare (the shipped LUT: 4.2 MB)
+MAX_LUT_BYTES = 256 * 2**20
+
+
+#: dimensions of each LUT array, by axis name
+ARRAY_DIMS = {
+    "path_reflectance_scattering": ("p", "sza", "aot", "wl"),
+    "t_down": ("p", "sza", "aot", "wl"),
+    "t_up": ("p", "aot", "wl"),
+    "spherical_albedo": ("p", "aot", "wl"),
+    "t_water": ("p", "wv", "wl"),
+    "t_ozone": ("p", "wl"),
+    "e0": ("wl",),
+    **{fixed_gas_key(g): ("p", "sza", "wl") for g in FIXED_GASES},
+}
+
+#: every array a LUT file holds (other members are never loaded)
+LUT_KEYS = tuple(dict.fromkeys((*AXIS_KEYS, *SCATTERING_KEYS, *ALBEDO_KEYS, *ARRAY_DIMS, "provenance")))
+
+
+def check_declared(members: dict[str, tuple[tuple[int, ...], np.dtype]], source: str) -> None:
+    """Refuse, before anything is loaded, a LUT whose arrays (as their headers declare them) are missing,
+    not of the format's kinds, axes longer than :data:`~s2cl.atmos.lut_format.AXIS_LIMITS`, arrays of
+    another shape than their axes give, or more than :data:`~s2cl.atmos.lut_format.MAX_LUT_BYTES` in all."""
+    missing = [k for k in LUT_KEYS if k not in members]
+    if missing:
+        raise InputError(f"missing arrays: {', '.join(missing)}", source=source)
+    for key, limit in AXIS_LIMITS.items():
+        shape, dtype = members[key]
+        if len(shape) != 1 or not 1 <= shape[0] <= limit:
+            raise InputError(f"must be a list of 1 to {limit:,} values, declares shape {shape}", source=source,
+                             key=key)
+    for key in ("provenance", "profiles"):
+        shape, dtype = members[key]
+        if dtype.kind != "U" or dtype.itemsize > MAX_TEXT_BYTES:
+            raise InputError(f"must be text of at most {MAX_TEXT_BYTES:,} bytes, declares {dtype}", source=source,
+                             key=key)
+    sizes = {d: members[k][0][0] for d, k in (("p", "profiles"), ("sza", "solar_zenith"), ("aot", "aot550"),
+                                              ("wv", "water_vapour"), ("wl", "wavelength_nm"))}
+    for key, dims in ARRAY_DIMS.items():
+        shape, dtype = members[key]
+        expected = tuple(sizes[d] for d in dims)
+        if shape != expected or dtype.kind != "f" or dtype.itemsize > 8:
+            raise InputError(f"expected float array of shape {expected}, got {dtype} {shape}", source=source,
+                             key=key)
+    total = sum(declared_bytes(*members[k]) for k in LUT_KEYS)
+    if total > MAX_LUT_BYTES:
+        raise InputError(f"its arrays declare {total:,} bytes (at most {MAX_LUT_BYTES:,})", source=source)

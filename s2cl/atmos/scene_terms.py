@@ -23,7 +23,12 @@ def _lut(path: str | None) -> Any:
 def scene_lut(scene: Scene) -> Any:
     """The LUT the scene names ([atmosphere] lut), or the shipped one."""
     lut = scene.spec.atmosphere.lut
-    return _lut(str(scene.resolve(lut)) if lut else None)
+    if not lut:
+        return _lut(None)
+    from s2cl.io.inputs import input_file
+
+    path = input_file(scene.resolve(lut), what="atmosphere LUT", source=scene.source, key="atmosphere.lut")
+    return _lut(str(path))
 
 
 def _state(scene: Scene, values: dict[str, Any], section: str) -> Any:
@@ -59,8 +64,9 @@ def assumed_state(scene: Scene) -> Any:
 
 def state_terms(scene: Scene, state: Any, section: str) -> Any:
     """Per-wavelength terms of ``state`` from the scene's LUT on its grid; errors name ``section``."""
+    table = scene_lut(scene)  # a LUT file at fault is named by its own errors
     try:
-        return scene_lut(scene).terms(state, scene.grid, scene.spec.atmosphere.interpolation)
+        return table.terms(state, scene.grid, scene.spec.atmosphere.interpolation)
     except InputError as err:
         if err.key in STATE_KEYS or err.key == "grid":  # the scene's value is outside the LUT's axes
             key = "grid" if err.key == "grid" else f"{section}.{err.key}"

@@ -1,5 +1,6 @@
 """Kernel builds that never print: the compiler's output is captured (file descriptor 2 included) and
-becomes a DEBUG record or part of a :class:`~s2cl.errors.BuildError`; failing sources are kept on disk.
+becomes a DEBUG record or part of a :class:`~s2cl.errors.BuildError`; failing sources are kept in the
+user cache folder (``failed-builds/`` of :func:`s2cl.io.cache.cache_dir`), never beside the user's files.
 """
 
 from __future__ import annotations
@@ -28,7 +29,12 @@ def pyopencl() -> Any:
     """pyopencl, imported on first use, with PoCL's kernel cache in s2cl's user cache folder
     (:func:`pocl_cache_dir`): the second process that builds a kernel finds it there."""
     if POCL_CACHE_ENV not in os.environ:
-        os.environ[POCL_CACHE_ENV] = str(pocl_cache_dir())
+        from s2cl.errors import InputError
+
+        try:
+            os.environ[POCL_CACHE_ENV] = str(pocl_cache_dir())
+        except InputError:  # s2cl's cache folder cannot be made: PoCL keeps its own (s2cl.cl.devices names why)
+            pass
     import pyopencl
 
     return pyopencl
@@ -87,10 +93,20 @@ def quiet_build(build: Callable[[], Any], device: Any) -> tuple[Any, str, Except
     return program, (log.strip() or stderr_text.strip()), None
 
 
-def save_source(source: str, template: str) -> Path:
-    """Write a rendered source to a temporary file (kept) and return its path."""
+FAILED_BUILDS = "failed-builds"
+
+
+def save_source(source: str, template: str) -> Path | None:
+    """Keep a rendered source that failed to build in the user cache folder (``failed-builds/``) and
+    return its path; None when the cache cannot be written (the source is then in the DEBUG log)."""
+    from s2cl.errors import S2CLError
+    from s2cl.io.cache import cache_dir
+
     digest = hashlib.sha1(source.encode()).hexdigest()[:12]
     stem = Path(template).name.replace(".cl.mako", "").replace(".cl", "")
-    path = Path(tempfile.gettempdir()) / f"s2cl-{stem}-{digest}.cl"
-    path.write_text(source, encoding="utf-8")
+    try:
+        path = cache_dir(FAILED_BUILDS) / f"{stem}-{digest}.cl"
+        path.write_text(source, encoding="utf-8")
+    except (OSError, S2CLError):
+        return None
     return path

@@ -12,6 +12,7 @@ import logging
 import os
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from s2cl.cl.builds import pyopencl, quiet_build
@@ -52,6 +53,51 @@ def _platforms() -> list[Any]:
         return []
 
 
+def _unusable(folder: Path) -> bool:
+    """Whether ``folder`` cannot be created or written (its deepest existing part is not a writable folder)."""
+    base = folder
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    return not (base.is_dir() and os.access(base, os.W_OK | os.X_OK))
+
+
+_CACHE_HINT = ("set POCL_CACHE_DIR (PoCL's kernels), XDG_CACHE_HOME (pyopencl's) and S2CL_CACHE (s2cl's) to writable "
+               "folders, e.g. XDG_CACHE_HOME=/tmp/cache POCL_CACHE_DIR=/tmp/cache/pocl")
+
+
+def _pocl_cache_problem() -> str | None:
+    """Why PoCL lists no device when its kernel cache folder cannot be made (a read-only or missing $HOME,
+    $POCL_CACHE_DIR below a file): PoCL then hides its devices, which looks like no OpenCL at all. None when
+    there is no PoCL platform or its cache folder is fine."""
+    if not any("portable computing language" in p.name.lower() for p in _platforms()):
+        return None
+    if os.environ.get("POCL_CACHE_DIR"):
+        folder, named = Path(os.environ["POCL_CACHE_DIR"]), "$POCL_CACHE_DIR"
+    else:
+        xdg = os.environ.get("XDG_CACHE_HOME")
+        folder = Path(xdg) / "pocl" if xdg else Path(os.path.expanduser("~")) / ".cache" / "pocl"
+        named = "$XDG_CACHE_HOME" if xdg else "$HOME"
+    if not _unusable(folder):
+        return None
+    return (f"PoCL found no OpenCL device because its kernel cache folder {folder} (from {named}) cannot be "
+            f"created or written; {_CACHE_HINT}")
+
+
+def pyopencl_cache_problem() -> str | None:
+    """Why pyopencl would fail at its first kernel call (it writes its caches below the user cache folder,
+    ``$XDG_CACHE_HOME`` or ``~/.cache``, and ends with an OSError and a traceback when that cannot be made);
+    None when it can, or when ``$PYOPENCL_NO_CACHE`` switches its caches off."""
+    if os.environ.get("PYOPENCL_NO_CACHE"):
+        return None
+    import platformdirs
+
+    for name in ("pyopencl", "pytools"):
+        folder = Path(platformdirs.user_cache_dir(name, name))
+        if _unusable(folder):
+            return f"pyopencl's cache folder {folder} cannot be created or written; {_CACHE_HINT}"
+    return None
+
+
 def list_devices() -> list[DeviceInfo]:
     """All OpenCL devices on this machine."""
     cl = pyopencl()
@@ -70,6 +116,9 @@ def list_devices() -> list[DeviceInfo]:
 def select(spec: str | None) -> tuple[Any, DeviceInfo]:
     infos = list_devices()
     if not infos:
+        cache = _pocl_cache_problem()
+        if cache:
+            raise DeviceError(cache)
         raise DeviceError("no OpenCL platform found: " + INSTALL_HINT)
     listing = "; ".join(str(i) for i in infos)
     if spec is None:

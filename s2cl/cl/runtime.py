@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.builds import STRICT_ENV, pyopencl, quiet_build, save_source
-from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, select
+from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, pyopencl_cache_problem, select
 from s2cl.cl.vectypes import VALID_LANES, VecTypes
 from s2cl.errors import BuildError, DeviceError, InputError
 
 _log = logging.getLogger(__name__)
+_PROBE_SOURCE = "__kernel void probe(__global float *x) { x[get_global_id(0)] = 1.0f; }\n"
 
 
 class Runtime:
@@ -26,9 +27,13 @@ class Runtime:
     def __init__(self, device_spec: str | None = None):
         cl = pyopencl()
         self.device, self.info = select(device_spec)
+        cache = pyopencl_cache_problem()  # found here, before any work, not at the first kernel call
+        if cache:
+            raise DeviceError(cache)
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
+        self._probed = False
         _log.debug("OpenCL device %s (%s); native vector width float %d, double %d; lanes float32 %d, float64 %d",
                    self.info.spec, self.name, self.native_lanes("float32"), self.native_lanes("float64"),
                    self.lanes("float32"), self.lanes("float64"))
@@ -62,7 +67,7 @@ class Runtime:
         if requested is None:
             env = os.environ.get(LANES_ENV, "").strip()
             if env:
-                if not env.isdigit():
+                if not env.isdigit() or int(env) not in VALID_LANES:
                     raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
                 requested = int(env)
         lanes, why = choose_lanes(native=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
@@ -114,6 +119,13 @@ class Runtime:
                 raise fail(None, log, f"compiler warnings (${STRICT_ENV}=error)")
         self._programs[key] = program
         return program
+
+    def check_builds(self) -> None:
+        """Build a minimal kernel (once per runtime): :class:`BuildError` now, before a run creates anything,
+        when the device is listed but cannot compile (a driver without a backend for this CPU)."""
+        if not self._probed:
+            self.build(_PROBE_SOURCE, template="probe.cl")
+            self._probed = True
 
     def kernel(self, program: Any, name: str) -> Any:
         """A kernel object from ``program`` (create once, reuse)."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -30,7 +31,30 @@ def output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
 
 
 def runtime(device: str | None) -> Any:
-    """The OpenCL runtime of ``device``; a device that does not exist is refused here, before any work."""
+    """The OpenCL runtime of ``device``; a device that does not exist, or cannot compile a kernel, is refused
+    here, before any work."""
     from s2cl.cl.runtime import get_runtime
 
-    return get_runtime(device)
+    rt = get_runtime(device)
+    rt.check_builds()
+    return rt
+
+
+#: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address
+_SCHEDULER = re.compile(r"(?:(?P<protocol>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)"
+                        r":(?P<port>[0-9]{1,5})")
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` when it has the form of a Dask scheduler address (``tcp://HOST:PORT`` or ``HOST:PORT``),
+    else a one-line :class:`~s2cl.errors.InputError` naming ``--scheduler``; checked before anything is
+    created (whether it answers: :func:`s2cl.sweep.engine.reach_scheduler`)."""
+    from s2cl.errors import InputError, token
+
+    m = _SCHEDULER.fullmatch(address.strip())
+    if m is None or not 1 <= int(m["port"]) <= 65535 or (m["protocol"] or "tcp") not in SCHEDULER_PROTOCOLS:
+        raise InputError(f"{token(address, 60)} is not a scheduler address: give [PROTOCOL://]HOST:PORT with PORT in "
+                         f"1-65535 and PROTOCOL one of {', '.join(SCHEDULER_PROTOCOLS)} (e.g. tcp://10.0.0.5:8786)",
+                         key="--scheduler")
+    return address.strip()

@@ -8,32 +8,34 @@ from typing import Any
 import click
 
 from s2cl.cli.console import rich_console
+from s2cl.sensor.names import safe_file_part
 
 
-def report_sweep(df: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
-    """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder``;
-    print the ranking and the paper-style table; return the files written."""
+def report_sweep(digest: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
+    """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder`` from the
+    results' :class:`~s2cl.sweep.digest.Digest`; print the ranking and the paper-style table; return the
+    files written."""
     from s2cl.sweep.report import heatmap, write_summary
 
-    plots = _paper(df, summary, folder)
+    plots = _paper(digest, summary, folder)
     written = [write_summary(folder / "summary.json", summary)]
-    moving = [b for b in bands if df[f"{b}_centre_nm"].nunique() * df[f"{b}_width_nm"].nunique() > 1]
-    written += [heatmap(df, b, folder / f"heatmap_{b}.png") for b in moving] + plots
+    moving = [b for b in bands if digest.variants(b) > 1]
+    written += [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
     _print_sweep(summary)
     _print_paper(summary)
     return written
 
 
-def _paper(df: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
+def _paper(digest: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
     """Add the paper's values (scenes of Segl et al. 2012, Tables 3-6) to ``summary``; plot grids beside them."""
     from s2cl.sweep.report import heatmap_vs_paper, paper_comparison
 
-    comparison = paper_comparison(df, summary)
+    comparison = paper_comparison(digest, summary)
     if comparison is None:
         return []
     summary["paper"] = comparison
     if "band" in comparison:
-        return [heatmap_vs_paper(comparison, folder / f"heatmap_{comparison['band']}_vs_paper.png")]
+        return [heatmap_vs_paper(comparison, folder / f"heatmap_{safe_file_part(comparison['band'])}_vs_paper.png")]
     return []
 
 

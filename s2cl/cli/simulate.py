@@ -40,11 +40,11 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     from s2cl.scene.scene import Scene
     from s2cl.scene.validate import check_simulate
 
+    budget = Budget.of(max_memory)
     sc = Scene.load(scene)
     out, where = output_dir(sc, output)
-    checked = check_simulate(sc)
+    checked = check_simulate(sc, budget=budget)
     check_output_dir(out, where=where)
-    budget = Budget.of(max_memory)
     if sc.spec.surface.cube is not None:
         _require_cube_memory(sc, budget)
         _simulate_cube(sc, out, device, quiet)
@@ -93,15 +93,17 @@ def _require_cube_memory(sc: Any, budget: Any) -> None:
 
 
 def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:
-    """Simulate the scene's image cube (loaded whole) into OUTPUT/simulation.nc."""
-    from s2cl.forward.cube import simulate_cube
+    """Simulate the scene's image cube (loaded whole, and checked, before the folder is made) into
+    OUTPUT/simulation.nc."""
+    from s2cl.forward.cube import load_scene_cube, simulate_cube
     from s2cl.io.outdir import claim
     from s2cl.io.output import write_netcdf
 
     rt = runtime(device or sc.run.device)
+    cube = load_scene_cube(sc)
     with claim(out):
         with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
-            ds = simulate_cube(rt, sc, progress=lambda n: advance(1))
+            ds = simulate_cube(rt, sc, cube=cube, progress=lambda n: advance(1))
         write_netcdf(out / "simulation.nc", ds)
     click.echo(f"wrote {out / 'simulation.nc'}")
 

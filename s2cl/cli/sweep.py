@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, output_dir, quiet_option, runtime
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, output_dir, quiet_option, runtime
 from s2cl.cli.ranking import report_sweep
 
 
@@ -37,9 +37,11 @@ def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
     from s2cl.scene.scene import Scene
     from s2cl.scene.validate import check_sweep
     from s2cl.sweep.budget import sweep_resources
+    from s2cl.sweep.engine import resumable_chunk
 
+    budget = Budget.of(max_memory)
     sc = Scene.load(scene)
-    checked = check_sweep(sc)
+    checked = check_sweep(sc, budget=budget)
     out, where = output_dir(sc, None)
     check_output_dir(out, where=where)  # as optimise would (nothing is created)
     report(checked.caveats)
@@ -48,7 +50,7 @@ def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
         click.echo(f"{checked.space.size}")
     else:
         _print_variants(sc, checked.space.size)
-    plan = sweep_resources(checked, budget=Budget.of(max_memory))
+    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(out))
     if not quiet:
         click.echo(f"memory: about {gb(plan.memory_bytes)} in chunks of {plan.chunk:,} configurations")
     if not quiet and checked.analysis is not None:
@@ -100,29 +102,38 @@ def _sweep_options(f: Callable) -> Callable:
 
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
                chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
-    """Check everything (scene, output folder, memory, disk, device), then run in the claimed folder."""
+    """Check everything (scene, output folder, memory, disk, device, scheduler), build the sweep's tables and
+    kernel, and only then run in the claimed folder: a run that fails any of this creates nothing."""
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
     from s2cl.scene.caveats import report
     from s2cl.scene.scene import Scene
     from s2cl.scene.validate import check_sweep
     from s2cl.sweep.budget import require_sweep_disk, sweep_resources
+    from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk
     from s2cl.sweep.plan import plan_sweep
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
+    budget = Budget.of(max_memory)
+    if scheduler:
+        scheduler = check_scheduler(scheduler)
     sc = Scene.load(scene)
     out, where = output_dir(sc, output)
-    checked = check_sweep(sc)
+    checked = check_sweep(sc, budget=budget)
     check_output_dir(out, where=where)
-    budget = Budget.of(max_memory)
-    plan = sweep_resources(checked, chunk=chunk, budget=budget)
+    plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(out, overwrite))
     require_sweep_disk(checked, out)
-    runtime(device or sc.run.device)  # the device is checked before anything is created
-    warnings = report(checked.caveats)
+    runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
+    if scheduler:
+        reach_scheduler(scheduler)
     t0 = time.perf_counter()
+    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget)
+    check_folder(job, out, overwrite=overwrite)
+    if not (workers or scheduler):
+        kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
+    warnings = report(checked.caveats)
     with claim(out):
-        job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget)
         _sweep_into(sc, job, out, dict(workers=workers, scheduler=scheduler, overwrite=overwrite, device=device),
                     quiet, warnings, t0)
 
@@ -132,7 +143,7 @@ def _sweep_into(sc: Any, job: Any, out: Path, run_options: dict[str, Any], quiet
     """Run the planned sweep into ``out`` (resuming finished chunks), then rank, print and write the report."""
     from s2cl.sweep.engine import run_sweep
     from s2cl.sweep.plan import reference_row
-    from s2cl.sweep.report import load, rankable, summarise
+    from s2cl.sweep.report import Digest, open_results, paper_match, summarise
 
     if not quiet:
         click.echo(f"{sc.name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
@@ -144,11 +155,13 @@ def _sweep_into(sc: Any, job: Any, out: Path, run_options: dict[str, Any], quiet
                 advance(0)
 
         results = run_sweep(job, out, progress=advance, on_start=on_start, **run_options)
-    df, meta = load(results)
-    summary = summarise(df, meta, reference_row(sc, job, run_options["device"]))
+    path, meta = open_results(results)
+    reference = reference_row(sc, job, run_options["device"])
+    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))
+    summary = summarise(digest, meta, reference)
     summary["seconds"] = time.perf_counter() - t0
     summary["warnings"] = warnings
-    plots = report_sweep(rankable(df, meta), summary, out, summary["bands"])
+    plots = report_sweep(digest, summary, out, summary["bands"])
     click.echo(f"wrote {results}" + "".join(f", {p}" for p in plots))
 
 
@@ -172,21 +185,34 @@ def sweep_run(**kwargs: Any) -> None:
 def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
     from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.sweep.report import bands_of, check_band, load, rankable, read_summary, reference_of, summarise
+    from s2cl.sweep.report import (
+        Digest,
+        bands_of,
+        check_band,
+        open_results,
+        paper_match,
+        read_summary,
+        reference_of,
+        summarise,
+    )
 
-    df, meta = load(results)
+    path, meta = open_results(results)
+    columns = Digest.of_columns(path)
     folder = results if results.is_dir() else results.parent
-    bands = [check_band(df, band, results)] if band else bands_of(df)
-    check_output_dir(folder)
+    bands = [check_band(columns, band, results)] if band else bands_of(columns)
+    check_output_dir(folder, writes=(results.name,))
+    previous = folder / "summary.json"
+    # the reference row (the sensor's own bands), run time and warnings come from the run, not the table
+    kept = read_summary(previous) if previous.exists() else {}
+    reference = reference_of(kept)
+    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
+                                                                                 bands_of(columns)))
+    summary = summarise(digest, meta, reference)
+    for key in ("seconds", "warnings"):
+        if key in kept:
+            summary[key] = kept[key]
     with claim(folder):
-        previous = folder / "summary.json"
-        # the reference row (the sensor's own bands), run time and warnings come from the run, not the table
-        kept = read_summary(previous) if previous.exists() else {}
-        summary = summarise(df, meta, reference_of(kept))
-        for key in ("seconds", "warnings"):
-            if key in kept:
-                summary[key] = kept[key]
-        written = report_sweep(rankable(df, meta), summary, folder, bands)
+        written = report_sweep(digest, summary, folder, bands)
     if not quiet:
         for p in written:
             click.echo(f"wrote {p}")

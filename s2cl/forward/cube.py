@@ -10,6 +10,7 @@ band's grid.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,8 @@ from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, b
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
+from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
+from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.library import check_finite, resample_to_grid
 from s2cl.scene.scene import Scene
 
@@ -36,9 +39,7 @@ def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray
     NetCDF: a 3-D variable with a ``wavelength`` dimension and coordinate (nm, or µm if its
     ``units`` say so). ENVI: the ``.hdr`` file, wavelengths from its ``wavelength`` field.
     """
-    p = Path(path)
-    if not p.exists():
-        raise InputError("cube file not found", source=p)
+    p = input_file(path, what="cube file")
     if p.suffix.lower() == ".hdr":
         return _load_envi(p)
     try:
@@ -55,6 +56,7 @@ def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray
         if "wavelength" not in v.dims or v.ndim != 3:
             raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
         v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
+        _real(v.dtype, p, name)
         wl = np.asarray(ds["wavelength"].values, dtype=np.float64)
         if str(ds["wavelength"].attrs.get("units", "nm")).lower() in ("um", "µm", "micrometer", "micrometers"):
             wl = wl * 1000.0
@@ -63,14 +65,17 @@ def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray
 
 def cube_size(path: str | Path) -> tuple[int, int]:
     """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
-    (0, 0) when the file cannot tell (then :func:`load_cube` says what is wrong)."""
-    p = Path(path)
-    try:
-        if p.suffix.lower() == ".hdr":
-            import spectral.io.envi as envi
+    (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
 
-            meta = envi.read_envi_header(str(p))
-            return int(meta["samples"]) * int(meta["lines"]), int(meta["bands"])
+    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
+        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
+    p = input_file(path, what="cube file")
+    if p.suffix.lower() == ".hdr":
+        meta = read_envi_header(p)
+        layout = envi_layout(meta, p, envi_data_file(p))
+        _envi_wavelengths(meta, layout.bands, p)
+        return layout.samples * layout.lines, layout.bands
+    try:
         with xr.open_dataset(p, engine="h5netcdf") as ds:
             cubes = [v for v in ds.data_vars.values() if v.ndim == 3 and "wavelength" in v.dims]
             if not cubes:
@@ -81,19 +86,40 @@ def cube_size(path: str | Path) -> tuple[int, int]:
         return 0, 0
 
 
+def _real(dtype: np.dtype, p: Path, key: str) -> None:
+    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
+    if np.dtype(dtype).kind not in "fiu":
+        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
+                         source=p, key=key)
+
+
+def _envi_wavelengths(meta: dict, bands: int, p: Path) -> np.ndarray:
+    """The header's ``wavelength`` list as numbers, one per band."""
+    wl = meta.get("wavelength")
+    if not wl:
+        raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")
+    if len(wl) != bands:
+        raise InputError(f"lists {len(wl)} values for bands = {bands}", source=p, key="wavelength")
+    try:
+        return np.array([parse_number(str(x).strip()) for x in wl])
+    except ValueError:
+        raise InputError("holds a value that is not a number", source=p, key="wavelength") from None
+
+
 def _load_envi(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import spectral.io.envi as envi
 
+    meta = read_envi_header(p)
+    data = envi_data_file(p)
+    layout = envi_layout(meta, p, data)
+    w = _envi_wavelengths(meta, layout.bands, p)
     try:
-        img = envi.open(str(p))
+        img = envi.open(str(p), str(data))
         cube = np.asarray(img.load())
     except Exception as err:  # SPy raises many types for a bad header or data file
         raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
-    wl = img.metadata.get("wavelength")
-    if not wl:
-        raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")
-    w = np.array([float(x) for x in wl])
-    if str(img.metadata.get("wavelength units", "nm")).lower().startswith(("micro", "um", "µm")):
+    _real(cube.dtype, p, "data type")
+    if str(meta.get("wavelength units", "nm")).lower().startswith(("micro", "um", "µm")):
         w *= 1000.0
     return cube, check_wavelengths(w, source=str(p), key="wavelength")
 
@@ -135,9 +161,20 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
 
 
-def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None,
-                  *, progress: Progress | None = None) -> xr.Dataset:
-    """Simulate an image cube (the scene's ``surface.cube`` file, or ``cube`` given in memory) on ``rt``."""
+@dataclass(frozen=True)
+class SceneCube:
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``."""
+
+    spectra: np.ndarray
+    rows: int
+    cols: int
+    source: str
+
+
+def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
+                    wavelengths_nm: np.ndarray | None = None) -> SceneCube:
+    """The scene's ``surface.cube`` file (or ``cube`` given in memory) loaded onto the scene's grid, with
+    every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it creates the folder."""
     s = scene.spec
     source = scene.source
     if cube is None:
@@ -150,6 +187,24 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wav
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
+    bands = scene.sensor.bands
+    for gsd in sorted({b.gsd_m for b in bands}):
+        factor = _factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
+        if factor > 1 and (rows < factor or cols < factor):
+            raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
+                             f"{gsd:g} m bands", source=source, key="surface.gsd_m")
+    return SceneCube(spectra, rows, cols, source)
+
+
+def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
+                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None) -> xr.Dataset:
+    """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
+    already loaded by :func:`load_scene_cube`) on ``rt``."""
+    s = scene.spec
+    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
+    rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
+    gsd_in = s.surface.gsd_m
+    assert gsd_in is not None
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
     if progress:

@@ -16,6 +16,7 @@ from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import InputError, token
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.forward.sense import Radiometry, SenseResult, Sensing, clipped_counts
+from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.effects import EffectSet
 from s2cl.scene.scene import Scene
@@ -261,15 +262,15 @@ def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
                         "`s2cl simulate` writes any number of copies in bounded memory")
 
 
-def scene_library(scene: Scene) -> SpectralLibrary:
-    """The scene's spectral library on the scene's grid."""
+def scene_library(scene: Scene, *, budget: Budget | None = None) -> SpectralLibrary:
+    """The scene's spectral library on the scene's grid (a file sized against ``budget`` before it is read)."""
     from s2cl.libraries.registry import load_library
 
     spec = scene.spec.surface.library
     assert spec is not None
-    name = spec if spec.startswith("builtin:") else str(scene.resolve(spec))
     want = scene.spec.surface.quantity
-    lib = load_library(name, scene.grid, source=scene.source, key="surface.library", quantity=want)
+    lib = load_library(spec, scene.grid, source=scene.source, key="surface.library", quantity=want,
+                       base_dir=scene.base_dir, budget=budget)
     if lib.quantity != want:
         raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
                          source=scene.source, key="surface.quantity")

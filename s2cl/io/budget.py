@@ -77,7 +77,7 @@ class Budget:
             return cls(free, f"90 % of the memory available now ({gb(available_memory())})")
         return cls(limit, why)
 
-    def require(self, need: float, *, what: str, key: str, source: str | None, fits: str = "") -> None:
+    def require(self, need: float, *, what: str, key: str | None, source: str | None, fits: str = "") -> None:
         """Raise :class:`ResourceError` when ``need`` bytes exceed the budget.
 
         :param what: the thing that needs the memory ("simulating 120 spectra × 10⁶ copies").

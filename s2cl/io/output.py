@@ -65,8 +65,26 @@ def write_atomic(path: str | Path, writer: Callable[[Path], Any]) -> Path:
 
 
 def write_json(path: str | Path, data: Any) -> Path:
-    """Pretty JSON, written atomically."""
-    return write_atomic(path, lambda p: p.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n"))
+    """Pretty JSON, written atomically. JSON has no NaN or infinity: a non-finite number is written as
+    ``null`` (Python's ``json`` would write ``NaN``, which other JSON readers refuse)."""
+    text = json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n"
+    return write_atomic(path, lambda p: p.write_text(text))
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with numpy scalars and arrays as Python numbers and lists, paths as strings, tuples as lists
+    and every non-finite float (NaN, ±inf) as None."""
+    import math
+
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, bool | int | str) or value is None:
+        return value
+    if isinstance(value, float):
+        return float(value) if math.isfinite(value) else None
+    return json_safe(_jsonable(value))
 
 
 def write_text(path: str | Path, text: str) -> Path:

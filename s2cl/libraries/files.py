@@ -4,14 +4,16 @@ TOA radiance in W m-2 sr-1 um-1)."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from s2cl.errors import InputError, key_token, token
+from s2cl.errors import InputError, ResourceError, key_token, token
 from s2cl.grid import SpectralGrid, check_wavelengths
+from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
+from s2cl.io.inputs import parse_number
+from s2cl.io.tables import CsvStream, open_csv
 from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
 
 #: Largest wavelength gap (nm) in a user file that linear interpolation may bridge; a wider gap
@@ -64,8 +66,9 @@ def _check_user_spectra(
     last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
     used = slice(first, last + 1)
     lo, hi = REFLECTANCE_RANGE if quantity == "reflectance" else RADIANCE_RANGE
-    for i, row in enumerate(spectra[:, used]):
-        w = w_nm[used]
+    w = w_nm[used]
+    for i in range(spectra.shape[0]):
+        row = spectra[i, used]  # one row at a time: no copy of the whole library
         bad = ~np.isfinite(row)
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
@@ -126,6 +129,7 @@ def load_csv_library(
     scale: float = 1.0,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
     quantity: Quantity = "reflectance",
+    budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Read a CSV spectral library and interpolate it linearly onto ``grid``.
 
@@ -138,11 +142,15 @@ def load_csv_library(
     :param scale: multiplies every value (``0.01`` for percent).
     :param max_gap_nm: widest wavelength gap inside the grid that interpolation may bridge.
     :param quantity: what the values are: surface reflectance (0–1) or TOA radiance (W m⁻² sr⁻¹ µm⁻¹).
+    :param budget: memory the reading may take (default :meth:`Budget.of`): the file's values (rows ×
+        columns from its header and row count) and the spectra on ``grid`` are sized before any value is
+        parsed, and a file that would not fit is a one-line :class:`~s2cl.errors.ResourceError`.
     :raises InputError: missing/malformed file, bad wavelengths, NaN/inf, values that are not
         reflectance, or data not covering the grid; the message names file and column.
     """
     source = str(path)
-    header, rows = _read_csv_rows(Path(path))
+    stream = open_csv(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
+    header = stream.header
     first = header[0].strip().lower()
     if first in {"wavelength_nm", "wavelength_um", "wavelength_µm"}:
         declared = "nm" if first.endswith("nm") else "um"
@@ -160,29 +168,45 @@ def load_csv_library(
         raise InputError("holds a wavelength column but no spectrum column", source=source)
     if len(set(names)) != len(names) or any(not n for n in names):
         raise InputError("spectrum column names must be non-empty and unique", source=source)
-    values = _csv_values(rows, header, source=source)
-    w_nm = wavelengths_to_nm(values[:, 0], unit, source=source, key=header[0])
-    spectra = np.ascontiguousarray(values[:, 1:].T) * float(scale)
+    require_library_memory(budget, len(names), stream.rows * len(header) * 8.0, grid, source=source)
+    values = _csv_values(stream, header, source=source)
+    w_nm = wavelengths_to_nm(values[0], unit, source=source, key=header[0])
+    spectra = values[1:]  # (spectra, rows), C-contiguous: no copy
+    if float(scale) != 1.0:
+        spectra *= float(scale)
     return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
 
 
-def _read_csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """The header and the (line number, fields) of each wavelength row."""
-    from s2cl.io.tables import read_csv_rows
+#: bytes per spectrum and grid wavelength of a library read for a run: the float64 spectra on the grid (the
+#: finiteness checks and the interpolation work row by row) and, right after, their TOA radiance, as
+#: ``s2cl simulate`` and the sweeps count them (:mod:`s2cl.forward.stream`, :mod:`s2cl.sweep.budget`)
+LIBRARY_BYTES_PER_GRID_VALUE = 24
 
-    return read_csv_rows(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
+
+def require_library_memory(budget: Budget | None, n_spectra: int, read_bytes: float, grid: SpectralGrid, *,
+                           source: str) -> None:
+    """Refuse (one line naming the file, before it is read) a library whose reading would exceed ``budget``:
+    ``read_bytes`` for the file's values as read, plus its spectra on ``grid``."""
+    budget = budget or Budget.of()
+    on_grid = float(LIBRARY_BYTES_PER_GRID_VALUE) * grid.size
+    need = BASELINE_BYTES + read_bytes + n_spectra * on_grid
+    most = largest_fitting(budget.memory_bytes, BASELINE_BYTES, on_grid + read_bytes / max(n_spectra, 1))
+    budget.require(need, what=f"reading its {n_spectra:,} spectra onto the grid {grid.describe()}", key=None,
+                   source=source, fits=f"at most {min(most, n_spectra):,} spectra fit on this grid; use fewer "
+                   "spectra or a coarser grid (grid.step_nm)")
 
 
-def _csv_values(rows: list[tuple[int, list[str]]], header: list[str], *, source: str) -> np.ndarray:
-    """The rows as numbers, float64 (n_rows, n_columns); empty cells become NaN."""
-    out = np.empty((len(rows), len(header)))
-    for r, (line_no, row) in enumerate(rows):
+def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> np.ndarray:
+    """The rows as numbers, float64 ``(n_columns, n_rows)`` (a column per row of the file: the spectra are
+    rows of the result); empty cells become NaN. Read one line at a time."""
+    out = np.empty((len(header), stream.rows))
+    for r, (line_no, row) in enumerate(stream):
         if len(row) != len(header):
             raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=source)
         for c, cell in enumerate(row):
             text = cell.strip()
             try:
-                out[r, c] = float(text) if text else np.nan
+                out[c, r] = parse_number(text) if text else np.nan
             except ValueError as err:
                 raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
                                  key=key_token(header[c])) from err
@@ -196,6 +220,7 @@ def load_envi_library(
     wavelength_unit: str | None = None,
     max_gap_nm: float = DEFAULT_MAX_GAP_NM,
     quantity: Quantity = "reflectance",
+    budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Read an ENVI spectral library (``.sli`` + ``.hdr``, through SPy) onto ``grid``.
 
@@ -203,39 +228,57 @@ def load_envi_library(
     (``lib.sli``). Wavelength units come from the header's ``wavelength units`` (else
     ``wavelength_unit``, else detected); a ``reflectance scale factor`` is divided out,
     values equal to ``data ignore value`` count as missing (an error where the grid needs
-    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies).
+    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies). The memory of
+    reading it (from the header: lines × samples × data type) is checked against ``budget`` first.
     """
     hdr, data = _envi_paths(Path(path))
-    meta, lib = _open_envi(hdr, data)
+    meta, lib = _open_envi(hdr, data, grid, budget)
     centers = lib.bands.centers
     if not centers:
         raise InputError("header has no 'wavelength' list", source=hdr, key="wavelength")
     unit = meta.get("wavelength units") or wavelength_unit
     w_nm = wavelengths_to_nm(np.asarray(centers, dtype=np.float64), unit, source=str(hdr), key="wavelength")
-    spectra = _envi_values(meta, np.asarray(lib.spectra, dtype=np.float64), hdr)
+    names = [str(n).strip() for n in lib.names]
+    spectra = np.asarray(lib.spectra, dtype=np.float64)  # SPy's array in the file's type is let go with ``lib``
+    del lib
+    spectra = _envi_values(meta, spectra, hdr)
     if "bbl" in meta:
         good = _good_bands(meta, w_nm.size, hdr)
         w_nm, spectra = w_nm[good], spectra[:, good]
-    names = [str(n).strip() for n in lib.names]
     return _user_library(w_nm, spectra, names, grid, source=str(data), max_gap_nm=max_gap_nm, quantity=quantity)
 
 
-def _open_envi(hdr: Path, data: Path) -> tuple[dict, Any]:
-    """The header's metadata (lower-cased keys) and SPy's library, once the data file's size is checked."""
-    try:
-        from spectral.io import envi
-        from spectral.utilities.errors import SpyException
-    except ImportError as err:  # spectral is a core dependency, but say so clearly
-        from s2cl.errors import DependencyError
+def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None) -> tuple[dict, Any]:
+    """The header's metadata (lower-cased keys) and SPy's library, once the header's layout and the data
+    file's size are checked (:mod:`s2cl.io.envi`: errors name the header key) and the memory of reading it
+    onto ``grid`` is within ``budget``."""
+    from spectral.io import envi
+    from spectral.utilities.errors import SpyException
 
-        raise DependencyError("reading ENVI libraries needs SPy: pip install spectral") from err
+    from s2cl.io.envi import envi_layout, read_envi_header
+
+    # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
+    meta = read_envi_header(hdr, "ENVI spectral library")
+    if str(meta.get("file type", "")).strip().lower() != "envi spectral library":
+        raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
+    layout = envi_layout(meta, hdr, data, max_bytes=MAX_ENVI_BYTES)
+    if layout.bands != 1:
+        raise InputError(f"an ENVI spectral library has bands = 1 (spectra are lines, wavelengths samples), got "
+                         f"{layout.bands}", source=hdr, key="bands")
+    for key, want, what in (("wavelength", layout.samples, "samples"), ("spectra names", layout.lines, "lines")):
+        if key in meta and len(meta[key]) != want:
+            raise InputError(f"lists {len(meta[key])} values for {what} = {want}", source=hdr, key=key)
     try:
-        meta = envi.read_envi_header(str(hdr))  # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
-        _check_envi_size(meta, data, hdr)
+        # SPy's array in the file's type, float64 spectra, a float64 copy without the bad bands (bbl)
+        values = layout.samples * layout.lines * layout.bands
+        read = values * (layout.item_bytes + 8.0 + (8.0 if "bbl" in meta else 0.0))
+        require_library_memory(budget, layout.lines, read, grid, source=str(hdr))
         lib = envi.open(str(hdr), str(data))
+    except ResourceError:  # the memory check: its own message
+        raise
     except (SpyException, OSError, ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
-    if str(meta.get("file type", "")).strip().lower() != "envi spectral library" or not hasattr(lib, "names"):
+    if not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
     return meta, lib
 
@@ -245,11 +288,14 @@ def _envi_values(meta: dict, spectra: np.ndarray, hdr: Path) -> np.ndarray:
     factor = _header_float(meta, "reflectance scale factor", 1.0, hdr)
     if factor <= 0 or not np.isfinite(factor):
         raise InputError(f"must be > 0, got {factor}", source=hdr, key="reflectance scale factor")
-    if "data ignore value" in meta:
-        ignore = _header_float(meta, "data ignore value", np.nan, hdr)
-        # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
-        spectra = np.where(np.isclose(spectra, ignore, rtol=1e-6, atol=0.0), np.nan, spectra)
-    return spectra / factor
+    ignore = _header_float(meta, "data ignore value", np.nan, hdr) if "data ignore value" in meta else None
+    for a in range(0, spectra.shape[0], 1024):  # in place, a block of rows at a time: no full-size temporaries
+        block = spectra[a : a + 1024]
+        if ignore is not None:
+            # missing data become NaN: an error where the grid needs them (float32 files: compare to 1e-6)
+            block[np.isclose(block, ignore, rtol=1e-6, atol=0.0)] = np.nan
+        block /= factor
+    return spectra
 
 
 def _good_bands(meta: dict, n_bands: int, hdr: Path) -> np.ndarray:
@@ -260,33 +306,14 @@ def _good_bands(meta: dict, n_bands: int, hdr: Path) -> np.ndarray:
         raise InputError("must list numbers (1 good, 0 bad)", source=hdr, key="bbl") from err
     if good.size != n_bands:
         raise InputError(f"{good.size} entries for {n_bands} bands", source=hdr, key="bbl")
+    if good.sum() < 2:
+        raise InputError(f"flags {n_bands - int(good.sum())} of {n_bands} bands bad; a library needs at least two "
+                         "good bands (1 good, 0 bad)", source=hdr, key="bbl")
     return good
 
 
-#: bytes per value of the ENVI data types a spectral library may use (real numbers only)
-ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
 #: largest ENVI library read (bytes of data): a library is held in memory as float64 several times
 MAX_ENVI_BYTES = 256 * 2**20
-
-
-def _check_envi_size(meta: dict, data: Path, hdr: Path) -> None:
-    """The data file holds what the header declares (samples × lines × bands values of its data type, after
-    the header offset); checked before SPy allocates anything, so a header cannot ask for petabytes."""
-    try:
-        dims = [int(str(meta[k]).strip()) for k in ("samples", "lines", "bands")]
-        item = ENVI_ITEM_BYTES[str(meta["data type"]).strip()]
-        offset = int(str(meta.get("header offset", "0")).strip() or 0)
-    except (KeyError, ValueError) as err:
-        raise InputError("header lacks valid samples, lines, bands, data type or header offset", source=hdr) from err
-    if min(dims) < 1 or offset < 0:
-        raise InputError(f"samples, lines and bands must be >= 1 and the offset >= 0, got {dims} and {offset}",
-                         source=hdr)
-    need = offset + math.prod(dims) * item
-    have = data.stat().st_size
-    if need > have:
-        raise InputError(f"the header declares {need:,} bytes of data, {data.name} holds {have:,}", source=hdr)
-    if need > MAX_ENVI_BYTES:
-        raise InputError(f"the header declares {need:,} bytes of data (at most {MAX_ENVI_BYTES:,})", source=hdr)
 
 
 def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
@@ -301,21 +328,21 @@ def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
 
 
 def _envi_paths(path: Path) -> tuple[Path, Path]:
-    """(header, data) for a path naming either file of an ENVI library."""
+    """(header, data) for a path naming either file of an ENVI library; both must be regular files."""
+    from s2cl.io.inputs import input_file
+
     if path.suffix.lower() == ".hdr":
-        if not path.is_file():
-            raise InputError("ENVI header not found", source=path)
+        input_file(path, what="ENVI header")
         stem = path.with_suffix("")
         candidates = [stem] if stem.suffix.lower() == ".sli" else [stem.with_suffix(".sli"), stem.with_suffix(".SLI")]
-        data = next((c for c in candidates if c.is_file()), None)
+        data = next((c for c in candidates if c.exists()), None)
         if data is None:
             looked = ", ".join(c.name for c in candidates)
             raise InputError(f"ENVI library data file not found (looked for {looked})", source=path)
-        return path, data
-    if not path.is_file():
-        raise InputError("ENVI library data file (.sli) not found", source=path)
+        return path, input_file(data, what="ENVI library data file")
+    input_file(path, what="ENVI library data file (.sli)")
     candidates = [path.with_name(path.name + ".hdr"), path.with_suffix(".hdr"), path.with_suffix(".HDR")]
-    hdr = next((c for c in candidates if c.is_file()), None)
+    hdr = next((c for c in candidates if c.exists()), None)
     if hdr is None:
         raise InputError(f"ENVI header not found (looked for {', '.join(c.name for c in candidates)})", source=path)
-    return hdr, path
+    return input_file(hdr, what="ENVI header"), path

@@ -115,10 +115,16 @@ class SpectralLibrary:
 
 
 def check_finite(spectra: np.ndarray, *, names: list[str] | None = None, source: str | None = None) -> None:
-    """Raise :class:`InputError` naming the first spectrum that holds NaN or inf."""
-    bad = ~np.isfinite(spectra)
-    if bad.any():
-        row, col = (int(i) for i in np.argwhere(bad)[0])
+    """Raise :class:`InputError` naming the first spectrum that holds NaN or inf (checked a block of rows at
+    a time: no library-size temporaries)."""
+    spectra = np.asarray(spectra)
+    step = 4096
+    for a in range(0, max(spectra.shape[0], 1), step):
+        finite = np.isfinite(spectra[a : a + step])
+        if finite.all():
+            continue
+        row, col = (int(i) for i in np.argwhere(~finite)[0])
+        row += a
         label = names[row] if names and row < len(names) else f"#{row}"
         raise InputError(
             f"spectrum {label} holds a non-finite value ({spectra[row, col]}) at column {col}; "

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
+from s2cl.io.budget import Budget
+from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.files import load_csv_library, load_envi_library
 from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
 from s2cl.libraries.minerals import iron_backgrounds, mineral_library, mineral_library_swir
@@ -59,16 +61,20 @@ def available_libraries() -> dict[str, str]:
 
 def load_library(
     spec: str, grid: SpectralGrid, *, source: str | Path | None = None, key: str = "library",
-    quantity: Quantity = "reflectance",
+    quantity: Quantity = "reflectance", base_dir: str | Path | None = None, budget: Budget | None = None,
 ) -> SpectralLibrary:
     """Load the library named by ``spec`` onto ``grid``.
 
     :param spec: ``builtin:NAME`` (see :func:`available_libraries`), ``builtin:flat:0.05,0.3``,
         or a path to a ``.csv`` / ``.sli`` / ``.hdr`` file.
-    :param source: the file ``spec`` came from (a scene), used in error messages and to resolve
-        relative paths.
+    :param source: the file ``spec`` came from (a scene), used in error messages (a file that is missing,
+        or not a regular file, is reported as ``source: key``) and to resolve relative paths.
     :param key: the key inside ``source`` that held ``spec``.
+    :param base_dir: the folder relative paths are resolved against (default: the folder of ``source``,
+        else the working folder); a scene passes its own (:attr:`s2cl.scene.scene.Scene.base_dir`).
     :param quantity: what a user file holds (``surface.quantity``); built-in libraries are reflectance.
+    :param budget: the memory a file may take once read onto ``grid``, sized from its metadata (header line,
+        file size, ENVI header) before it is read; default :meth:`Budget.of`.
     :raises InputError: unknown builtin (the message lists the available ones), unknown file type,
         or any problem of the file itself.
     """
@@ -76,13 +82,17 @@ def load_library(
     if text.startswith(BUILTIN_PREFIX):
         return _load_builtin(text[len(BUILTIN_PREFIX) :], grid, source=source, key=key)
     path = Path(text).expanduser()
-    if source is not None and not path.is_absolute():
-        path = Path(source).parent / path
+    if not path.is_absolute():
+        if base_dir is not None:
+            path = Path(base_dir) / path
+        elif source is not None:
+            path = Path(source).parent / path
     suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return load_csv_library(path, grid, quantity=quantity)
-    if suffix in {".sli", ".hdr"}:
-        return load_envi_library(path, grid, quantity=quantity)
+    if suffix in {".csv", ".sli", ".hdr"}:
+        input_file(path, what="spectral library file", source=source, key=key)
+        if suffix == ".csv":
+            return load_csv_library(path, grid, quantity=quantity, budget=budget)
+        return load_envi_library(path, grid, quantity=quantity, budget=budget)
     raise InputError(
         f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
         source=source,
@@ -94,11 +104,15 @@ def _load_builtin(name: str, grid: SpectralGrid, *, source: str | Path | None, k
     name = name.strip().lower()
     if name.startswith("flat:"):
         try:
-            values = [float(v) for v in name[len("flat:") :].split(",") if v.strip()]
+            values = [parse_number(v.strip()) for v in name[len("flat:") :].split(",") if v.strip()]
         except ValueError as err:
             raise InputError(f"builtin:{name}: flat values must be numbers, e.g. builtin:flat:0.05,0.3",
                              source=source, key=key) from err  # fmt: skip
-        return flat_targets(grid, values)
+        try:
+            return flat_targets(grid, values)
+        except InputError as err:
+            raise InputError(f"builtin:flat: {err.detail}, e.g. builtin:flat:0.05,0.3", source=source,
+                             key=key) from None
     if name not in _BUILTINS:
         listing = "; ".join(f"{n} ({d})" for n, (d, _) in _BUILTINS.items())
         raise InputError(f"unknown builtin library {token(name)}; available: {listing}", source=source, key=key)

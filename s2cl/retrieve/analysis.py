@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.errors import InputError
+from s2cl.errors import InputError, token
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.indices import INDICES
 from s2cl.status import REGRESS_NAMES, Status
@@ -92,9 +92,13 @@ def analysis_targets(scene: Any, lib: SpectralLibrary, analysis: AnalysisSetting
     """The library (restricted to the SAM classes), the per-spectrum target and the class names."""
     if analysis.kind == "sam":
         wanted = scene.spec.analysis.classes or sorted(set(lib.groups))
+        twice = sorted({c for c in wanted if wanted.count(c) > 1})
+        if twice:
+            raise InputError(f"lists class(es) {', '.join(map(token, twice))} more than once; SAM needs at least two "
+                             "different classes", source=scene.source, key="analysis.classes")
         missing = [c for c in wanted if c not in lib.groups]
         if missing:
-            raise InputError(f"no spectra of class(es) {', '.join(missing)}; library groups: "
+            raise InputError(f"no spectra of class(es) {', '.join(map(token, missing))}; library groups: "
                              f"{', '.join(sorted(set(lib.groups)))}", source=scene.source, key="analysis.classes")
         if len(wanted) < 2:
             raise InputError("SAM needs at least two classes", source=scene.source, key="analysis.classes")

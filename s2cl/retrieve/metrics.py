@@ -46,7 +46,8 @@ def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray
     parts = []
     for a in range(0, max(x.shape[0], 1), ROW_BLOCK):
         b = min(a + ROW_BLOCK, x.shape[0])
-        xb = x[a:b].astype(np.float64)
+        # C order: each row's reductions run over contiguous memory, in the same order in any block
+        xb = np.ascontiguousarray(x[a:b], dtype=np.float64)
         vb = _any_of(status[a:b], regress)
         vb &= np.isfinite(xb)
         part = _poly2(xb, vb, target)
@@ -116,8 +117,10 @@ def median_code(codes: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = True) -> dict[str, np.ndarray]:
     """Conditioned second-order polynomial regression of ``target`` on the valid ``x`` of each row.
 
-    Moments are row reductions and matrix–vector products with the target (no 3-D temporaries):
-    this runs once per sweep chunk over (configurations × pixels) arrays.
+    Moments are row reductions (no 3-D temporaries): this runs once per sweep chunk over (configurations ×
+    pixels) arrays. Every reduction runs along a row on its own (numpy's pairwise sum, no BLAS
+    matrix-vector product, whose rounding depends on how many rows it is given), so a configuration's
+    metrics are bit-identical whatever chunk it is computed in.
     """
     y = np.asarray(target, dtype=np.float64)
     w = valid.astype(np.float64)
@@ -138,7 +141,8 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
     m[:, 0, 2] = m[:, 2, 0] = m[:, 1, 1] = u2.sum(axis=1)
     m[:, 1, 2] = m[:, 2, 1] = (u2 * u).sum(axis=1)
     m[:, 2, 2] = (u2 * u2).sum(axis=1)
-    b = np.stack([w @ y, u @ y, u2 @ y], axis=1)
+    wy = (w * y).sum(axis=1)
+    b = np.stack([wy, (u * y).sum(axis=1), (u2 * y).sum(axis=1)], axis=1)
     m[constant, 1:, :] = 0.0
     m[constant, :, 1:] = 0.0
     m[constant, 1, 1] = m[constant, 2, 2] = 1.0
@@ -148,8 +152,8 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
     if not every:
         residual *= w
     ss_res = np.einsum("ij,ij->i", residual, residual)
-    y_mean = (w @ y) / safe_n
-    ss_tot = w @ (y * y) - n * y_mean**2
+    y_mean = wy / safe_n
+    ss_tot = (w * (y * y)).sum(axis=1) - n * y_mean**2
     with np.errstate(invalid="ignore", divide="ignore"):
         r2 = np.where(ss_tot > 0, 1.0 - ss_res / ss_tot, 0.0)
     rms = np.sqrt(ss_res / safe_n)
@@ -163,13 +167,20 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
 
 
 def _solve3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Batched 3 × 3 normal equations; a block with a singular row (fewer than three distinct index
-    values in the regression, e.g. when ``analysis.regress`` leaves two pixels) is solved by the
-    pseudo-inverse instead: the minimum-norm polynomial, finite, never a LinAlgError."""
+    """Batched 3 × 3 normal equations; a singular system (fewer than three distinct index values in the
+    regression, e.g. when ``analysis.regress`` leaves two pixels) is solved by the pseudo-inverse instead:
+    the minimum-norm polynomial, finite, never a LinAlgError. Each row is solved on its own terms, so its
+    result does not depend on the other rows of the block."""
     try:
         return np.linalg.solve(m, b[..., None])[..., 0]
     except np.linalg.LinAlgError:
-        return np.einsum("rij,rj->ri", np.linalg.pinv(m), b)
+        out = np.empty_like(b)
+        for i in range(m.shape[0]):
+            try:
+                out[i] = np.linalg.solve(m[i : i + 1], b[i : i + 1, :, None])[0, :, 0]
+            except np.linalg.LinAlgError:
+                out[i] = np.einsum("rij,rj->ri", np.linalg.pinv(m[i : i + 1]), b[i : i + 1])[0]
+        return out
 
 
 def _robust(abs_res: np.ndarray, valid: np.ndarray, n: np.ndarray) -> np.ndarray:

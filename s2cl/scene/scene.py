@@ -9,6 +9,7 @@ range are errors that name the file, the key and the allowed range.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,8 +17,9 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from s2cl.errors import InputError
+from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
+from s2cl.io.inputs import input_file
 from s2cl.resources import scene_dir
 from s2cl.scene.config import RunConfig, resolve_run
 from s2cl.scene.effects import EffectSet
@@ -113,9 +115,7 @@ def find_scene(scene: str | Path) -> Path:
     """A scene file path, or the built-in scene of that name."""
     p = Path(scene)
     if p.suffix == ".toml" or p.exists():
-        if not p.is_file():
-            raise InputError("scene file not found", source=p)
-        return p
+        return input_file(p, what="scene file")
     builtins = builtin_scenes()
     if str(scene) in builtins:
         return builtins[str(scene)]
@@ -134,14 +134,20 @@ def _grid(g: GridSpec, source: str) -> SpectralGrid:
 def _sensor(spec: SceneSpec, base: Path, source: str) -> Sensor:
     s = spec.sensor
     if s.file:
-        sensor = Sensor.from_csv(_relative(base, s.file))
+        sensor = Sensor.from_csv(input_file(_relative(base, s.file), what="sensor table", source=source,
+                                            key="sensor.file"))
     else:
         sensor = Sensor.sentinel2()
     if s.bands:
+        seen = [b.lower() for b in s.bands]
+        twice = sorted({b for b in s.bands if seen.count(b.lower()) > 1})
+        if twice:
+            raise InputError(f"lists band(s) {', '.join(map(token, twice))} more than once", source=source,
+                             key="sensor.bands")
         unknown = [b for b in s.bands if b.lower() not in {n.lower() for n in sensor.band_names}]
         if unknown:
             raise InputError(
-                f"unknown band(s) {', '.join(unknown)}; the sensor has {', '.join(sensor.band_names)}",
+                f"unknown band(s) {', '.join(map(token, unknown))}; the sensor has {', '.join(sensor.band_names)}",
                 source=source, key="sensor.bands",
             )
         sensor = sensor.select(s.bands)
@@ -160,7 +166,8 @@ def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
         bands = tuple(replace(b, tabulated=measured_sentinel2_srf(platform, b.name)) for b in sensor.bands)
         return replace(sensor, bands=bands)
     if srf.startswith("table:"):
-        table = load_srf_csv(str(_relative(base, srf.split(":", 1)[1])))
+        path = input_file(_relative(base, srf.split(":", 1)[1]), what="SRF table", source=source, key="sensor.srf")
+        table = load_srf_csv(str(path))
         missing = [b.name for b in sensor.bands if b.name not in table]
         if missing:
             raise InputError(f"SRF table lacks band(s) {', '.join(missing)}", source=source, key="sensor.srf")
@@ -191,6 +198,11 @@ def _check_surface(spec: SceneSpec, source: str) -> None:
     s = spec.surface
     if (s.library is None) == (s.cube is None):
         raise InputError("give exactly one of surface.library or surface.cube", source=source, key="surface")
+    if s.layout == "blocks" and math.isqrt(s.copies) ** 2 != s.copies:
+        root = math.isqrt(s.copies)
+        raise InputError(f"layout 'blocks' lays each spectrum's copies out as a square tile: copies must be a square "
+                         f"number (such as {root * root} or {(root + 1) ** 2}), got {s.copies}", source=source,
+                         key="surface.copies")
     if s.cube is not None and s.gsd_m is None:
         raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
                          source=source, key="surface.gsd_m")

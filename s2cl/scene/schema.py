@@ -6,6 +6,7 @@ allowed (``scenes/default.toml`` documents every key).
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from typing import Any, Literal
 
@@ -193,6 +194,22 @@ class StudySpec(_Section):
     pixels: int = Field(100, ge=1, le=100_000, description="noisy pixels per target and state")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
+    @field_validator("reflectance")
+    @classmethod
+    def _reflectance(cls, values: list[float]) -> list[float]:
+        bad = [v for v in values if not (math.isfinite(v) and 0 < v <= 1)]
+        if bad:
+            raise ValueError(f"reflectances must be > 0 and <= 1, got {bad[0]}")
+        return values
+
+    @field_validator("water_vapour", "ozone", "aot550", "factor_errors")
+    @classmethod
+    def _finite(cls, values: list[float]) -> list[float]:
+        bad = [v for v in values if not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"values must be finite numbers, got {bad[0]}")
+        return values
+
 
 class SceneSpec(_Section):
     scene: SceneMeta
@@ -220,8 +237,8 @@ def input_error(err: ValidationError, source: str) -> InputError:
     if e["type"] == "extra_forbidden":
         allowed = _allowed_keys(loc[:-1])
         near = difflib.get_close_matches(loc[-1], allowed, n=1)
-        hint = f"; did you mean {near[0]!r}?" if near else ""
-        return InputError(f"unknown key{hint} allowed keys here: {', '.join(allowed)}", source=source, key=key)
+        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        return InputError(f"unknown key{hint}; allowed keys here: {', '.join(allowed)}", source=source, key=key)
     if e["type"] == "missing":
         return InputError("required key is missing", source=source, key=key)
     if e["type"] == "value_error":
@@ -250,16 +267,26 @@ def _allowed_text(e: dict[str, Any], loc: list[str]) -> str:
 
 def _field(loc: list[str]) -> Any:
     """The pydantic FieldInfo at a dotted location, or None."""
+    info, _ = _walk(loc)
+    return info
+
+
+def _walk(loc: list[str]) -> tuple[Any, Any]:
+    """(FieldInfo, type) at a dotted location; the type of an entry of a ``dict[str, Model]`` field (such as
+    ``sweep.ranges.B4``) is the model, with no FieldInfo. (None, None) where the location leaves the schema."""
     model: Any = SceneSpec
     info = None
     for part in loc:
         model = _unwrap_optional(model)
+        if getattr(model, "__origin__", None) is dict:  # an entry of a dict field: its key is the user's
+            info, model = None, model.__args__[1]
+            continue
         fields = getattr(model, "model_fields", None)
         if not fields or part not in fields:
-            return None
+            return None, None
         info = fields[part]
         model = info.annotation
-    return info
+    return info, model
 
 
 def _allowed_keys(loc: list[str]) -> list[str]:
@@ -267,8 +294,8 @@ def _allowed_keys(loc: list[str]) -> list[str]:
         return list(SceneSpec.model_fields)
     if loc == ["analysis"]:
         return [k for k in AnalysisSpec.model_fields if k != "roles"] + list(ROLE_KEYS)
-    info = _field(loc)
-    fields = getattr(_unwrap_optional(getattr(info, "annotation", None)), "model_fields", None)
+    _, model = _walk(loc)
+    fields = getattr(_unwrap_optional(model), "model_fields", None)
     return list(fields) if fields else []
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from s2cl.errors import InputError, key_token, token
+from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
@@ -37,9 +38,10 @@ class Checked:
     caveats: list[Caveat] = field(default_factory=list)
 
 
-def check_simulate(scene: Scene) -> Checked:
-    """Everything ``s2cl simulate`` needs, checked (its analysis runs on ``analysis_bands``)."""
-    library, space = _surface(scene), _space(scene)
+def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
+    """Everything ``s2cl simulate`` needs, checked (its analysis runs on ``analysis_bands``); a library file is
+    sized from its metadata against ``budget`` before it is read."""
+    library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
     if scene.spec.analysis is not None and scene.spec.surface.cube is None:
         from s2cl.retrieve.scene_analysis import analysis_bands
@@ -57,10 +59,11 @@ def check_simulate(scene: Scene) -> Checked:
     return Checked(scene, library, space, analysis, bands, caveats)
 
 
-def check_sweep(scene: Scene) -> Checked:
-    """Everything a sweep of ``scene`` needs, checked (the same for optimise, sweep run and sweep count)."""
+def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
+    """Everything a sweep of ``scene`` needs, checked (the same for optimise, sweep run and sweep count); a
+    library file is sized from its metadata against ``budget`` before it is read."""
     check_sweep_sections(scene)
-    library, space = _surface(scene), _space(scene)
+    library, space = _surface(scene, budget), _space(scene)
     assert space is not None
     _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
     analysis = _analysis(scene, space.bands, library)
@@ -80,17 +83,25 @@ def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) 
                      slots=analysis.slots)
 
 
-def _surface(scene: Scene) -> SpectralLibrary | None:
+def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
     if scene.spec.surface.library is None:
+        from s2cl.io.inputs import input_file
+
+        cube = scene.spec.surface.cube
+        assert cube is not None  # the scene has one of them (s2cl.scene.scene)
+        input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
     from s2cl.forward.simulate import scene_library
 
-    return scene_library(scene)
+    return scene_library(scene, budget=budget)
 
 
 def _space(scene: Scene) -> SweepSpace | None:
     if scene.spec.sweep is None:
         return None
+    if scene.spec.surface.cube is not None:
+        raise InputError("a [sweep] runs over a spectral library (surface.library), not an image cube: remove "
+                         "[sweep] to simulate the cube, or sweep a library", source=scene.source, key="sweep")
     from s2cl.sweep.tables import sweep_space
 
     return sweep_space(scene)

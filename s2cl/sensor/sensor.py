@@ -14,9 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from s2cl.errors import InputError, key_token, token
+from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
+from s2cl.io.inputs import parse_number
 from s2cl.io.tables import read_csv_table
+from s2cl.sensor.names import check_band_name
 from s2cl.sensor.noise_model import NoiseModel, fit_noise_model
 from s2cl.sensor.srf import DEFAULT_SUPPORT, BandWeights, TabulatedResponse, band_weights
 
@@ -53,6 +55,8 @@ class Band:
 
     def validate(self, source: str | None = None) -> None:
         """:raises InputError: naming the band, key and allowed range."""
+        check_band_name(self.name, source=source, key="band")
+
         def bad(key: str, msg: str) -> InputError:
             return InputError(msg, source=source, key=f"{self.name}.{key}")
 
@@ -69,6 +73,9 @@ class Band:
             raise bad("gsd_m", f"must be > 0 m, got {self.gsd_m}")
         if not self.snr_points:
             raise bad("snr", "needs at least one SNR value")
+        for level, snr in self.snr_points:
+            if not (math.isfinite(level) and level > 0 and math.isfinite(snr) and snr > 0):
+                raise bad("snr", f"SNR point (L={level}, SNR={snr}) needs finite L > 0 and SNR > 0")
 
     @cached_property
     def noise(self) -> NoiseModel:
@@ -111,7 +118,7 @@ class Sensor:
         names = [b.name for b in self.bands]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
-            raise InputError(f"duplicate band names: {', '.join(dupes)}", source=self.source or None)
+            raise InputError(f"duplicate band names: {', '.join(dupes)}", source=self.source or None, key="band")
         if not (isinstance(self.bits, int) and 1 <= self.bits <= MAX_BITS):
             raise InputError(f"bits must be an integer in 1–{MAX_BITS}, got {self.bits!r}",
                              source=self.source or None, key="bits")
@@ -168,8 +175,8 @@ class Sensor:
                              source=path)
         col = {c: header.index(c) for c in SENSOR_COLUMNS}
         bands = []
-        for row in rows:
-            band_name = row[col["band"]].strip()
+        for line_no, row in rows:
+            band_name = check_band_name(row[col["band"]].strip(), source=path, key="band", where=f"line {line_no}")
 
             def number(key: str, *, optional: bool = False, _row=row, _band=band_name) -> float | None:
                 text = _row[col[key]].strip()
@@ -178,13 +185,16 @@ class Sensor:
                         return None
                     raise InputError("value is empty", source=path, key=f"{_band}.{key}")
                 try:
-                    return float(text)
+                    return parse_number(text)
                 except ValueError as err:
-                    raise InputError(f"not a number: {token(text)}", source=path,
-                                     key=f"{key_token(_band)}.{key}") from err
+                    raise InputError(f"not a number: {token(text)}", source=path, key=f"{_band}.{key}") from err
 
             levels = {k: number(k) for k in ("lmin", "lref", "lmax")}
             snrs = {k: number("snr_" + k, optional=True) for k in ("lmin", "lref", "lmax")}
+            for k, snr in snrs.items():
+                if snr is not None and not (math.isfinite(snr) and snr > 0):
+                    raise InputError(f"must be a finite number > 0 (or empty: not given), got {snr}", source=path,
+                                     key=f"{band_name}.snr_{k}")
             points = tuple((levels[k], s) for k, s in snrs.items() if s is not None)
             bands.append(
                 Band(

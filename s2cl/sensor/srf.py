@@ -20,14 +20,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from s2cl.errors import InputError, key_token
-from s2cl.grid import SpectralGrid
+from s2cl.errors import InputError, token
+from s2cl.grid import SpectralGrid, check_wavelengths
+from s2cl.io.inputs import parse_number
+from s2cl.io.tables import read_csv_table
+from s2cl.sensor.names import check_band_name
 
 X0 = 0.0001
 XS = 0.8999
 ALPHA = 1.06299
 XE = 6.0
 DEFAULT_SUPPORT = 1.0
+#: largest response a tabulated SRF may hold (relative units: 0-1, or percent; more is not an SRF)
+MAX_RESPONSE = 1000.0
 
 
 def super_gaussian(wavelengths_nm: np.ndarray, centre_nm: float, fwhm_nm: float) -> np.ndarray:
@@ -147,32 +152,34 @@ def _check_inside(grid: SpectralGrid, lo: float, hi: float, name: str, source: s
 def load_srf_csv(path: str, band_names: list[str] | None = None) -> dict[str, TabulatedResponse]:
     """Tabulated SRFs from a CSV: a ``wavelength_nm`` column then one column per band.
 
-    Lines starting with ``#`` are comments. Responses must be finite and >= 0.
+    Lines starting with ``#`` are comments. Responses must be finite and within 0-:data:`MAX_RESPONSE`;
+    band names follow :data:`s2cl.sensor.names.BAND_NAME`; numbers are ASCII decimal notation.
     """
-    from s2cl.io.tables import read_csv_table
-
     header, rows = read_csv_table(path)
     if not header or header[0].strip().lower() not in ("wavelength_nm", "wavelength"):
         raise InputError("first column must be 'wavelength_nm'", source=path, key="header")
-    try:
-        data = np.array([[float(v) for v in row] for row in rows], dtype=np.float64)
-    except ValueError as err:
-        raise InputError("holds a value that is not a number", source=path) from err
-    if data.ndim != 2 or data.shape[0] < 2:
+    names = [check_band_name(n.strip(), source=path, key="header") for n in header[1:]]
+    data = np.empty((len(rows), len(header)))
+    for r, (line_no, row) in enumerate(rows):
+        for c, cell in enumerate(row):
+            try:
+                data[r, c] = parse_number(cell.strip())
+            except ValueError as err:
+                raise InputError(f"line {line_no}: {token(cell.strip())} is not a number", source=path,
+                                 key=header[0].strip() if c == 0 else names[c - 1]) from err
+    if data.shape[0] < 2:
         raise InputError("needs at least two rows of responses", source=path)
-    from s2cl.grid import check_wavelengths
-
     wl = check_wavelengths(data[:, 0], source=path, key="wavelength_nm")
     out = {}
-    for j, name in enumerate(header[1:], start=1):
-        name = name.strip()
+    for j, name in enumerate(names, start=1):
         if band_names is not None and name not in band_names:
             continue
         r = data[:, j]
-        if not np.all(np.isfinite(r)) or np.any(r < 0):
-            raise InputError("responses must be finite and >= 0", source=path, key=key_token(name))
+        if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > MAX_RESPONSE):
+            raise InputError(f"responses must be finite, >= 0 and <= {MAX_RESPONSE:g} (relative units: 0-1, or "
+                             "percent)", source=path, key=name)
         if not np.any(r > 0):
-            raise InputError("response is zero everywhere", source=path, key=key_token(name))
+            raise InputError("response is zero everywhere", source=path, key=name)
         out[name] = TabulatedResponse(wl, r, origin=f"{path}:{name}")
     return out
 

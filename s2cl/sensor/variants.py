@@ -111,6 +111,18 @@ class BandRange:
         widths = w[some | fills]
         return float(min(centres)), float(max(centres)), float(widths.min()), float(widths.max())
 
+    def support_extent(self, support: float) -> tuple[float, float]:
+        """(lowest, highest) wavelength, nm, that the model SRF of any variant reaches: centre ± support × width."""
+        if self.is_fixed:
+            c = (self.left_nm + self.right_nm) / 2
+            return c - support * self.min_width_nm, c + support * self.min_width_nm
+        w, k0, k1, fills = self._centre_ranges()
+        some = k1 >= k0
+        fill_c = (self.left_nm + self.right_nm) / 2
+        lows = [*(k0[some] * self.step_nm - support * w[some]), *(fill_c - support * w[fills])]
+        highs = [*(k1[some] * self.step_nm + support * w[some]), *(fill_c + support * w[fills])]
+        return float(min(lows)), float(max(highs))
+
     def variants(self) -> np.ndarray:
         """All (centre, width) pairs, float64 ``(n, 2)``, sorted by width then centre."""
         if self.is_fixed:
@@ -159,6 +171,10 @@ class BandGrid:
     def extent(self) -> tuple[float, float, float, float]:
         """(smallest centre, largest centre, smallest width, largest width), nm."""
         return min(self.centres), max(self.centres), min(self.widths), max(self.widths)
+
+    def support_extent(self, support: float) -> tuple[float, float]:
+        """(lowest, highest) wavelength, nm, that the model SRF of any variant reaches: centre ± support × width."""
+        return min(self.centres) - support * max(self.widths), max(self.centres) + support * max(self.widths)
 
     def variants(self) -> np.ndarray:
         """All (centre, width) pairs, ``(n, 2)``, widths outer, centres inner."""

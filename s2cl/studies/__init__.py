@@ -19,13 +19,8 @@ from s2cl.studies import aerosol, cirrus, methane, ozone, water_vapour
 from s2cl.studies.common import StudyResult, StudySetup, load_study
 from s2cl.studies.plots import replot
 
-STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {
-    "cirrus": cirrus.run,
-    "water-vapour": water_vapour.run,
-    "aerosol": aerosol.run,
-    "ozone": ozone.run,
-    "methane": methane.run,
-}
+_MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "aerosol": aerosol, "ozone": ozone, "methane": methane}
+STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {name: m.run for name, m in _MODULES.items()}
 
 __all__ = ["STUDIES", "StudyResult", "replot", "run_study", "study_scene"]
 
@@ -37,6 +32,23 @@ def study_scene(name: str) -> Scene:
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; studies: {', '.join(STUDIES)}")
     return Scene.load(f"study-{name}")
+
+
+def check_needs(setup: StudySetup) -> None:
+    """The study kind's bands are in [sweep] and the [study] lists it reads are not empty (each study module's
+    ``NEEDS_BANDS`` and ``NEEDS_KEYS``), checked before any work."""
+    kind = setup.study.kind
+    module = _MODULES[kind]
+    for key in module.NEEDS_KEYS:
+        if not getattr(setup.study, key):
+            raise InputError(f"the {kind} study needs at least one value here", source=setup.source,
+                             key=f"study.{key}")
+    sweep = setup.scene.spec.sweep
+    swept = {b.lower() for b in sweep.bands} if sweep else set()
+    missing = [b for b in module.NEEDS_BANDS if b.lower() not in swept]
+    if missing:
+        raise InputError(f"the {kind} study varies band(s) {', '.join(missing)}: list them in sweep.bands (with "
+                         "their ranges)", source=setup.source, key="sweep.bands")
 
 
 def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> tuple[StudyResult, Path, Path]:
@@ -51,10 +63,12 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
 
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)
+    check_needs(setup)
     out = Path(output) if output else Path("s2cl-out") / scene.name
-    check_output_dir(out, where="--output" if output else f"scene.name in {scene.source}")
-    result = STUDIES[setup.study.kind](setup)
     stem = setup.study.kind
+    check_output_dir(out, where="--output" if output else f"scene.name in {scene.source}",
+                     writes=(f"{stem}.json", f"{stem}.png"))
+    result = STUDIES[stem](setup)
     with claim(out):
         payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick,
                    "s2cl_version": __version__}

@@ -26,6 +26,8 @@ from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_
 PAPER_DOMINANT_ABOVE = 0.10
 STANDARD_BLUE_RED = 0.5       # rho(480 nm) = 0.5 rho(red)
 RED, SWIR, BLUE, B1 = "B4", "B12", "B2", "B1"
+#: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
+NEEDS_BANDS, NEEDS_KEYS = (RED, SWIR, BLUE, B1), ("aot550", "factor_errors", "targets")
 # rows of the study's band arrays: red, 2.2 µm, the blue band B2, then the B1 variants
 I_RED, I_SWIR, I_BLUE, I_B1 = 0, 1, 2, 3
 

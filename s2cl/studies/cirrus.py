@@ -24,6 +24,8 @@ from s2cl.studies.cirrus_spikes import CASES, SPIKE_DIP, SPIKE_REGION_NM, SPIKE_
 from s2cl.studies.common import StudyResult, StudySetup, apply
 
 BAND = "B10"
+#: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
+NEEDS_BANDS, NEEDS_KEYS = (BAND,), ("reflectance", "water_vapour")
 RANGE_EDGES_NM = (1355.0, 1395.0)
 """Where :func:`change_by_range` splits the change: short-wave wing, band core, long-wave wing."""
 

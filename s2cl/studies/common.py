@@ -125,7 +125,8 @@ class StudySetup:
         """Target classes from [study] ``targets`` (each library cut to ``spectra`` spectra)."""
         out = {}
         for label, name in self.study.targets.items():
-            lib = load_library(name, self.scene.grid, source=self.source, key=f"study.targets.{label}")
+            lib = load_library(name, self.scene.grid, source=self.source, key=f"study.targets.{label}",
+                               base_dir=self.scene.base_dir)
             n = self.study.spectra
             if n and lib.size > n:
                 lib = lib.subset(np.linspace(0, lib.size - 1, n).round().astype(int))

@@ -14,6 +14,8 @@ from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, inver
 
 PAPER_MAX_PCT = 0.5  # "smaller than 0.5 %"
 BAND = "B11"
+#: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
+NEEDS_BANDS, NEEDS_KEYS = (BAND,), ("reflectance",)
 
 
 def run(setup: StudySetup) -> StudyResult:

@@ -14,6 +14,8 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply
 
 PAPER_MAX_B3_PCT = 6.0  # "relative errors of up to about 6 %" in B3 (Fig. 5, MODTRAN4)
+#: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
+NEEDS_BANDS, NEEDS_KEYS = (), ("ozone", "reflectance")
 
 
 def case_key(o3: float, rho: float) -> str:

@@ -30,6 +30,8 @@ from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_
 PAPER_RMS_PCT = (5.0, 10.0)   # "the 5–10 % accuracy of the 865-/945-nm water vapor retrievals"
 # "Relative RMS errors ... increase by 6 % if winter scenes are processed with summer LUTs"
 PAPER_WINTER_INCREASE_PCT = 6.0
+#: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
+NEEDS_BANDS, NEEDS_KEYS = ("B9", "B8a"), ("water_vapour", "targets")
 SUMMER, WINTER = "midlatitude_summer", "midlatitude_winter"
 
 

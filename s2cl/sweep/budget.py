@@ -4,11 +4,19 @@ What a sweep holds (bytes; ``P`` pixels = spectra × copies, ``S`` band slots, `
 over all slots, ``G`` grid wavelengths, ``C`` configurations per chunk):
 
 - the library and its TOA radiance: ``3 · 8 · spectra · G``;
-- per variant and spectrum: band radiance, noise σ and surface reflectance, float64: ``24 · V · spectra``;
+- per variant and spectrum: band radiance, noise σ and surface reflectance, float64, with their lists while
+  they are stacked and the kernel's float32 copies (:data:`TABLE_BYTES_PER_VARIANT_SPECTRUM`, measured
+  about 49); per variant its SRF weights while its slot is tabulated (``16`` bytes per grid sample of the
+  widest variant's support, plus :data:`TABLE_BYTES_PER_VARIANT`);
 - the common random numbers ``z`` (float64 on the host, float32 on the device) and the target:
   ``(12 · S + 16) · P``, plus the Philox work arrays of one slot while they are drawn (``160 · P``);
 - per configuration-pixel of a chunk: the metrics' float64 work arrays
-  (:data:`s2cl.sweep.engine.HOST_BYTES_PER_EVALUATION`) and the kernel's outputs with their host copies (``28``).
+  (:data:`s2cl.sweep.engine.HOST_BYTES_PER_EVALUATION`) and the kernel's outputs with their host copies (``28``);
+  per configuration of a chunk, its row of results twice (the chunk file and the merge into
+  ``results.parquet``);
+- the report (:mod:`s2cl.sweep.digest`, which streams ``results.parquet``): per band variant the best value of
+  each (centre, width) pair (:data:`~s2cl.sweep.digest.BYTES_PER_VARIANT`), one batch of rows, and the
+  heatmap figure (at most 60 × 40 cells: :data:`HEATMAP_BYTES`). No step holds all configurations.
 
 The largest part decides the key an error names: ``surface.copies`` (pixels), ``sweep.step_nm``
 (variants) or ``sweep.chunk`` / ``--chunk``.
@@ -20,7 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from s2cl.io.budget import BASELINE_BYTES, Budget, gb, largest_fitting, require_disk
+from s2cl.scene.scene import Scene
 from s2cl.scene.validate import Checked
+from s2cl.sensor.variants import BandGrid, BandRange
+from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BYTES_PER_VARIANT
 from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION, results_disk_bytes
 
 KERNEL_BYTES_PER_EVALUATION = 28
@@ -29,6 +40,12 @@ PER_PIXEL_SLOT = 12
 PER_PIXEL = 16
 AUTO_CHUNK_BYTES = 512e6
 MAX_AUTO_CHUNK = 16384
+#: a heatmap figure of at most 60 × 40 cells while matplotlib draws and writes it (measured about 150 MB)
+HEATMAP_BYTES = 200e6
+TABLE_BYTES_PER_VARIANT_SPECTRUM = 56
+TABLE_BYTES_PER_VARIANT = 256
+#: columns of a results row besides each band's centre and width (config, metrics, fit accounting)
+RESULT_COLUMNS = 24
 
 __all__ = ["Budget", "SweepPlan", "require_sweep_disk", "sweep_resources"]
 
@@ -42,8 +59,10 @@ class SweepPlan:
     configurations: int
 
 
-def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budget | None = None) -> SweepPlan:
-    """Estimate the sweep's memory; choose the chunk (``chunk``, else ``sweep.chunk``, else the largest
+def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budget | None = None,
+                    resumed: int | None = None) -> SweepPlan:
+    """Estimate the sweep's memory; choose the chunk (``chunk``, else ``resumed``: the chunk of the unfinished
+    sweep in the output folder, whose chunk files are keyed by it, else ``sweep.chunk``, else the largest
     that keeps a chunk's work arrays within 512 MB and the whole within ``budget``).
 
     :raises ResourceError: even one configuration per chunk does not fit, or the chunk asked for does not.
@@ -56,30 +75,48 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     n_configs = space.size
     variants = sum(space.counts)
     per_copy = spectra * (PER_PIXEL_SLOT * slots + PER_PIXEL + PHILOX_BYTES_PER_PIXEL)
-    fixed = BASELINE_BYTES + 24.0 * spectra * scene.grid.size + 24.0 * variants * spectra
-    per_config = pixels * (HOST_BYTES_PER_EVALUATION + KERNEL_BYTES_PER_EVALUATION)
-    need_one = fixed + copies * per_copy + per_config
+    columns = 2 * slots + RESULT_COLUMNS
+    report = BYTES_PER_VARIANT * variants + BATCH_BYTES_PER_COLUMN * columns + HEATMAP_BYTES
+    tables = sum(n * (TABLE_BYTES_PER_VARIANT_SPECTRUM * spectra + _weights_bytes(r, scene) + BYTES_PER_VARIANT)
+                 for r, n in zip(space.ranges, space.counts, strict=True))
+    fixed = BASELINE_BYTES + 24.0 * spectra * scene.grid.size + tables
+    held = fixed + copies * per_copy  # through the whole run; then the chunks' arrays, then the report
+    per_config = pixels * (HOST_BYTES_PER_EVALUATION + KERNEL_BYTES_PER_EVALUATION) + 16.0 * columns
+
+    def need(n: int) -> float:
+        return held + max(n * per_config, report)
+
     what = f"a sweep of {n_configs:,} configurations × {pixels:,} pixels"
-    if need_one > budget.memory_bytes:
-        tables = 24.0 * variants * spectra
+    if need(1) > budget.memory_bytes:
         if tables > copies * per_copy:
-            budget.require(need_one, what=what + f" ({variants:,} band variants)", key="sweep.step_nm",
+            budget.require(need(1), what=what + f" ({variants:,} band variants)", key="sweep.step_nm",
                            source=scene.source, fits=f"the variant tables alone take {gb(tables)}")
-        most = largest_fitting(budget.memory_bytes, fixed, per_copy + spectra * per_config / pixels)
-        budget.require(need_one, what=what, key="surface.copies", source=scene.source,
+        most = largest_fitting(budget.memory_bytes, fixed + report, per_copy + spectra * per_config / pixels)
+        budget.require(need(1), what=what, key="surface.copies", source=scene.source,
                        fits=f"at most {most:,} copies fit" if most else "")
-    room = largest_fitting(budget.memory_bytes, fixed + copies * per_copy, per_config)
+    room = largest_fitting(budget.memory_bytes, held, per_config)
+    if resumed and not chunk:
+        budget.require(need(resumed), what=what + f" resumed in the chunks of {resumed:,} it started with",
+                       key="--max-memory", source=scene.source, fits=f"at most {room:,} configurations per chunk "
+                       "fit: raise --max-memory, or pass --overwrite to start afresh")
+        return SweepPlan(chunk=int(resumed), memory_bytes=need(resumed), configurations=n_configs)
     asked = chunk or scene.spec.sweep.chunk
     if asked:
         key = "--chunk" if chunk else "sweep.chunk"
-        budget.require(fixed + copies * per_copy + asked * per_config, what=what + f" in chunks of {asked:,}",
-                       key=key, source=scene.source, fits=f"at most {room:,} configurations per chunk fit")
+        budget.require(need(asked), what=what + f" in chunks of {asked:,}", key=key, source=scene.source,
+                       fits=f"at most {room:,} configurations per chunk fit")
         size = asked
     else:
         size = max(1, min(n_configs, int(AUTO_CHUNK_BYTES // (pixels * HOST_BYTES_PER_EVALUATION)), MAX_AUTO_CHUNK,
                           room))
-    return SweepPlan(chunk=int(size), memory_bytes=fixed + copies * per_copy + size * per_config,
-                     configurations=n_configs)
+    return SweepPlan(chunk=int(size), memory_bytes=need(size), configurations=n_configs)
+
+
+def _weights_bytes(r: BandRange | BandGrid, scene: Scene) -> float:
+    """One variant's SRF weights (float64 samples over ± ``sensor.support`` FWHM of the widest variant, with
+    their indices) and its bookkeeping, while its slot is tabulated."""
+    samples = 2.0 * scene.run.support * r.extent()[3] / scene.grid.step_nm + 2
+    return TABLE_BYTES_PER_VARIANT + 16.0 * samples
 
 
 def require_sweep_disk(checked: Checked, out: str | Path) -> None:

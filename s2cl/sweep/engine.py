@@ -19,6 +19,7 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
+import os
 import shutil
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -28,21 +29,20 @@ from typing import Any
 import numpy as np
 
 from s2cl import __version__
-from s2cl.errors import DependencyError, InputError, ResourceError
+from s2cl.errors import DependencyError, InputError, ResourceError, token
 from s2cl.io.budget import available_memory, require_disk
-from s2cl.io.output import atomic_path, write_json
+from s2cl.io.output import write_json
 from s2cl.resources import code_fingerprint
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
 from s2cl.status import REGRESS_NAMES
+from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_chunk
 from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
 from s2cl.sweep.tables import SweepTables
 
 REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
 MANIFEST = "manifest.json"
-RESULTS = "results.parquet"
-CHUNKS = "chunks"
 HOST_BYTES_PER_EVALUATION = 64  # float64 work arrays of the metrics, per configuration-pixel
 
 
@@ -74,7 +74,9 @@ class SweepJob:
     def fingerprint(self) -> str:
         h = hashlib.sha256()
         h.update(self.tables.fingerprint().encode())
-        h.update(repr((self.analysis, self.chunk, self.precision, __version__, code_fingerprint())).encode())
+        # the chunk is not part of the identity: a configuration's metrics do not depend on its chunk
+        # (s2cl.retrieve.metrics), and a resumed sweep keeps the chunk of its manifest (resumable_chunk)
+        h.update(repr((self.analysis, self.precision, __version__, code_fingerprint())).encode())
         return h.hexdigest()
 
     def columns(self) -> list[str]:
@@ -133,10 +135,6 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
 
 # -- the folder: manifest, chunk files, results ------------------------------------------------------
 
-def _chunk_path(out: Path, start: int) -> Path:
-    return out / CHUNKS / f"part-{start:010d}.parquet"
-
-
 def _manifest(job: SweepJob) -> dict[str, Any]:
     return {"fingerprint": job.fingerprint(), "code": code_fingerprint(), "scene": job.scene_name,
             "s2cl_version": __version__,
@@ -145,82 +143,109 @@ def _manifest(job: SweepJob) -> dict[str, Any]:
             "precision": job.precision, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
 
 
-def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> list[tuple[int, int]]:
-    """Create or check the output folder; return the chunks still to compute."""
+#: files a finished sweep writes beside its chunks (``--overwrite`` removes them with the chunks)
+DERIVED = (RESULTS, "summary.json", "heatmap_*.png")
+
+
+def read_manifest(out: Path) -> dict[str, Any] | None:
+    """The manifest of the sweep in folder ``out``; None when there is none.
+
+    :raises InputError: a manifest that cannot be read (``--overwrite`` starts afresh).
+    """
     manifest = out / MANIFEST
-    if manifest.exists():
-        try:
-            old = json.loads(manifest.read_text())
-        except (OSError, json.JSONDecodeError) as err:
-            raise InputError(f"unreadable sweep manifest ({err}); use --overwrite to start afresh",
-                             source=manifest) from err
-        if old.get("fingerprint") != job.fingerprint():
-            if not overwrite and old.get("code") != code_fingerprint():
-                raise InputError(
-                    f"the folder holds a sweep of scene {old.get('scene')!r} computed by other s2cl code (sources or "
-                    f"kernels changed since {old.get('created')}), whose chunks cannot be mixed with this code's; "
-                    "pass --overwrite to recompute it, or choose another --output", source=out)
-            if not overwrite:
-                raise InputError(
-                    f"the folder holds a different sweep (scene {old.get('scene')!r}, {old.get('configurations')} "
-                    f"configurations, created {old.get('created')}); rerun the same scene to resume it, or pass "
-                    "--overwrite to replace it, or choose another --output",
-                    source=out)
-            shutil.rmtree(out / CHUNKS, ignore_errors=True)
-            (out / RESULTS).unlink(missing_ok=True)
-        elif overwrite:
-            shutil.rmtree(out / CHUNKS, ignore_errors=True)
-            (out / RESULTS).unlink(missing_ok=True)
-    elif out.exists() and any(out.iterdir()) and not overwrite:
-        if (out / CHUNKS).exists() or (out / RESULTS).exists():
-            raise InputError("the folder holds sweep files without a manifest; pass --overwrite", source=out)
-    (out / CHUNKS).mkdir(parents=True, exist_ok=True)
-    if not manifest.exists() or overwrite or json.loads(manifest.read_text()).get("fingerprint") != job.fingerprint():
-        write_json(manifest, _manifest(job))
-    return [(lo, hi) for lo, hi in job.chunks() if not _chunk_done(out, lo, hi)]
-
-
-def _chunk_done(out: Path, start: int, stop: int) -> bool:
-    path = _chunk_path(out, start)
-    if not path.exists():
-        return False
-    import pyarrow.parquet as pq
-
+    if not manifest.exists():
+        return None
     try:
-        meta = pq.read_metadata(path)
-    except Exception:  # a damaged file is recomputed
-        return False
-    return meta.num_rows == stop - start
+        old = json.loads(manifest.read_text())
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise InputError(f"unreadable sweep manifest ({type(err).__name__}); use --overwrite to start afresh",
+                         source=manifest) from None
+    if not isinstance(old, dict):
+        raise InputError("unreadable sweep manifest (not a JSON object); use --overwrite to start afresh",
+                         source=manifest)
+    return old
 
 
-def write_chunk(out: Path, start: int, rows: dict[str, np.ndarray]) -> Path:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+def resumable_chunk(out: str | Path, overwrite: bool = False) -> int | None:
+    """The chunk size of the sweep already in folder ``out`` (its chunk files are keyed by it), so that
+    the same command resumes it under any memory budget; None when there is none or ``overwrite``."""
+    if overwrite:
+        return None
+    try:
+        old = read_manifest(Path(out))
+    except InputError:
+        return None
+    chunk = old.get("chunk") if old else None
+    return chunk if isinstance(chunk, int) and not isinstance(chunk, bool) and chunk > 0 else None
 
-    table = pa.table(rows)
-    path = _chunk_path(out, start)
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
-    return path
+
+def _remove_sweep_files(out: Path) -> None:
+    """Chunks, results and everything derived from them (summary, heatmaps): another sweep replaces them."""
+    shutil.rmtree(out / CHUNKS, ignore_errors=True)
+    for pattern in DERIVED:
+        for p in out.glob(pattern):
+            if p.is_file() or p.is_symlink():
+                p.unlink(missing_ok=True)
+
+
+def check_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> dict[str, Any] | None:
+    """Refuse a folder that holds another sweep (or this sweep in other chunks) unless ``overwrite``; the
+    folder's manifest, if any. Reads only: the CLI calls it before the folder is claimed."""
+    old = read_manifest(out)
+    if old is not None and old.get("fingerprint") != job.fingerprint():
+        if not overwrite and old.get("code") != code_fingerprint():
+            raise InputError(
+                f"the folder holds a sweep of scene {old.get('scene')!r} computed by other s2cl code (sources or "
+                f"kernels changed since {old.get('created')}), whose chunks cannot be mixed with this code's; "
+                "pass --overwrite to recompute it, or choose another --output", source=out)
+        if not overwrite:
+            raise InputError(
+                f"the folder holds a different sweep (scene {old.get('scene')!r}, {old.get('configurations')} "
+                f"configurations, created {old.get('created')}); rerun the same scene to resume it, or pass "
+                "--overwrite to replace it, or choose another --output",
+                source=out)
+    if old is not None and old.get("fingerprint") == job.fingerprint() and old.get("chunk") != job.chunk \
+            and not overwrite:
+        raise InputError(f"the sweep in this folder runs in chunks of {old.get('chunk')}, not {job.chunk}; resume "
+                         f"it without --chunk (or with --chunk {old.get('chunk')}), or pass --overwrite to start "
+                         "afresh", source=out, key="--chunk")
+    if old is None and not overwrite and _has_sweep_files(out):
+        raise InputError("the folder holds sweep files without a manifest; pass --overwrite", source=out)
+    return old
+
+
+def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> list[tuple[int, int]]:
+    """Create or check the output folder; return the chunks still to compute.
+
+    Crash-safe order: the manifest is written (atomically) before ``chunks/`` is made and old files are
+    removed before a new manifest is written, so a run killed at any moment leaves a folder that the same
+    command resumes: a manifest whose chunks are its own, or no manifest and an empty ``chunks/``.
+    """
+    old = check_folder(job, out, overwrite=overwrite)
+    if overwrite or old is None or old.get("fingerprint") != job.fingerprint():
+        if overwrite or old is not None:
+            _remove_sweep_files(out)
+        write_json(out / MANIFEST, _manifest(job))
+    (out / CHUNKS).mkdir(parents=True, exist_ok=True)
+    return [(lo, hi) for lo, hi in job.chunks() if not chunk_done(out, lo, hi)]
+
+
+def _has_sweep_files(out: Path) -> bool:
+    """Results or chunk files: an empty ``chunks/`` (a run killed before its manifest) is no sweep."""
+    chunks = out / CHUNKS
+    return (out / RESULTS).exists() or (chunks.is_dir() and any(chunks.iterdir())) or \
+        (chunks.exists() and not chunks.is_dir())
 
 
 def merge_results(job: SweepJob, out: Path) -> Path:
-    """All chunk files, in configuration order, as ``results.parquet`` with the sweep's metadata."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    tables = [pq.read_table(_chunk_path(out, lo)) for lo, _ in job.chunks()]
-    table = pa.concat_tables(tables)
+    """All chunk files, in configuration order, as ``results.parquet`` with the sweep's metadata
+    (:func:`s2cl.sweep.folder.merge_chunks`)."""
     meta = {b"s2cl_version": __version__.encode(), b"scene": job.scene_name.encode(),
             b"scene_toml": job.scene_text.encode(), b"fingerprint": job.fingerprint().encode(),
             b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode(),
             b"underdetermined": job.underdetermined.encode(),
             b"regress": json.dumps([REGRESS_LABELS[c] for c in job.analysis.regress]).encode()}
-    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-    path = out / RESULTS
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
-    return path
+    return merge_chunks(out, [lo for lo, _ in job.chunks()], meta)
 
 
 # -- estimates --------------------------------------------------------------------------------------
@@ -269,7 +294,7 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
         on_start(job.n_configs - done, done)
     if todo:
         if workers or scheduler:
-            results = _run_dask(job, todo, workers, scheduler, device, evaluator)
+            results = _run_dask(job, todo, workers, scheduler, device, evaluator, out / DASK_SCRATCH)
         else:
             results = ((lo, evaluate_chunk(job, lo, hi, device, evaluator)) for lo, hi in todo)
         for lo, rows in results:
@@ -279,24 +304,67 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
     return merge_results(job, out)
 
 
-def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None, scheduler: str | None,
-              device: str | None, evaluator: ChunkEvaluator | None) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+def reach_scheduler(address: str, timeout: float = 10.0) -> None:
+    """Reach the Dask scheduler at ``address`` (a TCP connection within ``timeout`` seconds, then closed): a
+    one-line :class:`InputError` (key ``--scheduler``) before anything is created when the address is
+    malformed or nothing listens there."""
+    import socket
+
     try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError as err:
+        raise DependencyError('Dask sweeps need dask.distributed: pip install "s2cl[dask]"') from err
+    try:
+        scheme, location = parse_address(address)
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as err:
+        raise InputError(f"{token(address, 80)} is not a scheduler address ({err}); give it as tcp://HOST:PORT",
+                         key="--scheduler") from None
+    if scheme not in ("tcp", "tls"):
+        return  # other transports (inproc, ucx) are left to Dask
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except (OSError, ValueError, OverflowError) as err:
+        reason = "timed out" if isinstance(err, TimeoutError) else (os.strerror(err.errno) if getattr(
+            err, "errno", None) else type(err).__name__)
+        raise InputError(f"cannot connect to the Dask scheduler {token(address, 80)} ({reason}; waited at most "
+                         f"{timeout:g} s)", key="--scheduler") from None
+
+
+#: Dask's scratch space of a local cluster, inside the output folder (removed when the run ends)
+DASK_SCRATCH = ".dask-scratch"
+
+
+def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None, scheduler: str | None,
+              device: str | None, evaluator: ChunkEvaluator | None,
+              scratch: Path) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    try:
+        import dask
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError as err:
         raise DependencyError('Dask sweeps need dask.distributed: pip install "s2cl[dask]"') from err
     cluster = None
-    if scheduler:
-        client = Client(scheduler)
-    else:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
-        client = Client(cluster)
     try:
-        shared = client.scatter(job, broadcast=True)
-        futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo for lo, hi in todo}
-        for future in as_completed(futures):
-            yield futures[future], future.result()
+        if scheduler:
+            try:
+                client = Client(scheduler)
+            except Exception as err:  # reachable, but not a scheduler that answers
+                raise InputError(f"cannot use the Dask scheduler {token(scheduler, 80)} ({type(err).__name__})",
+                                 key="--scheduler") from None
+        else:
+            with dask.config.set({"temporary-directory": str(scratch)}):
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, local_directory=str(scratch))
+            client = Client(cluster)
+        try:
+            shared = client.scatter(job, broadcast=True)
+            futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo
+                       for lo, hi in todo}
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            client.close()
     finally:
-        client.close()
         if cluster is not None:
             cluster.close()
+        shutil.rmtree(scratch, ignore_errors=True)

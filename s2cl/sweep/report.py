@@ -1,5 +1,9 @@
 """What a sweep found: best configurations, the reference (e.g. ESA) configuration, centre × width
-tables and heatmaps, and JSON for the record."""
+tables and heatmaps, and JSON for the record.
+
+Every function here takes a :class:`~s2cl.sweep.digest.Digest` (the results reduced in one streaming pass:
+``s2cl optimise`` and ``sweep report`` never hold all configurations) or a DataFrame of results (reduced
+the same way, as one batch)."""
 
 from __future__ import annotations
 
@@ -13,17 +17,15 @@ import numpy as np
 from s2cl.errors import InputError, token
 from s2cl.io.output import write_json
 from s2cl.io.plots import pyplot, save_png
+from s2cl.sweep.digest import Digest, bands_of, metric_of
 
 LOWER_IS_BETTER = {"rms": True, "robust_rms": True, "omission_error_pct": True}
+__all__ = ["Digest", "bands_of", "metric_of"]
 
 
-def metric_of(columns: list[str]) -> str:
-    """The ranking metric of a results table."""
-    return "omission_error_pct" if "omission_error_pct" in columns else "rms"
-
-
-def load(path: str | Path) -> tuple[Any, dict[str, str]]:
-    """Results as a pandas DataFrame and the file's metadata.
+def open_results(path: str | Path) -> tuple[Path, dict[str, str]]:
+    """The results file (``path``, or ``results.parquet`` in folder ``path``) and its metadata, checked from
+    its schema and footer only (nothing is read into memory: :meth:`Digest.of_file` streams it).
 
     :raises InputError: no results in a folder (a sweep that did not finish says how to resume it), a
         file that is not Parquet, or a Parquet file that s2cl did not write (metadata and columns).
@@ -37,14 +39,30 @@ def load(path: str | Path) -> tuple[Any, dict[str, str]]:
     if not p.is_file():
         raise InputError("is not a regular file", source=p)
     try:
-        table = pq.read_table(p)
+        with pq.ParquetFile(p) as f:
+            schema, rows = f.schema_arrow, f.metadata.num_rows
+            if f.metadata.num_row_groups:
+                f.metadata.row_group(f.metadata.num_row_groups - 1)
     except (pa.ArrowException, OSError, ValueError) as err:
         raise InputError(f"not a readable Parquet file ({type(err).__name__}); a damaged results.parquet is "
                          "rebuilt by running the sweep again (finished chunks are kept)", source=p) from None
-    meta = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (table.schema.metadata or {}).items()
+    meta = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (schema.metadata or {}).items()
             if not k.startswith(b"pandas")}
-    _check_results(table, meta, p)
-    return table.to_pandas(), meta
+    _check_results(list(schema.names), rows, meta, p)
+    return p, meta
+
+
+def load(path: str | Path) -> tuple[Any, dict[str, str]]:
+    """Results as a pandas DataFrame (every configuration in memory: for small sweeps and the benchmarks)
+    and the file's metadata; checked as :func:`open_results` does."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p, meta = open_results(path)
+    try:
+        return pq.read_table(p).to_pandas(), meta
+    except (pa.ArrowException, OSError, ValueError) as err:
+        raise InputError(f"not a readable Parquet file ({type(err).__name__})", source=p) from None
 
 
 def _results_in(folder: Path) -> Path:
@@ -57,25 +75,24 @@ def _results_in(folder: Path) -> Path:
     raise InputError("no results.parquet here: not a sweep's output folder", source=folder)
 
 
-def _check_results(table: Any, meta: dict[str, str], source: Path) -> None:
+def _check_results(columns: list[str], rows: int, meta: dict[str, str], source: Path) -> None:
     """A results table s2cl wrote: its metadata, the config column, a metric, band centre/width pairs."""
     missing = [k for k in ("fingerprint", "scene", "analysis") if k not in meta]
     if missing:
         raise InputError(f"not an s2cl sweep result (no {', '.join(missing)} in its metadata)", source=source)
-    columns = set(table.column_names)
-    bands = [c[: -len("_centre_nm")] for c in columns if c.endswith("_centre_nm")]
-    needed = ["config", metric_of(list(columns)), *(f"{b}_width_nm" for b in bands)]
+    bands = bands_of(columns)
+    needed = ["config", metric_of(columns), *(f"{b}_width_nm" for b in bands)]
     lacking = [c for c in needed if c not in columns]
     if lacking or not bands:
         raise InputError(f"not an s2cl sweep result (columns missing: {', '.join(lacking) or 'band centres'})",
                          source=source)
-    if table.num_rows == 0:
+    if rows == 0:
         raise InputError("holds no configurations", source=source)
 
 
-def check_band(df: Any, band: str, source: str | Path) -> str:
+def check_band(columns: list[str], band: str, source: str | Path) -> str:
     """``band`` as the results spell it; :class:`InputError` (key ``--band``) when it is not swept."""
-    bands = bands_of(df)
+    bands = bands_of(columns)
     for b in bands:
         if b.lower() == band.lower():
             return b
@@ -98,10 +115,6 @@ def reference_of(summary: dict[str, Any]) -> dict[str, Any] | None:
     return row
 
 
-def bands_of(df: Any) -> list[str]:
-    return [c[: -len("_centre_nm")] for c in df.columns if c.endswith("_centre_nm")]
-
-
 def shapes(row: Any, bands: list[str]) -> dict[str, list[float]]:
     return {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands}
 
@@ -115,46 +128,39 @@ def rankable(df: Any, meta: dict[str, str]) -> Any:
     return df[~df["underdetermined"].to_numpy(dtype=bool)]
 
 
-def underdetermined_summary(df: Any, meta: dict[str, str]) -> dict[str, Any]:
-    """How many designs were flagged, what the ranking did with them, and which bands coincided."""
-    flags = df["underdetermined"].to_numpy(dtype=bool) if "underdetermined" in df.columns else np.zeros(len(df), bool)
-    out: dict[str, Any] = {"count": int(flags.sum()), "ranking": meta.get("underdetermined", "exclude")}
-    bands = bands_of(df)
-    pairs: dict[str, int] = {}
-    for i, a in enumerate(bands):
-        for b in bands[i + 1:]:
-            same = flags & (np.abs(df[f"{a}_centre_nm"].to_numpy() - df[f"{b}_centre_nm"].to_numpy()) < 1e-6)
-            if same.any():
-                pairs[f"{a}={b}"] = int(same.sum())
-    out["coincident_centres"] = pairs
-    return out
+def digest_of(data: Any, meta: dict[str, str], **kwargs: Any) -> Digest:
+    """``data`` as a :class:`Digest`: itself, or a DataFrame of results reduced (as one batch)."""
+    return data if isinstance(data, Digest) else Digest.of_frame(data, meta, **kwargs)
 
 
-def summarise(df: Any, meta: dict[str, str], reference: dict[str, Any] | None = None, top: int = 10
+def summarise(data: Any, meta: dict[str, str], reference: dict[str, Any] | None = None, top: int = 10
               ) -> dict[str, Any]:
     """Best configurations and the reference, with every robustness and fit-accounting column; ranks only
-    :func:`rankable` configurations."""
-    metric = metric_of(list(df.columns))
-    bands = bands_of(df)
-    pool = rankable(df, meta)
-    ranked = pool.sort_values([metric, "config"], na_position="last")
-    keep = [c for c in df.columns if not c.endswith(("_centre_nm", "_width_nm"))]
+    :func:`rankable` configurations. ``data``: a :class:`Digest` (made with the same ``reference``) or a
+    DataFrame of results."""
+    d = digest_of(data, meta, reference=reference, top_n=top)
+    metric, bands = d.metric, d.bands
+    keep = [c for c in d.columns if not c.endswith(("_centre_nm", "_width_nm"))]
 
     def entry(row: Any) -> dict[str, Any]:
         return {"bands": shapes(row, bands), **{k: _plain(row[k]) for k in keep}}
 
-    out: dict[str, Any] = {"scene": meta.get("scene", ""), "configurations": len(df), "ranked": len(pool),
-                           "metric": metric, "bands": bands, "underdetermined": underdetermined_summary(df, meta)}
+    ranked = d.top if d.top is not None else []
+    out: dict[str, Any] = {"scene": meta.get("scene", ""), "configurations": d.configurations, "ranked": d.ranked,
+                           "metric": metric, "bands": bands,
+                           "underdetermined": {"count": d.flagged, "ranking": meta.get("underdetermined", "exclude"),
+                                               "coincident_centres": dict(d.coincident)}}
     if "regress" in meta:
         out["regress"] = json.loads(meta["regress"])
-    if len(ranked):
+    if d.ranked:
         out["best"] = entry(ranked.iloc[0])
-    out["top"] = [entry(r) for _, r in ranked.head(top).iterrows()]
+        out["top"] = [entry(r) for _, r in ranked.head(top).iterrows()]
+    else:
+        out["top"] = []
     if reference is not None:
         out["reference"] = {"bands": {b: [reference[f"{b}_centre_nm"], reference[f"{b}_width_nm"]] for b in bands},
                             **{k: _plain(reference[k]) for k in keep if k in reference}}
-        better = np.sum(pool[metric].to_numpy() < reference[metric])
-        out["reference"]["configurations_better"] = int(better)
+        out["reference"]["configurations_better"] = int(d.better)
     return out
 
 
@@ -165,16 +171,19 @@ def _plain(value: Any) -> Any:
 
 
 def centre_width_grid(df: Any, band: str, metric: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(centres, widths, best metric over the other bands) for one band: ``values[i, j]`` at centre ``i``
-    and width ``j`` (NaN where that pair is not a variant)."""
+    """(centres, widths, best metric over the other bands) for one band of a DataFrame: ``values[i, j]`` at
+    centre ``i`` and width ``j`` (NaN where that pair is not a variant). Dense: for small tables (the
+    benchmarks); the heatmaps use :meth:`Digest.binned_grid`."""
     c, w = df[f"{band}_centre_nm"].to_numpy(), df[f"{band}_width_nm"].to_numpy()
     centres, widths = np.unique(c), np.unique(w)
     values = np.full((centres.size, widths.size), np.nan)
     ci, wi = np.searchsorted(centres, c), np.searchsorted(widths, w)
-    m = df[metric].to_numpy(dtype=np.float64)
-    order = np.argsort(-np.nan_to_num(m, nan=np.inf))  # fill worst first so the best value wins
-    values[ci[order], wi[order]] = m[order]
+    np.fmin.at(values, (ci, wi), df[metric].to_numpy(dtype=np.float64))
     return centres, widths, values
+
+
+def _label(value: Any) -> str:
+    return value if isinstance(value, str) else f"{value:g}"
 
 
 def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
@@ -182,9 +191,10 @@ def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str
     """Centre × width table ``values`` on ``ax``: cells written where there are at most 150, the
     lowest boxed in red; its own colour scale. Returns the image (for a colour bar)."""
     plt = pyplot()
-    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r")
-    ax.set_xticks(range(len(widths)), [f"{w:g}" for w in widths], fontsize=fontsize)
-    ax.set_yticks(range(len(centres)), [f"{c:g}" for c in centres], fontsize=fontsize)
+    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r", interpolation="nearest")
+    ax.set_xticks(range(len(widths)), [_label(w) for w in widths], fontsize=fontsize,
+                  rotation=90 if any("–" in _label(w) for w in widths) else 0)
+    ax.set_yticks(range(len(centres)), [_label(c) for c in centres], fontsize=fontsize)
     ax.set_xlabel(f"{band} FWHM (nm)", fontsize=fontsize + 1)
     ax.set_ylabel(f"{band} centre (nm)", fontsize=fontsize + 1)
     finite = values[np.isfinite(values)]
@@ -202,15 +212,21 @@ def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str
     return im
 
 
-def heatmap(df: Any, band: str, path: str | Path, *, metric: str | None = None, title: str = "",
+def heatmap(data: Any, band: str, path: str | Path, *, metric: str | None = None, title: str = "",
             unit: str = "") -> Path:
-    """Centre × width heatmap of ``band`` (best over the other bands), the best pair marked."""
-    metric = metric or metric_of(list(df.columns))
-    centres, widths, values = centre_width_grid(df, band, metric)
-    fig, ax = pyplot().subplots(figsize=(1.0 + 0.62 * widths.size, 1.2 + 0.42 * centres.size), dpi=120)
+    """Centre × width heatmap of ``band`` (best over the other bands), the best cell marked; at most
+    :data:`~s2cl.sweep.digest.HEATMAP_CENTRES` × :data:`~s2cl.sweep.digest.HEATMAP_WIDTHS` cells (consecutive
+    centres or widths grouped beyond that: :meth:`Digest.binned_grid`), so the figure's size is bounded."""
+    d = digest_of(data, {"underdetermined": "keep"}, metric_column=metric)
+    metric = d.metric
+    centres, widths, values, (gc, gw) = d.binned_grid(band)
+    # cells shrink when there are many (at most 60 × 40: about 1,700 × 2,000 pixels)
+    cell_w, cell_h = (0.62 if len(widths) <= 20 else 0.32), (0.42 if len(centres) <= 30 else 0.26)
+    fig, ax = pyplot().subplots(figsize=(1.0 + cell_w * len(widths), 1.2 + cell_h * len(centres)), dpi=120)
     im = _draw_grid(ax, centres, widths, values, band, fontsize=8)
     fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
-    ax.set_title(title or f"{band}: {metric} (best over the other bands; red: best)", fontsize=9)
+    grouped = f"; cells group {gc} centres × {gw} widths" if gc * gw > 1 else ""
+    ax.set_title(title or f"{band}: {metric} (best over the other bands{grouped}; red: best)", fontsize=9)
     fig.tight_layout()
     return save_png(fig, path)
 
@@ -250,35 +266,41 @@ def _band_key(bands: list[str]) -> str:
     return "".join(b[1:] for b in bands)
 
 
-def paper_comparison(df: Any, summary: dict[str, Any]) -> dict[str, Any] | None:
+def _table3_row(name: str, bands: list[str]) -> dict[str, Any] | None:
+    """The paper's Table 3 row for built-in scene ``name`` sweeping ``bands``; None for other scenes."""
+    if name not in _TABLE3:
+        return None
+    lib, key = _TABLE3[name]
+    if _band_key(bands) != key:
+        return None
+    return next(r for r in paper_results()["table3"] if r["library"] == lib and _band_key(r["bands"]) == key)
+
+
+def paper_match(name: str, bands: list[str]) -> list[list[float]] | None:
+    """The band shape whose rows a :class:`Digest` collects for the paper's Table 3 (its best design)."""
+    row = _table3_row(name, bands)
+    return None if row is None else row["best"]
+
+
+def paper_comparison(data: Any, summary: dict[str, Any]) -> dict[str, Any] | None:
     """The paper's values for this sweep beside s2cl's, or None when the scene is not one of the
     paper's (matched by the built-in scene names ``table3-lib{1,2}-b*``, ``table4-b4``,
-    ``table5-b11``, ``table6-b12`` and the swept bands)."""
+    ``table5-b11``, ``table6-b12`` and the swept bands). ``data``: the rankable configurations as a
+    :class:`Digest` (made with :func:`paper_match`) or a DataFrame."""
     name, bands = summary.get("scene", ""), summary["bands"]
-    paper = paper_results()
-    if name in _TABLE3:
-        lib, key = _TABLE3[name]
-        if _band_key(bands) != key:
-            return None
-        row = next(r for r in paper["table3"] if r["library"] == lib and _band_key(r["bands"]) == key)
-        return _table3(df, summary, row)
+    row = _table3_row(name, bands)
+    if row is not None:
+        return _table3(digest_of(data, {"underdetermined": "keep"}, match=row["best"]), summary, row)
     if name in _GRIDS:
         table, band, paper_metric = _GRIDS[name]
         if band not in bands:
             return None
-        return _grid_table(df, summary, table, band, paper[table], paper_metric)
+        return _grid_table(digest_of(data, {"underdetermined": "keep"}), summary, table, band,
+                           paper_results()[table], paper_metric)
     return None
 
 
-def _match(df: Any, bands: list[str], shape: list[list[float]], tol_nm: float = 0.5) -> Any:
-    """Rows of ``df`` whose bands equal ``shape`` (the paper prints 832 for 832.5: tolerance 0.5 nm)."""
-    mask = np.ones(len(df), bool)
-    for b, (c, w) in zip(bands, shape, strict=True):
-        mask &= (np.abs(df[f"{b}_centre_nm"].to_numpy() - c) <= tol_nm) & (df[f"{b}_width_nm"].to_numpy() == w)
-    return df[mask]
-
-
-def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, Any]:
+def _table3(d: Digest, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, Any]:
     bands, metric = summary["bands"], summary["metric"]
     out: dict[str, Any] = {
         "table": "table3", "library": row["library"], "configurations_paper": row["configurations"],
@@ -287,26 +309,23 @@ def _table3(df: Any, summary: dict[str, Any], row: dict[str, Any]) -> dict[str, 
         "s2cl": {"rms_esa": summary.get("reference", {}).get(metric), "rms_best": summary["best"][metric],
                  "best": summary["best"]["bands"]},
     }
-    hit = _match(df, bands, row["best"])
-    if len(hit):
-        r = hit.iloc[0]
-        rank = int(np.sum(df[metric].to_numpy() < r[metric])) + 1  # df: the rankable configurations
+    if d.matches is not None and len(d.matches):
+        r = d.matches.iloc[0]
+        rank = d.count_below(float(r[metric])) + 1  # among the rankable configurations
         out["paper_best_in_s2cl"] = {k: _plain(r[k]) for k in (metric, "robust_rms", "bound_fraction",
                                                               "failed_fraction") if k in r.index}
         out["paper_best_in_s2cl"]["rank"] = rank
     return out
 
 
-def _grid_table(df: Any, summary: dict[str, Any], table: str, band: str, paper: dict[str, Any],
+def _grid_table(d: Digest, summary: dict[str, Any], table: str, band: str, paper: dict[str, Any],
                 paper_metric: str) -> dict[str, Any]:
-    import pandas as pd
     from scipy.stats import spearmanr
 
     metric = summary["metric"]
-    centres, widths, values = centre_width_grid(df, band, metric)
     pc, pw = np.asarray(paper["centres"], float), np.asarray(paper["widths"], float)
     pv = np.asarray(paper[paper_metric], float)
-    ours = pd.DataFrame(values, index=centres, columns=widths).reindex(index=pc, columns=pw).to_numpy()
+    ours = np.array([[d.value(band, c, w) for w in pw] for c in pc])
     pi, pj = np.unravel_index(np.argmin(pv), pv.shape)
     out: dict[str, Any] = {
         "table": table, "band": band, "metric": metric, "unit": paper.get("unit", ""),

@@ -70,7 +70,22 @@ def sweep_space(scene: Scene) -> SweepSpace:
     if unknown:
         raise InputError(f"ranges for bands not swept: {', '.join(sorted(unknown))}", source=scene.source,
                          key="sweep.ranges")
-    return SweepSpace(tuple(ranges)).validate(scene.source)
+    space = SweepSpace(tuple(ranges)).validate(scene.source)
+    _check_on_grid(scene, space)
+    return space
+
+
+def _check_on_grid(scene: Scene, space: SweepSpace) -> None:
+    """Every variant's model SRF (centre ± sensor.support × width) inside the scene's grid: the one check that
+    ``sweep count``, ``simulate`` and ``optimise`` share (:func:`s2cl.scene.validate.check_sweep`), before any
+    table is built."""
+    grid, support = scene.grid, scene.run.support
+    for r in space.ranges:
+        lo, hi = r.support_extent(support)
+        if not grid.covers(lo, hi):
+            raise InputError(f"the variants' SRFs (centre ± {support:g} × width, sensor.support) reach {lo:g}–{hi:g} "
+                             f"nm, outside the spectral grid {grid.describe()}; move or narrow the band's range, or "
+                             "widen the grid", source=scene.source, key=f"sweep.ranges.{r.band}")
 
 
 def _sensor_band(scene: Scene, name: str, key: str) -> Band:
