@@ -134,7 +134,7 @@ def sweep_vs_configs(ctx: Context, copies: int) -> dict[str, Any]:
                for c in counts]
     out = _series("configurations", counts, seconds, "configurations/s",
                   pixels_per_config=pixels, validation_max_rel_rms_vs_float64=checked["rms_rel_diff_max"],
-                  validation_same_status_fraction=checked["same_status_fraction"])
+                  validation_same_status_class_fraction=checked["same_status_class_fraction"])
     for p in out["points"]:
         p["config_pixels_per_s"] = p["rate_per_s"] * pixels
     return out
