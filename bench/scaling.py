@@ -152,7 +152,9 @@ def rss():
         return next(int(line.split()[1]) for line in fh if line.startswith("VmRSS")) / 1024
 
 chunk, copies = int(sys.argv[1]), int(sys.argv[2])
-job = plan_sweep(_sweep_scene(Context.make(True), copies), chunk=chunk)
+from s2cl.io.budget import Budget
+# the probe measures what a chunk takes, also beyond the default 4 GB limit (up to 90 % of what is free)
+job = plan_sweep(_sweep_scene(Context.make(True), copies), chunk=chunk, budget=Budget.of("1T"))
 evaluate_chunk(job, 0, 2)
 base, peak, running = rss(), [0.0], True
 def sample():
