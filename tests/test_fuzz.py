@@ -1,8 +1,8 @@
 """Property-based fuzzing (hypothesis) of what users feed s2cl: scenes (valid ones and mutations of
 them: wrong types, out-of-range, NaN/inf, huge and negative numbers, odd paths, missing and extra
 keys) through loading and everything ``s2cl sweep count`` checks, scene files as raw text, and the
-CSV and ENVI library loaders. Every outcome is success or an ``S2CLError`` whose message is one line;
-any other exception is a bug that a user would see as a traceback.
+CSV and ENVI library loaders (parameter rows and header fields included). Every outcome is success or an
+``S2CLError`` whose message is one line; any other exception is a bug that a user would see as a traceback.
 """
 
 from __future__ import annotations
@@ -162,6 +162,10 @@ def csv_texts(draw: Any) -> str:
         if not draw(st.integers(0, 60)):
             row = row[: draw(st.integers(1, len(row)))] + draw(st.lists(CELL, max_size=2))
         rows.append(",".join(row))
+    if not draw(st.integers(0, 3)):  # a parameter row, mostly right after the header
+        name = draw(st.sampled_from(["param:cab", "param:Cab", "PARAM:lai", "param:", "param:c-b", "param:cab"]))
+        at = 0 if draw(st.integers(0, 5)) else draw(st.integers(0, len(rows)))
+        rows.insert(at, ",".join([name, *(draw(CELL) if draw(st.integers(0, 8)) == 0 else "1.5" for _ in names)]))
     return "\n".join([",".join([first, *names]), *rows]) + "\n"
 
 
@@ -179,6 +183,7 @@ def test_csv_libraries_load_or_fail_in_one_line(text: str, quantity: str) -> Non
             assert_clean(err)
         else:
             assert lib.spectra.shape[1] == GRID.size and all(math.isfinite(v) for v in lib.spectra.ravel())
+            assert all(v.shape == (lib.size,) and all(map(math.isfinite, v)) for v in lib.params.values())
 
 
 HEADER_VALUE = st.one_of(st.integers(-3, 5), st.sampled_from(["2", "1", "0", "-1", "x", "99999999", "{1, 2}",
@@ -201,6 +206,9 @@ HOSTILE_HEADER = {
     "reflectance scale factor": st.sampled_from(["1", "0", "-1", "x", "1e400", "100"]),
     "data ignore value": st.sampled_from(["-9999", "x", "nan", "0"]),
     "bbl": st.sampled_from(["{1, 1, 1}", "{1, 0}", "{x}", "{1, 0, 1}"]),
+    "s2cl parameter cab": st.sampled_from(["{40, 50}", "{40}", "{40, x}", "{inf, 1}", "3", "{1, 2, 3}", "{}"]),
+    "s2cl parameter c-b": st.just("{1, 2}"),
+    "s2cl parameters": st.just("{1, 2}"),
 }
 
 

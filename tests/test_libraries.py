@@ -49,7 +49,7 @@ def test_unknown_builtin_lists_the_available_ones():
 
 
 def test_unknown_file_type():
-    with pytest.raises(InputError, match=r"'spectra\.txt' is neither builtin:NAME .* nor a \.csv/\.sli/\.hdr file"):
+    with pytest.raises(InputError, match=r"'spectra\.txt' is neither builtin:NAME .* nor a \.csv/\.sli/\.hdr/\.npz"):
         load_library("spectra.txt", DEFAULT_GRID)
 
 

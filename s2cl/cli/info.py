@@ -31,7 +31,10 @@ def libraries(quiet: bool) -> None:
     for name, description in available_libraries().items():
         click.echo(f"builtin:{name}" if quiet else f"builtin:{name:18s} {description}")
     if not quiet:
-        click.echo("or a file: .csv (wavelength_nm column + one column per spectrum) or an ENVI .sli/.hdr library")
+        click.echo("or a file: .csv (wavelength_nm column + one column per spectrum), an ENVI .sli/.hdr library or an "
+                   "s2cl .npz library")
+        click.echo("  per-spectrum parameters ([analysis] parameter): param:NAME rows (CSV), "
+                   "'s2cl parameter NAME = {...}' header fields (ENVI), param__NAME arrays (.npz)")
 
 
 @click.command()
@@ -80,7 +83,7 @@ def _default_runtime() -> Any:
 
 @click.command()
 @click.option("--library", "-l", "libraries", multiple=True,
-              help="builtin:NAME or a .csv/.sli library file (repeatable; default: builtin:flat, "
+              help="builtin:NAME or a .csv/.sli/.npz library file (repeatable; default: builtin:flat, "
                    "builtin:lib1, builtin:lib2, builtin:minerals)")
 @quiet_option
 def residuals(libraries: tuple[str, ...], quiet: bool) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,15 +42,17 @@ class EnviLayout:
 
 
 def read_envi_header(hdr: Path, what: str = "ENVI header") -> dict[str, Any]:
-    """The header's keys (lower case) and values, as SPy parses them; a header SPy cannot parse is an
-    :class:`InputError` naming it."""
+    """The header's keys (lower case: ENVI keys are case-insensitive) and values, as SPy parses them; a header
+    SPy cannot parse is an :class:`InputError` naming it."""
     try:
         from spectral.io import envi
     except ImportError as err:  # spectral is a core dependency, but say so clearly
         raise DependencyError("reading ENVI files needs SPy: pip install spectral") from err
     input_file(hdr, what="ENVI header")
     try:
-        return envi.read_envi_header(str(hdr))
+        with warnings.catch_warnings():  # keys are case-insensitive: SPy's note that it lower-cased one is no news
+            warnings.filterwarnings("ignore", "Parameters with non-lowercase names", UserWarning)
+            return envi.read_envi_header(str(hdr))
     except Exception as err:  # SPy raises its own types, and OSError/UnicodeDecodeError/ValueError
         raise InputError(f"not a readable {what} ({type(err).__name__})", source=hdr) from err
 

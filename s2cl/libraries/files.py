@@ -1,6 +1,6 @@
 """User spectral-library files onto a grid: CSV (:func:`load_csv_library`) and ENVI ``.sli``/``.hdr``
-(:func:`load_envi_library`), with wavelength units (nm or um) and plausibility checks (reflectance 0-1, or
-TOA radiance in W m-2 sr-1 um-1)."""
+(:func:`load_envi_library`), with wavelength units (nm or um), plausibility checks (reflectance 0-1, or
+TOA radiance in W m-2 sr-1 um-1) and per-spectrum parameters (:mod:`s2cl.libraries.params`)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.io.inputs import parse_number
 from s2cl.io.tables import CsvStream, open_csv
 from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
+from s2cl.libraries.params import CsvParameters, envi_parameters
 
 #: Largest wavelength gap (nm) in a user file that linear interpolation may bridge; a wider gap
 #: inside the grid (e.g. deleted water-vapour bands) is an error instead of invented data.
@@ -64,7 +65,14 @@ def _check_user_spectra(
     """
     first = max(int(np.searchsorted(w_nm, grid.start_nm, side="right")) - 1, 0)
     last = min(int(np.searchsorted(w_nm, grid.stop_nm, side="left")), w_nm.size - 1)
-    used = slice(first, last + 1)
+    check_values(w_nm, spectra, names, slice(first, last + 1), source=source, quantity=quantity)
+    check_gaps(w_nm, grid, source=source, max_gap_nm=max_gap_nm)
+
+
+def check_values(w_nm: np.ndarray, spectra: np.ndarray, names: list[str], used: slice, *, source: str,
+                 quantity: Quantity) -> None:
+    """Reject non-finite values and values outside the plausible range of ``quantity`` in the columns ``used``
+    of ``spectra`` (n, w_nm.size); the error names the spectrum and the wavelength (nm)."""
     lo, hi = REFLECTANCE_RANGE if quantity == "reflectance" else RADIANCE_RANGE
     w = w_nm[used]
     for i in range(spectra.shape[0]):
@@ -81,6 +89,10 @@ def _check_user_spectra(
             j = int(np.argmax((row < lo) | (row > hi)))
             raise InputError(f"value {row[j]:g} at {w[j]:g} nm {_out_of_range(quantity, lo, hi)}", source=source,
                              key=key_token(names[i]))
+
+
+def check_gaps(w_nm: np.ndarray, grid: SpectralGrid, *, source: str, max_gap_nm: float) -> None:
+    """Reject a wavelength gap wider than ``max_gap_nm`` inside ``grid`` (s2cl does not invent data there)."""
     inside = (w_nm[1:] > grid.start_nm) & (w_nm[:-1] < grid.stop_nm)
     gaps = np.diff(w_nm)
     wide = inside & (gaps > max_gap_nm)
@@ -106,9 +118,9 @@ def _out_of_range(quantity: Quantity, lo: float, hi: float) -> str:
 
 def _user_library(
     w_nm: np.ndarray, spectra: np.ndarray, names: list[str], grid: SpectralGrid, *, source: str, max_gap_nm: float,
-    quantity: Quantity = "reflectance",
+    quantity: Quantity = "reflectance", params: dict[str, np.ndarray] | None = None,
 ) -> SpectralLibrary:
-    """A user file's spectra, checked and resampled onto ``grid`` (group ``user``)."""
+    """A user file's spectra, checked and resampled onto ``grid`` (group ``user``), with their ``params``."""
     _check_user_spectra(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
     resampled = resample_to_grid(w_nm, spectra, grid, source=source)
     return SpectralLibrary(
@@ -117,6 +129,7 @@ def _user_library(
         names=names,
         quantity=quantity,
         groups=["user" for _ in names],
+        params=params or {},
         source=str(source),
     )
 
@@ -137,7 +150,9 @@ def load_csv_library(
     named ``wavelength_nm`` or ``wavelength_um`` (unit from the name) or ``wavelength``
     (unit from ``wavelength_unit``, else detected: values below 100 are µm). Every other
     column is one spectrum, named by its header. Lines starting with ``#`` are comments;
-    commas or semicolons separate fields.
+    commas or semicolons separate fields. Rows between the header and the first wavelength row whose
+    first cell is ``param:NAME`` give a parameter of every spectrum (``param:cab,45.2,30.1``: one finite
+    value per spectrum column; :mod:`s2cl.libraries.params`).
 
     :param scale: multiplies every value (``0.01`` for percent).
     :param max_gap_nm: widest wavelength gap inside the grid that interpolation may bridge.
@@ -146,7 +161,8 @@ def load_csv_library(
         columns from its header and row count) and the spectra on ``grid`` are sized before any value is
         parsed, and a file that would not fit is a one-line :class:`~s2cl.errors.ResourceError`.
     :raises InputError: missing/malformed file, bad wavelengths, NaN/inf, values that are not
-        reflectance, or data not covering the grid; the message names file and column.
+        reflectance, data not covering the grid, or a bad parameter row; the message names file and column
+        (``param:NAME`` for a parameter row) and the line.
     """
     source = str(path)
     stream = open_csv(path, min_rows=2, what="spectral library file", rows_are="wavelength rows")
@@ -169,12 +185,13 @@ def load_csv_library(
     if len(set(names)) != len(names) or any(not n for n in names):
         raise InputError("spectrum column names must be non-empty and unique", source=source)
     require_library_memory(budget, len(names), stream.rows * len(header) * 8.0, grid, source=source)
-    values = _csv_values(stream, header, source=source)
+    values, params = _csv_values(stream, header, source=source)
     w_nm = wavelengths_to_nm(values[0], unit, source=source, key=header[0])
-    spectra = values[1:]  # (spectra, rows), C-contiguous: no copy
+    spectra = values[1:]  # (spectra, rows): a view, no copy
     if float(scale) != 1.0:
         spectra *= float(scale)
-    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity)
+    return _user_library(w_nm, spectra, names, grid, source=source, max_gap_nm=max_gap_nm, quantity=quantity,
+                         params=params)
 
 
 #: bytes per spectrum and grid wavelength of a library read for a run: the float64 spectra on the grid (the
@@ -196,11 +213,16 @@ def require_library_memory(budget: Budget | None, n_spectra: int, read_bytes: fl
                    "spectra or a coarser grid (grid.step_nm)")
 
 
-def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> np.ndarray:
-    """The rows as numbers, float64 ``(n_columns, n_rows)`` (a column per row of the file: the spectra are
-    rows of the result); empty cells become NaN. Read one line at a time."""
+def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The wavelength rows as numbers, float64 ``(n_columns, n_rows)`` (a column per row of the file: the
+    spectra are rows of the result; empty cells become NaN), and the parameters of the ``param:NAME`` rows
+    before them. Read one line at a time."""
     out = np.empty((len(header), stream.rows))
-    for r, (line_no, row) in enumerate(stream):
+    params = CsvParameters(header, source)
+    r = 0
+    for line_no, row in stream:
+        if params.take(line_no, row):
+            continue
         if len(row) != len(header):
             raise InputError(f"line {line_no} has {len(row)} fields, the header has {len(header)}", source=source)
         for c, cell in enumerate(row):
@@ -210,7 +232,10 @@ def _csv_values(stream: CsvStream, header: list[str], *, source: str) -> np.ndar
             except ValueError as err:
                 raise InputError(f"line {line_no}: {token(text)} is not a number", source=source,
                                  key=key_token(header[c])) from err
-    return out
+        r += 1
+    if r < 2:
+        raise InputError("needs a header row and at least 2 wavelength rows (after its param: rows)", source=source)
+    return out[:, :r], params.params
 
 
 def load_envi_library(
@@ -228,11 +253,13 @@ def load_envi_library(
     (``lib.sli``). Wavelength units come from the header's ``wavelength units`` (else
     ``wavelength_unit``, else detected); a ``reflectance scale factor`` is divided out,
     values equal to ``data ignore value`` count as missing (an error where the grid needs
-    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies). The memory of
-    reading it (from the header: lines × samples × data type) is checked against ``budget`` first.
+    them), and bands flagged bad in ``bbl`` are dropped (the gap check then applies). Header fields
+    ``s2cl parameter NAME = {v1, v2, ...}`` give a parameter of every spectrum (one finite value per line;
+    :mod:`s2cl.libraries.params`). The memory of reading it (from the header: lines × samples × data type)
+    is checked against ``budget`` first.
     """
     hdr, data = _envi_paths(Path(path))
-    meta, lib = _open_envi(hdr, data, grid, budget)
+    meta, lib, params = _open_envi(hdr, data, grid, budget)
     centers = lib.bands.centers
     if not centers:
         raise InputError("header has no 'wavelength' list", source=hdr, key="wavelength")
@@ -245,13 +272,15 @@ def load_envi_library(
     if "bbl" in meta:
         good = _good_bands(meta, w_nm.size, hdr)
         w_nm, spectra = w_nm[good], spectra[:, good]
-    return _user_library(w_nm, spectra, names, grid, source=str(data), max_gap_nm=max_gap_nm, quantity=quantity)
+    return _user_library(w_nm, spectra, names, grid, source=str(data), max_gap_nm=max_gap_nm, quantity=quantity,
+                         params=params)
 
 
-def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None) -> tuple[dict, Any]:
-    """The header's metadata (lower-cased keys) and SPy's library, once the header's layout and the data
-    file's size are checked (:mod:`s2cl.io.envi`: errors name the header key) and the memory of reading it
-    onto ``grid`` is within ``budget``."""
+def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None
+               ) -> tuple[dict, Any, dict[str, np.ndarray]]:
+    """The header's metadata (lower-cased keys), SPy's library and the header's parameters, once the header's
+    layout, parameters and the data file's size are checked (:mod:`s2cl.io.envi`: errors name the header key)
+    and the memory of reading it onto ``grid`` is within ``budget``."""
     from spectral.io import envi
     from spectral.utilities.errors import SpyException
 
@@ -268,6 +297,7 @@ def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None)
     for key, want, what in (("wavelength", layout.samples, "samples"), ("spectra names", layout.lines, "lines")):
         if key in meta and len(meta[key]) != want:
             raise InputError(f"lists {len(meta[key])} values for {what} = {want}", source=hdr, key=key)
+    params = envi_parameters(hdr, meta, layout.lines)
     try:
         # SPy's array in the file's type, float64 spectra, a float64 copy without the bad bands (bbl)
         values = layout.samples * layout.lines * layout.bands
@@ -280,7 +310,7 @@ def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None)
         raise InputError(f"not a readable ENVI spectral library ({type(err).__name__})", source=hdr) from err
     if not hasattr(lib, "names"):
         raise InputError("header 'file type' is not 'ENVI Spectral Library'", source=hdr, key="file type")
-    return meta, lib
+    return meta, lib, params
 
 
 def _envi_values(meta: dict, spectra: np.ndarray, hdr: Path) -> np.ndarray:

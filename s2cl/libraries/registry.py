@@ -2,8 +2,10 @@
 
 Builtin names are listed by :func:`available_libraries`; a path ending in ``.csv`` is read by
 :func:`s2cl.libraries.files.load_csv_library`, one ending in ``.sli`` or ``.hdr`` by
-:func:`s2cl.libraries.files.load_envi_library`. A relative path is resolved against the directory of
-``source`` (the scene file that named it) when one is given.
+:func:`s2cl.libraries.files.load_envi_library`, one ending in ``.npz`` (s2cl's own library file) by
+:func:`s2cl.libraries.npz.load_npz_library`. Each carries its per-spectrum parameters
+(:mod:`s2cl.libraries.params`). A relative path is resolved against the directory of ``source`` (the scene
+file that named it) when one is given.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.files import load_csv_library, load_envi_library
 from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
 from s2cl.libraries.minerals import iron_backgrounds, mineral_library, mineral_library_swir
+from s2cl.libraries.npz import load_npz_library
 from s2cl.libraries.vegetation import load_vegetation
 
 BUILTIN_PREFIX = "builtin:"
@@ -66,13 +69,14 @@ def load_library(
     """Load the library named by ``spec`` onto ``grid``.
 
     :param spec: ``builtin:NAME`` (see :func:`available_libraries`), ``builtin:flat:0.05,0.3``,
-        or a path to a ``.csv`` / ``.sli`` / ``.hdr`` file.
+        or a path to a ``.csv`` / ``.sli`` / ``.hdr`` / ``.npz`` file.
     :param source: the file ``spec`` came from (a scene), used in error messages (a file that is missing,
         or not a regular file, is reported as ``source: key``) and to resolve relative paths.
     :param key: the key inside ``source`` that held ``spec``.
     :param base_dir: the folder relative paths are resolved against (default: the folder of ``source``,
         else the working folder); a scene passes its own (:attr:`s2cl.scene.scene.Scene.base_dir`).
-    :param quantity: what a user file holds (``surface.quantity``); built-in libraries are reflectance.
+    :param quantity: what a CSV or ENVI file holds (``surface.quantity``); built-in libraries are reflectance,
+        an ``.npz`` file says what it holds (its metadata).
     :param budget: the memory a file may take once read onto ``grid``, sized from its metadata (header line,
         file size, ENVI header) before it is read; default :meth:`Budget.of`.
     :raises InputError: unknown builtin (the message lists the available ones), unknown file type,
@@ -88,13 +92,15 @@ def load_library(
         elif source is not None:
             path = Path(source).parent / path
     suffix = path.suffix.lower()
-    if suffix in {".csv", ".sli", ".hdr"}:
+    if suffix in {".csv", ".sli", ".hdr", ".npz"}:
         input_file(path, what="spectral library file", source=source, key=key)
         if suffix == ".csv":
             return load_csv_library(path, grid, quantity=quantity, budget=budget)
+        if suffix == ".npz":
+            return load_npz_library(path, grid, budget=budget)
         return load_envi_library(path, grid, quantity=quantity, budget=budget)
     raise InputError(
-        f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr file",
+        f"{token(text)} is neither builtin:NAME ({', '.join(_BUILTINS)}) nor a .csv/.sli/.hdr/.npz file",
         source=source,
         key=key,
     )

@@ -39,7 +39,7 @@ class SceneMeta(_Section):
 
 
 class SurfaceSpec(_Section):
-    library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) library file")
+    library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) / s2cl .npz library file")
     cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr)")
     variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
     gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
