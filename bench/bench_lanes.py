@@ -3,10 +3,10 @@
 The runtime's default is the device's native vector width (PoCL: 16 floats with AVX-512, 8 with
 AVX2; :func:`s2cl.cl.devices.choose_lanes`). This script measures whether that is the right choice
 here: IGRM fits (kernel alone), the fused sweep kernel of the default scene, GVMI, SAM, and the
-resampler's vector-load width. Every width is first checked bit-identical to one pixel per
-work-item (the resampler: against its float64 oracle; the one-lane sweep kernel itself by
-:func:`bench.sweep_check.validate_sweep`), then all widths are timed in interleaved
-rounds (medians). Widths above the native one are capped by the runtime and not timed.
+resampler's vector-load width and its spectra per work-item (1-16, read interleaved). Every width is
+first checked bit-identical to one pixel per work-item (the resampler: against its float64 oracle;
+the one-lane sweep kernel itself by :func:`bench.sweep_check.validate_sweep`), then all widths are
+timed in interleaved rounds (medians). Widths above the native one are capped by the runtime and not timed.
 Writes bench/results/lanes-<machine>-<date>.json.
 
     python -m bench.bench_lanes            # ~1 minute on 2 cores
@@ -107,6 +107,27 @@ def _resample(rt: Runtime, n: int) -> Runs:
     return runs, n, "spectra", Resampler(rt, plan, "float32").vw
 
 
+ROWS = (1, 2, 4, 8, 16)
+
+
+def _resample_rows(rt: Runtime, n: int) -> Runs:
+    """The resampler at its default vector width with 1-16 spectra per work-item (read interleaved)."""
+    from s2cl.forward.resample import ResamplePlan, Resampler
+    from s2cl.grid import DEFAULT_GRID
+    from s2cl.sensor.sensor import Sensor
+
+    plan = ResamplePlan.of(Sensor.sentinel2().bands, DEFAULT_GRID)
+    spectra = np.random.default_rng(0).uniform(0.0, 100.0, (n, DEFAULT_GRID.size)).astype(np.float32)
+    one = Resampler(rt, plan, "float32", rows_per_item=1)
+    base = one(spectra[:1000])
+    runs = {}
+    for rows in ROWS:
+        r = Resampler(rt, plan, "float32", rows_per_item=rows)
+        check(bool(np.array_equal(r(spectra[:1000]), base)), f"{rows} rows per work-item differ from one")
+        runs[rows] = (lambda r=r: r(spectra))
+    return runs, n, "spectra", Resampler(rt, plan, "float32").rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
@@ -115,13 +136,15 @@ def main() -> None:
     native = rt.native_lanes("float32")
     widths = [w for w in WIDTHS if w <= native or "CPU" not in rt.info.kind]
     families = {"igrm": _igrm(rt, 400_000), "sweep": _sweep(rt), **_gvmi_sam(rt, 2_000_000),
-                "resample (vector-load width)": _resample(rt, 100_000)}
+                "resample (vector-load width)": _resample(rt, 100_000),
+                "resample (spectra per work-item)": _resample_rows(rt, 100_000)}
     start = load_average()
     result: dict[str, Any] = {"benchmark": "lanes", "machine": machine_info(rt), "float32_native_width": native,
                               "families": {}}
     for name, (runs, items, unit, default) in families.items():
-        secs = interleaved_medians([runs[w] for w in widths], repeat=args.repeat, warmup=1)
-        rates = {w: items / s for w, s in zip(widths, secs, strict=True)}
+        keys = list(runs) if "per work-item" in name else widths
+        secs = interleaved_medians([runs[w] for w in keys], repeat=args.repeat, warmup=1)
+        rates = {w: items / s for w, s in zip(keys, secs, strict=True)}
         best = max(rates, key=rates.get)
         result["families"][name] = {"unit": f"{unit}/s", "rate": rates, "best_width": best, "default_width": default,
                                     "default_over_best": rates[default] / rates[best],

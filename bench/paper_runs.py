@@ -2,7 +2,8 @@
 sensitivity study and Fig. 7, then docs/paper/results.json and the shipped heatmaps.
 
 Each scene runs as ``python -m s2cl optimise SCENE -q -o OUT/SCENE`` (the command docs/paper.md
-shows), its output in ``OUT/logs/SCENE.log``. A run folder remembers, in ``paper_runs.json``, a
+shows), its output in ``OUT/logs/SCENE.log``. Each run's marker, ``OUT/logs/SCENE.paper_runs.json``
+(beside the log: s2cl writes only into folders that hold nothing but its own files), holds a
 fingerprint of the s2cl sources it ran with (``s2cl/``, ``kernels/``, the scene file): a finished
 run with the current fingerprint is skipped, an interrupted one resumes (the sweep keeps its
 finished chunks), and one made with other sources is deleted and run again, because the sweep's
@@ -70,8 +71,13 @@ def source_fingerprint(scene: str) -> str:
     return h.hexdigest()
 
 
+def _marker(folder: Path) -> Path:
+    """The marker of the run in ``folder`` (``OUT/SCENE`` -> ``OUT/logs/SCENE.paper_runs.json``)."""
+    return folder.parent / "logs" / f"{folder.name}.{MARKER}"
+
+
 def _read_marker(folder: Path) -> dict[str, Any]:
-    p = folder / MARKER
+    p = _marker(folder)
     return json.loads(p.read_text(encoding="utf-8")) if p.exists() else {}
 
 
@@ -89,10 +95,9 @@ def run_scene(scene: str, out: Path) -> dict[str, Any]:
             raise SystemExit(f"{folder} exists and is not an s2cl sweep folder: not touching it")
         print(f"{scene}: {folder} was made with other sources (or by hand): deleting it", flush=True)
         shutil.rmtree(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     log.parent.mkdir(parents=True, exist_ok=True)
     marker = {"scene": scene, "fingerprint": fingerprint, "finished": False, "resumed": resumed}
-    write_json(folder / MARKER, marker)
+    write_json(_marker(folder), marker)
     print(f"{scene}: {'resuming' if resumed else 'running'} (log {log})", flush=True)
     t0 = time.perf_counter()
     with log.open("a", encoding="utf-8") as f:
@@ -102,7 +107,7 @@ def run_scene(scene: str, out: Path) -> dict[str, Any]:
     if rc != 0:
         raise SystemExit(f"{scene}: s2cl optimise exited with {rc}; see {log}")
     marker |= {"finished": True, "wall_s": round(wall, 1)}
-    write_json(folder / MARKER, marker)
+    write_json(_marker(folder), marker)
     print(f"{scene}: done in {wall:.0f} s", flush=True)
     return marker
 

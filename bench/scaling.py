@@ -134,7 +134,7 @@ def sweep_vs_configs(ctx: Context, copies: int) -> dict[str, Any]:
                for c in counts]
     out = _series("configurations", counts, seconds, "configurations/s",
                   pixels_per_config=pixels, validation_max_rel_rms_vs_float64=checked["rms_rel_diff_max"],
-                  validation_same_status_fraction=checked["same_status_fraction"])
+                  validation_same_status_class_fraction=checked["same_status_class_fraction"])
     for p in out["points"]:
         p["config_pixels_per_s"] = p["rate_per_s"] * pixels
     return out
@@ -152,7 +152,9 @@ def rss():
         return next(int(line.split()[1]) for line in fh if line.startswith("VmRSS")) / 1024
 
 chunk, copies = int(sys.argv[1]), int(sys.argv[2])
-job = plan_sweep(_sweep_scene(Context.make(True), copies), chunk=chunk)
+from s2cl.io.budget import Budget
+# the probe measures what a chunk takes, also beyond the default 4 GB limit (up to 90 % of what is free)
+job = plan_sweep(_sweep_scene(Context.make(True), copies), chunk=chunk, budget=Budget.of("1T"))
 evaluate_chunk(job, 0, 2)
 base, peak, running = rss(), [0.0], True
 def sample():

@@ -25,6 +25,7 @@ Global size: pitch / T.lanes work-items (the host pads pixels to a multiple of T
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>
 <%namespace name="lm" file="common/igrm_lm.mako"/>
+<%namespace name="vp" file="common/igrm_varpro.mako"/>
 <%def name="ptr(base, plane, const)">\
 % if T.lanes == 1:
 (${base} + ${plane} * pitch)[gid]\
@@ -52,7 +53,7 @@ ${vm.exp_neg(T1, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts[
 ${vm.rsqrt(T)}
 % endif
 ${vm.ldl4_solve(T, c.pivot_rel)}
-${lm.igrm_fit(T, c, "igrm", T1)}
+${(vp if c.solver == "varpro" else lm).igrm_fit(T, c, "igrm", T1)}
 
 __kernel void igrm_fit(
     ${signature(args, T)})

@@ -9,6 +9,7 @@ Template variables
   n_wavelengths row stride of `spectra` (grid size)
   T             s2cl.cl.vectypes.VecTypes of the working precision, one lane (scalar types, literals)
   vw            wavelengths per vector load, 4, 8 or 16 (s2cl.forward.resample.DEFAULT_VECTOR_WIDTH)
+  rows          pixels (rows of `spectra`) per work-item, read in an interleaved way
   atmosphere    bool: input is surface reflectance, converted per wavelength to TOA radiance
                 L = Lp + G rho / (1 - S rho) before weighting (arrays path_radiance, ground_term,
                 spherical_albedo on the grid)
@@ -52,37 +53,53 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
 __kernel void resample_bands(
     ${signature(args, T)})
 {
-    const uint i = get_global_id(0);
-    if (i >= n_pixels)
+    /* ${rows} rows per work-item: their loads interleave, so ${rows} streams are in flight at once */
+    const uint i0 = get_global_id(0) * ${rows}u;
+    if (i0 >= n_pixels)
         return;
-    __global const ${R} *row = spectra + (size_t)i * ${n_wavelengths}u;
+% for r in range(rows):
+    __global const ${R} *row${r} = spectra + (size_t)min(i0 + ${r}u, n_pixels - 1u) * ${n_wavelengths}u;
+% endfor
 % for k, b in enumerate(bands):
 <%
     nvec = b["length"] // vw
-    tail = b["length"] - nvec * vw
     s0 = b["start"]
     w0 = b["offset"]
 %>
     {   /* ${b["name"]}: grid samples ${s0}..${s0 + b["length"] - 1} */
-        ${vtype} acc = (${vtype})(${T.lit(0.0)});
+  % for r in range(rows):
+        ${vtype} acc${r} = (${vtype})(${T.lit(0.0)});
+  % endfor
         for (int j = 0; j < ${nvec}; ++j) {
+            const ${vtype} w = vload${vw}(j, weights + ${w0});
   % if atmosphere:
-            const ${vtype} x = s2_toa${vw}(vload${vw}(j, row + ${s0}), vload${vw}(j, path_radiance + ${s0}),
-                                     vload${vw}(j, ground_term + ${s0}), vload${vw}(j, spherical_albedo + ${s0}));
+            const ${vtype} lp = vload${vw}(j, path_radiance + ${s0}), g = vload${vw}(j, ground_term + ${s0});
+            const ${vtype} s = vload${vw}(j, spherical_albedo + ${s0});
+    % for r in range(rows):
+            acc${r} += w * s2_toa${vw}(vload${vw}(j, row${r} + ${s0}), lp, g, s);
+    % endfor
   % else:
-            const ${vtype} x = vload${vw}(j, row + ${s0});
+    % for r in range(rows):
+            acc${r} += w * vload${vw}(j, row${r} + ${s0});
+    % endfor
   % endif
-            acc += vload${vw}(j, weights + ${w0}) * x;
         }
-        ${R} sum = s2_hsum(acc);
-  % for t in range(nvec * vw, b["length"]):
-    % if atmosphere:
-        sum += weights[${w0 + t}] * s2_toa(row[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+  % for r in range(rows):
+        ${R} sum${r} = s2_hsum(acc${r});
+    % for t in range(nvec * vw, b["length"]):
+      % if atmosphere:
+        sum${r} += weights[${w0 + t}] * s2_toa(row${r}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+      % else:
+        sum${r} += weights[${w0 + t}] * row${r}[${s0 + t}];
+      % endif
+    % endfor
+    % if r == 0:
+        out[${k}u * n_pixels + i0] = sum0;
     % else:
-        sum += weights[${w0 + t}] * row[${s0 + t}];
+        if (i0 + ${r}u < n_pixels)
+            out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
     % endif
   % endfor
-        out[${k}u * n_pixels + i] = sum;
     }
 % endfor
 }

@@ -41,6 +41,7 @@ No builtin math in the hot path (shared/notes/pocl-performance.md).
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>
 <%namespace name="lm" file="common/igrm_lm.mako"/>
+<%namespace name="vp" file="common/igrm_varpro.mako"/>
 <%namespace name="st" file="common/stages.mako"/>
 <%
     V, R, L = T.V, T.R, T.lanes
@@ -70,7 +71,7 @@ ${vm.exp_neg(T1, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts[
 ${vm.rsqrt(T)}
   % endif
 ${vm.ldl4_solve(T, c.pivot_rel)}
-${lm.igrm_fit(T, c, "sweep", T1)}
+${(vp if c.solver == "varpro" else lm).igrm_fit(T, c, "sweep", T1)}
 % endif
 
 % if quantise:

@@ -43,15 +43,22 @@ def fake_optimise(monkeypatch: pytest.MonkeyPatch) -> list[list[str]]:
     return calls
 
 
+def _marker_path(folder: Path) -> Path:
+    """Where paper_runs keeps a run's marker: beside its log (s2cl writes only into its own folders)."""
+    path = folder.parent / "logs" / f"{folder.name}.paper_runs.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
 def _marker(folder: Path) -> dict[str, Any]:
-    return json.loads((folder / "paper_runs.json").read_text())
+    return json.loads(_marker_path(folder).read_text())
 
 
 def test_finished_run_with_same_sources_is_skipped(paper_runs: ModuleType, fake_optimise: list, tmp_path: Path) -> None:
     folder = tmp_path / "table4-b4"
     folder.mkdir()
     fp = paper_runs.source_fingerprint("table4-b4")
-    (folder / "paper_runs.json").write_text(json.dumps({"fingerprint": fp, "finished": True, "wall_s": 1.0}))
+    _marker_path(folder).write_text(json.dumps({"fingerprint": fp, "finished": True, "wall_s": 1.0}))
     assert paper_runs.run_scene("table4-b4", tmp_path)["wall_s"] == 1.0
     assert fake_optimise == []
 
@@ -62,7 +69,7 @@ def test_run_with_other_sources_is_redone_from_scratch(paper_runs: ModuleType, f
     folder.mkdir()
     (folder / "manifest.json").write_text("{}")
     (folder / "old-chunk").write_text("made by older code")
-    (folder / "paper_runs.json").write_text(json.dumps({"fingerprint": "older", "finished": True}))
+    _marker_path(folder).write_text(json.dumps({"fingerprint": "older", "finished": True}))
     paper_runs.run_scene("table4-b4", tmp_path)
     assert not (folder / "old-chunk").exists()  # the sweep's own resume would have kept it
     (cmd,) = fake_optimise
@@ -76,7 +83,7 @@ def test_interrupted_run_resumes_in_place(paper_runs: ModuleType, fake_optimise:
     folder.mkdir()
     (folder / "chunk").write_text("finished chunk")
     fp = paper_runs.source_fingerprint("table4-b4")
-    (folder / "paper_runs.json").write_text(json.dumps({"fingerprint": fp, "finished": False}))
+    _marker_path(folder).write_text(json.dumps({"fingerprint": fp, "finished": False}))
     paper_runs.run_scene("table4-b4", tmp_path)
     assert (folder / "chunk").exists() and len(fake_optimise) == 1 and _marker(folder)["resumed"]
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.errors import InputError
 from s2cl.forward.resample import ResamplePlan, Resampler
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 from s2cl.reference import forward as ref
@@ -47,6 +48,24 @@ def test_vector_width_matches_oracle(rt, real_t: str, width: int) -> None:
     spectra = _spectra(33)
     out = Resampler(rt, plan, real_t, vector_width=width)(spectra)
     _check(out, ref.resample(spectra.astype(np.dtype(real_t)), plan.weights), real_t)
+
+
+@pytest.mark.parametrize("rows", [1, 2, 4, 8, 16])
+def test_rows_per_work_item_give_identical_bits(rt, rows: int) -> None:
+    """Every rows-per-work-item setting (CPUs read 8 spectra interleaved) gives the same bits, whatever
+    the pixel count's remainder; with the atmosphere effect too."""
+    plan = _plan()
+    spectra = _spectra(37, seed=4)
+    base = Resampler(rt, plan, rows_per_item=1)(spectra)
+    for n in (1, 5, 17, 37):
+        assert np.array_equal(Resampler(rt, plan, rows_per_item=rows)(spectra[:n]), base[:, :n])
+    rng = np.random.default_rng(6)
+    terms = _Terms(DEFAULT_GRID.size, rng)
+    rho = rng.uniform(0.0, 0.9, (19, DEFAULT_GRID.size))
+    one = Resampler(rt, plan, atmosphere=terms, rows_per_item=1)(rho)
+    assert np.array_equal(Resampler(rt, plan, atmosphere=terms, rows_per_item=rows)(rho), one)
+    with pytest.raises(InputError, match="rows_per_item"):
+        Resampler(rt, plan, rows_per_item=3)
 
 
 @pytest.mark.parametrize("n", [1, 7, 301, 10007])

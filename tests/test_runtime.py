@@ -169,3 +169,25 @@ def test_default_skips_a_device_that_cannot_compile(monkeypatch) -> None:
         devices._first_working([broken])
     assert "unknown target CPU" in str(err.value)
     assert "pocl-opencl-icd" in str(err.value)
+
+
+def test_compiled_kernels_persist_in_the_user_cache(tmp_path) -> None:
+    """A fresh process puts PoCL's compiled kernels in s2cl's cache folder ($S2CL_CACHE/pocl); a
+    $POCL_CACHE_DIR the user set wins."""
+    script = tmp_path / "build.py"
+    script.write_text(
+        "import os\n"
+        "from s2cl.cl.runtime import get_runtime\n"
+        "get_runtime().build('__kernel void k(__global float *a) { a[0] = 1.0f; } /* cache test */', "
+        "template='cached.cl')\n"
+        "print(os.environ['POCL_CACHE_DIR'])\n")
+    env = {k: v for k, v in os.environ.items() if k != "POCL_CACHE_DIR"} | {"S2CL_CACHE": str(tmp_path / "c")}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == str(tmp_path / "c" / "pocl")
+    if "Portable Computing Language" in get_runtime().info.platform:
+        assert any((tmp_path / "c" / "pocl").rglob("*")), "PoCL wrote nothing into its cache folder"
+    mine = tmp_path / "mine"
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         env=env | {"POCL_CACHE_DIR": str(mine)}, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == str(mine)

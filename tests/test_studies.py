@@ -270,6 +270,21 @@ def test_ddv_aerosol(results):
     assert d["rel_rms_pct_calibration"] > curve[0.0]    # +5 % calibration adds error
 
 
+def test_stability_quick_run(results):
+    """Every application's zero drift is its nominal error; the red-edge B6 (IGRM) is the tightest band."""
+    d = results["stability"]["data"]
+    zero, one = d["shifts_nm"].index(0.0), d["width_factors"].index(1.0)
+    assert [a["kind"] for a in d["applications"]] == ["igrm", "gvmi", "sam"]
+    for app in d["applications"]:
+        for b in app["bands"]:
+            assert app["error"]["shift"][b][zero] == app["nominal_error"]
+            assert app["error"]["width"][b][one] == app["nominal_error"]
+            assert set(app["requirement"][b]) == {"shift", "width"}
+    igrm = d["applications"][0]
+    b6 = igrm["requirement"]["B6"]["shift"]
+    assert 0 < min(b6["minus"], b6["plus"]) < 1.0
+
+
 def test_quick_may_only_replace_study_keys():
     data = tomllib.loads((scene_dir() / "study-ozone.toml").read_text())
     data["study"]["quick"] = {"kind": "cirrus"}

@@ -69,8 +69,23 @@ def _methane() -> dict:
             "methane_transmittance": (1 - 0.02 * np.exp(-((wl - 1666) / 10) ** 2)).tolist()}
 
 
+def _stability() -> dict:
+    shifts = np.linspace(-5.0, 5.0, 11)
+    factors = np.array([0.8, 1.0, 1.2])
+
+    def app(label: str, bands: list[str], nominal: float) -> dict:
+        grow = {"shift": {b: (nominal * (1 + (k + 1) * 0.05 * shifts**2)).tolist() for k, b in enumerate(bands)},
+                "width": {b: (nominal * (1 + 0.1 * np.abs(factors - 1))).tolist() for b in bands}}
+        return {"label": label, "metric": "RMS of cab", "unit": "µg/cm²", "bands": bands, "nominal_error": nominal,
+                "nominal_error_no_noise": nominal / 2, "error": grow,
+                "error_no_noise": {k: {b: [x / 2 for x in v] for b, v in d.items()} for k, d in grow.items()}}
+
+    return {"growth": 0.1, "shifts_nm": shifts.tolist(), "width_factors": factors.tolist(),
+            "applications": [app("IGRM", ["B5", "B6"], 5.0), app("SAM", ["B12"], 36.0)]}
+
+
 SYNTHETIC = {"cirrus": _cirrus, "water-vapour": _water_vapour, "aerosol": _aerosol, "ozone": _ozone,
-             "methane": _methane}
+             "methane": _methane, "stability": _stability}
 
 
 def _pixels(path: Path) -> np.ndarray:

@@ -386,6 +386,14 @@ ${init_data(T, c)}
         conv = (f <= ${T.vlit(c.f_abs)}) | near;
     }
 
+${verdict_and_outputs(T, c, name)}
+}
+</%def>
+
+## Status, iterations, bound bits and the seven outputs, from the fit's final state (shared with
+## common/igrm_varpro.mako): valid, flat, conv, stopped, it, p0..p3, rss and the four-parameter
+## J^T W J upper triangle a00..a33 at the returned point.
+<%def name="verdict_and_outputs(T, c, name)">
     const ${T.M} shallow = p1 <= ${T.vlit(c.depth_min)};
     *status = !valid ? ${mconst(T, "S2_INVALID")} : ((flat | shallow) ? ${mconst(T, "S2_DEGENERATE")}
               : (conv ? ${mconst(T, "S2_OK")} : (stopped ? ${mconst(T, "S2_STALLED")} : ${mconst(T, "S2_ITERATION_LIMIT")})));
@@ -406,5 +414,4 @@ ${init_data(T, c)}
     out[4] = valid ? l0 + s : zero;
     out[5] = valid ? sqrt(rss * ${T.lit(1.0 / c.n_bands)}) : zero;
     out[6] = valid ? s2_igrm_log10_condition_${name}(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33) : zero;
-}
 </%def>

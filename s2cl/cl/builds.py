@@ -21,11 +21,34 @@ from typing import Any
 STRICT_ENV = "S2CL_BUILD_WARNINGS"
 
 
+#: PoCL's kernel cache folder; s2cl points it into its own user cache folder unless the user set it
+POCL_CACHE_ENV = "POCL_CACHE_DIR"
+
+
 def pyopencl() -> Any:
-    """pyopencl, imported on first use."""
+    """pyopencl, imported on first use, with PoCL's kernel cache in s2cl's user cache folder
+    (:func:`pocl_cache_dir`): the second process that builds a kernel finds it there."""
+    if POCL_CACHE_ENV not in os.environ:
+        from s2cl.errors import InputError
+
+        try:
+            os.environ[POCL_CACHE_ENV] = str(pocl_cache_dir())
+        except InputError:  # s2cl's cache folder cannot be made: PoCL keeps its own (s2cl.cl.devices names why)
+            pass
     import pyopencl
 
     return pyopencl
+
+
+def pocl_cache_dir() -> Path:
+    """Where PoCL keeps compiled kernels: ``$POCL_CACHE_DIR`` when set, else ``pocl/`` in s2cl's user
+    cache folder (:func:`s2cl.io.cache.cache_dir`; ``$S2CL_CACHE`` moves both). PoCL keys each entry
+    by device, source and build options."""
+    if os.environ.get(POCL_CACHE_ENV):
+        return Path(os.environ[POCL_CACHE_ENV])
+    from s2cl.io.cache import cache_dir
+
+    return cache_dir("pocl")
 
 
 _STDERR_LOCK = threading.Lock()

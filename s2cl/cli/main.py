@@ -36,7 +36,7 @@ def cli(verbose: int) -> None:
       s2cl libraries             list built-in spectral libraries
       s2cl sensor                show the sensor table and its noise model
       s2cl srf B1 --plot srf.png model vs measured SRF of a band (paper Fig. 2)
-      s2cl study NAME            the paper's atmospheric-band studies (cirrus, water-vapour, ...)
+      s2cl study NAME            studies: atmospheric bands (cirrus, ...), spectral stability
       s2cl residuals             band-averaging residual of the atmospheric correction
       s2cl devices               list OpenCL devices
       s2cl lut build -o FILE     rebuild the atmosphere look-up table with 6S

@@ -17,11 +17,13 @@ from s2cl.cli.console import rich_console
               help="output folder (default: s2cl-out/study-NAME)")
 @click.option("--quiet", "-q", is_flag=True, help="no tables or notes: only the files written")
 def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
-    """Run an atmospheric-band study of the paper (Sec. 3): prints a table, writes NAME.json + NAME.png.
+    """Run a study: the paper's atmospheric-band studies (Sec. 3) or the spectral-stability requirement per
+    band; prints a table, writes NAME.json + NAME.png.
 
     \b
     NAME: cirrus (B10, Fig. 4), water-vapour (B9 APDA), aerosol (DDV, B1),
-          ozone (B1-B5, Fig. 5), methane (B11); or a scene file with a [study] section.
+          ozone (B1-B5, Fig. 5), methane (B11), stability (band drift vs
+          IGRM, GVMI, SAM errors); or a scene file with a [study] section.
     """
     from rich.table import Table
 

@@ -24,6 +24,11 @@ TEMPLATE = "resample.cl.mako"
 #: least 4 (there is no vload1): 16-wide loads were 13-15 % slower than 8-wide on an AVX-512 CPU
 #: (``python -m bench.bench_lanes``, bench/results/lanes-*.json); on AVX2 8 is the native width.
 DEFAULT_VECTOR_WIDTH = 8
+#: Spectra per work-item on CPUs, read interleaved so that that many memory streams are in flight at
+#: once: one row at a time waits on the first cache miss of every band support (1.6 M spectra/s against
+#: 4-5 M with 8 rows on a 2-core AVX-512 EPYC; ``python -m bench.bench_lanes``). GPUs take one row per
+#: work-item (their work-items are the parallelism).
+DEFAULT_ROWS_PER_ITEM = 8
 
 
 class AtmosphereArrays(Protocol):
@@ -83,10 +88,13 @@ class Resampler:
     :param vector_width: wavelengths per vector load, 4, 8 or 16 (default :data:`DEFAULT_VECTOR_WIDTH`
         capped at the device's native width; a width the CPU cannot use cleanly falls back, see
         :func:`s2cl.cl.devices.choose_lanes`).
+    :param rows_per_item: spectra per work-item, 1, 2, 4, 8 or 16 (default :data:`DEFAULT_ROWS_PER_ITEM`
+        on CPUs, 1 on other devices).
     """
 
     def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
-                 atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None):
+                 atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None,
+                 rows_per_item: int | None = None):
         self.T = rt.types(real_t, vector=False)
         self.rt, self.plan, self.real_t = rt, plan, real_t
         self.dtype = self.T.dtype.type
@@ -97,8 +105,12 @@ class Resampler:
         if vector_width is None:
             vector_width = max(4, min(DEFAULT_VECTOR_WIDTH, rt.native_lanes(real_t)))
         self.vw = max(4, rt.lanes(real_t, vector_width))  # a width this CPU cannot use falls back
+        if rows_per_item is not None and rows_per_item not in (1, 2, 4, 8, 16):
+            raise InputError(f"must be 1, 2, 4, 8 or 16, got {rows_per_item!r}", key="rows_per_item")
+        self.rows = rows_per_item or (DEFAULT_ROWS_PER_ITEM if "CPU" in rt.info.kind else 1)
         self.source = render(TEMPLATE, args=self.args, signature=signature, T=self.T, bands=bands,
-                             n_wavelengths=plan.n_wavelengths, vw=self.vw, atmosphere=atmosphere is not None)
+                             n_wavelengths=plan.n_wavelengths, vw=self.vw, rows=self.rows,
+                             atmosphere=atmosphere is not None)
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "resample_bands")
         self.weights_dev = rt.to_device(weights.astype(self.dtype))
@@ -114,7 +126,7 @@ class Resampler:
         values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels}
         if self.atmosphere_dev:
             values.update(self.atmosphere_dev)
-        global_size = _round_up(n_pixels, local_size or 1)
+        global_size = _round_up(-(-n_pixels // self.rows), local_size or 1)
         self.kernel(self.rt.queue, (global_size,), (local_size,) if local_size else None,
                     *bind(self.args, values, self.T))
 

@@ -66,19 +66,22 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
 def igrm_per_configuration(rhos: np.ndarray, centres: np.ndarray, settings: dict, dtype: type = np.float64
                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """IGRM fits of ``rhos`` ``(n_slots, n_configs, n_pixels)`` with each configuration's band
-    centres ``(n_configs, n_slots)``: the kernel's LM in vectorised numpy, one configuration at a
+    centres ``(n_configs, n_slots)``: the kernel's fit (variable projection or LM, as the settings
+    say) in vectorised numpy, one configuration at a
     time, the bands sorted by centre (stable) as the kernel sorts them. Returns λp (nm), status,
     bound bits and condition codes, each ``(n_configs, n_pixels)``."""
     from s2cl.reference.igrm import fit_numpy_lm
+    from s2cl.reference.igrm_varpro import fit_numpy_varpro
     from s2cl.retrieve.igrm import IgrmSettings
 
     s = IgrmSettings.from_mapping(settings)
+    fit = fit_numpy_varpro if s.resolved_solver() == "varpro" else fit_numpy_lm
     n_cfg, n_px = rhos.shape[1:]
     index, status = np.empty((n_cfg, n_px)), np.empty((n_cfg, n_px), np.uint8)
     bounds, condition = np.empty((n_cfg, n_px), np.uint8), np.empty((n_cfg, n_px), np.uint8)
     for i in range(n_cfg):
         order = np.argsort(centres[i], kind="stable")
-        r = fit_numpy_lm(rhos[order, i, :], centres[i][order], s, dtype=dtype)
+        r = fit(rhos[order, i, :], centres[i][order], s, dtype=dtype)
         index[i], status[i], bounds[i] = r.lp, r.status, r.bounds
         condition[i] = condition_code(r.log10_condition)
     return index, status, bounds, condition

@@ -16,6 +16,7 @@ import numpy as np
 from s2cl.errors import InputError
 
 Loss = Literal["linear", "soft_l1"]
+Solver = Literal["auto", "varpro", "lm"]
 Init = Literal["data", "grid"]
 
 
@@ -40,6 +41,10 @@ class IgrmSettings:
     grid_l0: int = 6
     grid_s: int = 6
     loss: Loss = "linear"
+    #: "varpro": Levenberg-Marquardt on (l0, s) with (rmin, depth) solved exactly at every step
+    #: (common/igrm_varpro.mako; linear loss only); "lm": the four-parameter LM (common/igrm_lm.mako);
+    #: "auto": varpro for the linear loss, lm for soft_l1
+    solver: Solver = "auto"
     #: soft-L1 residual scale (reflectance): residuals much larger than it count linearly
     f_scale: float = 0.01
     max_iter: int = 50
@@ -75,6 +80,10 @@ class IgrmSettings:
             raise bad("init", "'data' or 'grid'")
         if self.loss not in ("linear", "soft_l1"):
             raise bad("loss", "'linear' or 'soft_l1'")
+        if self.solver not in ("auto", "varpro", "lm"):
+            raise bad("solver", "'auto', 'varpro' or 'lm'")
+        if self.solver == "varpro" and self.loss != "linear":
+            raise bad("solver", "'lm' or 'auto' with loss = 'soft_l1' (variable projection solves the linear loss)")
         for key in ("grid_l0", "grid_s"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 32:
@@ -105,6 +114,12 @@ class IgrmSettings:
             return cls(**values)
         except InputError as err:
             raise InputError(str(err), source=source) from None
+
+    def resolved_solver(self) -> str:
+        """The solver that runs: ``solver``, with "auto" resolved by the loss."""
+        if self.solver != "auto":
+            return self.solver
+        return "varpro" if self.loss == "linear" else "lm"
 
     def l0_grid(self) -> np.ndarray:
         """l0 values (nm) of the grid initial guess: evenly spaced over the window."""
@@ -143,6 +158,7 @@ class KernelConfig:
     grid_l: tuple[float, ...]
     grid_s: tuple[float, ...]
     loss: str
+    solver: str
     f_scale: float
     max_iter: int
     xtol: float
@@ -180,6 +196,7 @@ def kernel_config(settings: IgrmSettings, n_bands: int, real_t: str = "float32",
         grid_l=tuple(float((v - xc) / xw) for v in settings.l0_grid()),
         grid_s=tuple(float(v / xw) for v in settings.s_grid()),
         loss=settings.loss,
+        solver=settings.resolved_solver(),
         f_scale=settings.f_scale,
         max_iter=settings.max_iter,
         xtol=settings.tol,

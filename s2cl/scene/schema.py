@@ -17,6 +17,8 @@ from s2cl.retrieve.indices import INDICES, ROLE_KEYS
 from s2cl.sensor.srf import DEFAULT_SUPPORT
 
 UINT32_MAX = 2**32 - 1
+#: stability study: largest band-centre shift (nm) and width factor a [study] may ask for
+MAX_SHIFT_NM, MAX_WIDTH_FACTOR = 100.0, 5.0
 #: a scene name is a folder name: no separators, no leading dot
 SCENE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
@@ -181,9 +183,10 @@ class ComputeSpec(_Section):
 
 
 class StudySpec(_Section):
-    """An atmospheric-band study (``s2cl study NAME``); the bands it varies are the [sweep] section."""
+    """A study (``s2cl study NAME``): the paper's atmospheric-band studies vary the bands of the [sweep] section;
+    ``stability`` drifts the bands of each scene in ``applications``."""
 
-    kind: Literal["cirrus", "water-vapour", "aerosol", "ozone", "methane"]
+    kind: Literal["cirrus", "water-vapour", "aerosol", "ozone", "methane", "stability"]
     reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
     targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
     spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
@@ -191,7 +194,14 @@ class StudySpec(_Section):
     ozone: list[float] = Field(default_factory=list, description="true ozone columns, DU")
     aot550: list[float] = Field(default_factory=list, description="true AOT550 values")
     factor_errors: list[float] = Field(default_factory=list, description="relative errors of a correlation factor")
-    pixels: int = Field(100, ge=1, le=100_000, description="noisy pixels per target and state")
+    pixels: int = Field(100, ge=1, le=100_000, description="noisy pixels per target and state (stability: noisy "
+                        "copies per library spectrum)")
+    applications: dict[str, str] = Field(default_factory=dict, description="stability: label -> scene (built-in "
+                                         "name, or a .toml file relative to this scene) with [analysis] and [sweep]")
+    shifts_nm: list[float] = Field(default_factory=list, description="stability: band-centre shifts, nm")
+    width_factors: list[float] = Field(default_factory=list, description="stability: band-width factors, unitless")
+    growth: float = Field(0.1, gt=0, le=10, description="stability: error growth over the nominal that sets a "
+                          "requirement (0.1: +10 %)")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
     @field_validator("reflectance")
@@ -208,6 +218,32 @@ class StudySpec(_Section):
         bad = [v for v in values if not math.isfinite(v)]
         if bad:
             raise ValueError(f"values must be finite numbers, got {bad[0]}")
+        return values
+
+    @field_validator("shifts_nm")
+    @classmethod
+    def _shifts(cls, values: list[float]) -> list[float]:
+        bad = [v for v in values if not (math.isfinite(v) and abs(v) <= MAX_SHIFT_NM)]
+        if bad:
+            raise ValueError(f"shifts must be finite and within ±{MAX_SHIFT_NM:g} nm, got {bad[0]}")
+        return values
+
+    @field_validator("width_factors")
+    @classmethod
+    def _factors(cls, values: list[float]) -> list[float]:
+        bad = [v for v in values if not (math.isfinite(v) and 0 < v <= MAX_WIDTH_FACTOR)]
+        if bad:
+            raise ValueError(f"width factors must be > 0 and <= {MAX_WIDTH_FACTOR:g}, got {bad[0]}")
+        return values
+
+    @field_validator("applications")
+    @classmethod
+    def _applications(cls, values: dict[str, str]) -> dict[str, str]:
+        for label, scene in values.items():
+            if not 1 <= len(label) <= 40 or not label.isprintable():
+                raise ValueError(f"application labels are 1-40 printable characters, got {token(label)}")
+            if not scene:
+                raise ValueError(f"application {token(label)} names no scene")
         return values
 
 

@@ -182,10 +182,50 @@ class BandGrid:
 
 
 @dataclass(frozen=True)
+class BandList:
+    """A band whose variants are an explicit list of distinct (centre, width) pairs (nm), in that order: e.g.
+    the nominal band, then its shifted and its widened copies (``s2cl study stability``)."""
+
+    band: str
+    shapes: tuple[tuple[float, float], ...]
+
+    def validate(self, source: str | None = None) -> None:
+        key = f"sweep.ranges.{self.band}"
+        if not self.shapes:
+            raise InputError("needs at least one (centre, width)", source=source, key=key)
+        if not all(math.isfinite(v) for s in self.shapes for v in s):
+            raise InputError("centres and widths must be finite", source=source, key=key)
+        if min(w for _, w in self.shapes) <= 0:
+            raise InputError(f"widths must be > 0 nm, got {min(w for _, w in self.shapes)}", source=source, key=key)
+        if len(set(self.shapes)) != len(self.shapes):
+            raise InputError("the (centre, width) pairs hold duplicates", source=source, key=key)
+
+    @property
+    def is_fixed(self) -> bool:
+        return len(self.shapes) == 1
+
+    def count(self) -> int:
+        return len(self.shapes)
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """(smallest centre, largest centre, smallest width, largest width), nm."""
+        c, w = zip(*self.shapes, strict=True)
+        return min(c), max(c), min(w), max(w)
+
+    def support_extent(self, support: float) -> tuple[float, float]:
+        """(lowest, highest) wavelength, nm, that the model SRF of any variant reaches: centre ± support × width."""
+        return (min(c - support * w for c, w in self.shapes), max(c + support * w for c, w in self.shapes))
+
+    def variants(self) -> np.ndarray:
+        """The (centre, width) pairs as given, ``(n, 2)``."""
+        return np.array(self.shapes, dtype=np.float64).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
 class SweepSpace:
     """The product of the band ranges: ``size`` configurations of one variant per band."""
 
-    ranges: tuple[BandRange | BandGrid, ...]
+    ranges: tuple[BandRange | BandGrid | BandList, ...]
 
     def validate(self, source: str | None = None) -> SweepSpace:
         if not self.ranges:

@@ -1,10 +1,12 @@
-"""The paper's atmospheric-band studies (Segl et al. 2012, Sec. 3): ``s2cl study NAME``.
+"""The paper's atmospheric-band studies (Segl et al. 2012, Sec. 3) and the spectral-stability study:
+``s2cl study NAME``.
 
 Each study is a scene ``scenes/study-NAME.toml`` with a [study] section (what varies besides the
 bands) and a [sweep] section (the band variants, :mod:`s2cl.sensor.variants`), and a module here with a
 ``run(setup) -> StudyResult`` that computes only. :func:`run_study` loads the scene, runs the study and writes
 ``NAME.json`` and ``NAME.png`` atomically; the figure is drawn from the JSON's ``data`` alone
-(:mod:`s2cl.studies.plots`), so :func:`replot` redraws it from a saved ``NAME.json``.
+(:mod:`s2cl.studies.plots`), so :func:`replot` redraws it from a saved ``NAME.json``. The ``stability`` study
+has no [sweep] of its own: its [study] names application scenes whose bands it drifts (:mod:`s2cl.studies.drift`).
 """
 
 from __future__ import annotations
@@ -15,11 +17,12 @@ from pathlib import Path
 from s2cl.errors import InputError
 from s2cl.io.output import write_json
 from s2cl.scene.scene import Scene
-from s2cl.studies import aerosol, cirrus, methane, ozone, water_vapour
+from s2cl.studies import aerosol, cirrus, methane, ozone, stability, water_vapour
 from s2cl.studies.common import StudyResult, StudySetup, load_study
 from s2cl.studies.plots import replot
 
-_MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "aerosol": aerosol, "ozone": ozone, "methane": methane}
+_MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "aerosol": aerosol, "ozone": ozone, "methane": methane,
+            "stability": stability}
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {name: m.run for name, m in _MODULES.items()}
 
 __all__ = ["STUDIES", "StudyResult", "replot", "run_study", "study_scene"]

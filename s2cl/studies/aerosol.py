@@ -20,7 +20,18 @@ from __future__ import annotations
 import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere, toa
-from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply, band_terms, crossing, inverse, noisy, rel_rms
+from s2cl.studies.common import (
+    KeyFigure,
+    StudyResult,
+    StudySetup,
+    apply,
+    band_terms,
+    crossing,
+    equal_error,
+    inverse,
+    noisy,
+    rel_rms,
+)
 
 # "if the error in this correlation factor is greater than 10 %, it will be the dominating error source"
 PAPER_DOMINANT_ABOVE = 0.10
@@ -51,20 +62,6 @@ def retrieve(L: dict[str, np.ndarray], t: dict[str, dict[str, np.ndarray]], c_rs
     rho_b = c_br.reshape(shape) * rho_r
     f = (lr - model("red", rho_r)) / lr + (lb - model("blue", rho_b)) / lb
     return crossing(axis, f)
-
-
-def equal_error(eps: np.ndarray, rms: np.ndarray, level: float, side: int) -> float:
-    """|ε| (unitless) on one side (+1 or −1) of ε = 0 where the RMS curve first reaches ``level``,
-    linear between the sampled errors; NaN if it never does."""
-    eps, rms = np.asarray(eps, dtype=np.float64), np.asarray(rms, dtype=np.float64)
-    sel = np.flatnonzero(side * eps >= 0)
-    order = sel[np.argsort(np.abs(eps[sel]))]
-    x, y = np.abs(eps[order]), rms[order]
-    above = np.flatnonzero(y >= level)
-    if not above.size or above[0] == 0:
-        return float("nan") if not above.size else float(x[0])
-    i = above[0]
-    return float(x[i - 1] + (level - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1]))
 
 
 def run(setup: StudySetup) -> StudyResult:

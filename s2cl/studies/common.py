@@ -206,3 +206,17 @@ def rel_rms(estimate: np.ndarray, truth: np.ndarray | float) -> float:
     """sqrt(mean(((estimate − truth)/truth)²)), unitless."""
     e = (np.asarray(estimate, dtype=np.float64) - truth) / truth
     return float(np.sqrt(np.mean(e**2)))
+
+
+def equal_error(eps: np.ndarray, rms: np.ndarray, level: float, side: int) -> float:
+    """|ε| (unitless) on one side (+1 or −1) of ε = 0 where the RMS curve first reaches ``level``,
+    linear between the sampled errors; NaN if it never does."""
+    eps, rms = np.asarray(eps, dtype=np.float64), np.asarray(rms, dtype=np.float64)
+    sel = np.flatnonzero(side * eps >= 0)
+    order = sel[np.argsort(np.abs(eps[sel]))]
+    x, y = np.abs(eps[order]), rms[order]
+    above = np.flatnonzero(y >= level)
+    if not above.size or above[0] == 0:
+        return float("nan") if not above.size else float(x[0])
+    i = above[0]
+    return float(x[i - 1] + (level - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1]))

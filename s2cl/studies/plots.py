@@ -229,12 +229,80 @@ def plot_methane(data: Data, path: Path) -> Path:
     return save_png(fig, path)
 
 
+#: the stability figure's middle row shows the shifts within ± this many nm (where the requirements lie)
+STABILITY_ZOOM_NM = 2.0
+
+
+def plot_stability(data: Data, path: Path) -> Path:
+    """Spectral stability: per application (columns), the error of each band's drift relative to the nominal
+    error, against the centre shift (all, and within ±2 nm) and the width factor; noisy (solid) and noise-free
+    (dashed); the requirement level (nominal + growth) as a red line."""
+    plt = pyplot()
+    apps = data["applications"]
+    level = 1.0 + float(data["growth"])
+    xs = {"shift": np.asarray(data["shifts_nm"], dtype=np.float64),
+          "width": np.asarray(data["width_factors"], dtype=np.float64)}
+    panels: list[tuple[str, float | None]] = [("shift", None)] if xs["shift"].size > 1 else []
+    if np.abs(xs["shift"]).max() > STABILITY_ZOOM_NM and (np.abs(xs["shift"]) <= STABILITY_ZOOM_NM).sum() > 2:
+        panels.append(("shift", STABILITY_ZOOM_NM))
+    panels += [("width", None)] if xs["width"].size > 1 else []
+    fig, axes = plt.subplots(len(panels), len(apps), figsize=(4.6 * len(apps), 3.4 * len(panels)), dpi=110,
+                             squeeze=False)
+    for col, app in enumerate(apps):
+        for row, (kind, zoom) in enumerate(panels):
+            ax = axes[row, col]
+            keep = np.abs(xs[kind]) <= zoom if zoom else np.ones(xs[kind].size, dtype=bool)
+            top = level
+            for j, band in enumerate(app["bands"]):
+                for key, nominal, style in (("error", app["nominal_error"], "-"),
+                                            ("error_no_noise", app["nominal_error_no_noise"], "--")):
+                    ratio = _ratio(app[key][kind][band], nominal)[keep]
+                    if np.isfinite(ratio).any():
+                        top = max(top, float(np.nanmax(ratio)))
+                        ax.plot(xs[kind][keep], ratio, style, color=f"C{j}", lw=1.2 if style == "-" else 0.8,
+                                label=band if style == "-" else None)
+            ax.axhline(level, color="tab:red", lw=0.9, ls=":", label=f"+{100 * (level - 1):g} %")
+            if top > 3:   # a log axis for curves that grow several-fold, with plain tick labels
+                ax.set_yscale("log")
+                ax.yaxis.set_major_formatter(_plain)
+                ax.yaxis.set_minor_formatter(_plain_125)
+            where = f", |δ| ≤ {zoom:g} nm" if zoom else ""
+            ax.set_xlabel(f"centre shift δ (nm){where}" if kind == "shift" else "width factor")
+            ax.set_ylabel("error / nominal error")
+            ax.set_title(f"{app['label']}: {app['metric']}\nnominal {app['nominal_error']:.3g} {app['unit']} "
+                         "(dashed: no noise)", fontsize=8)
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def _plain(value: float, _pos: int | None = None) -> str:
+    """Tick label of a log axis as a plain number (1, 10), not 10⁰."""
+    return f"{value:g}"
+
+
+def _plain_125(value: float, _pos: int | None = None) -> str:
+    """Minor tick label of a log axis: plain 2 and 5 multiples (0.5, 2, 20), none for the others."""
+    mantissa = value / 10 ** np.floor(np.log10(value)) if value > 0 else 0
+    return f"{value:g}" if round(mantissa, 6) in (2.0, 5.0) else ""
+
+
+def _ratio(values: list, nominal: float | None) -> np.ndarray:
+    """``values / nominal``, NaN where either is not a positive number (JSON nulls included)."""
+    v = np.array([np.nan if x is None else x for x in values], dtype=np.float64)
+    if nominal is None or not nominal > 0:
+        return np.full(v.shape, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(v > 0, v / nominal, np.nan)
+
+
 PLOTS: dict[str, Callable[[Data, Path], Path]] = {
     "cirrus": plot_cirrus,
     "water-vapour": plot_water_vapour,
     "aerosol": plot_aerosol,
     "ozone": plot_ozone,
     "methane": plot_methane,
+    "stability": plot_stability,
 }
 """Study kind (the ``study`` key of ``NAME.json``) → its figure."""
 

@@ -35,9 +35,9 @@ from s2cl.io.output import write_json
 from s2cl.resources import code_fingerprint
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
-from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.status import REGRESS_NAMES
 from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_chunk
+from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
 from s2cl.sweep.tables import SweepTables
 
@@ -114,7 +114,7 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
     :param evaluator: computes the per-pixel results (default: :func:`kernel_evaluator` on ``device``;
         tests and bench pass the float64 numpy twin).
     """
-    raw = (evaluator or kernel_evaluator(job, device))(start, stop)
+    ev = evaluator or kernel_evaluator(job, device)
     t = job.tables
     rows: dict[str, np.ndarray] = {"config": np.arange(start, stop, dtype=np.int64)}
     idx = variant_indices(t, start, stop)
@@ -125,13 +125,9 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
         rows[f"{b}_width_nm"] = widths[:, k]
     a = job.analysis
     rows["underdetermined"] = underdetermined(a.kind, centres, widths, slots=a.slots)
-    if a.kind == "sam":
-        m = classification_metrics(raw.index.astype(np.int64), raw.status, t.target.astype(np.int64),
-                                   len(t.class_names))
-        m.pop("confusion")
-    else:
-        m = regression_metrics(raw.index, raw.status, raw.bounds, t.target, regress=a.regress,
-                               condition=raw.condition if a.kind == "igrm" else None)
+    # the kernel computes its metrics on the device where it can; any other evaluator gives per-pixel results
+    metrics = getattr(ev, "metrics", None)
+    m = metrics(start, stop) if metrics else host_metrics(a, ev(start, stop), t.target, len(t.class_names))
     for k, v in m.items():
         rows[k] = np.asarray(v)
     return rows

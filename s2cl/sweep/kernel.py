@@ -50,6 +50,7 @@ class SweepKernel:
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
+        self._metrics = None  # the metrics kernel, built on first use
 
     def _cos_min(self) -> float:
         """cos of the SAM angle threshold; -2 (below -1) for none."""
@@ -82,8 +83,8 @@ class SweepKernel:
             "refs": rt.to_device(refs.astype(dtype)),
         }
 
-    def __call__(self, start: int, stop: int) -> RawChunk:
-        """Per-pixel results of configurations ``start … stop-1``."""
+    def _launch(self, start: int, stop: int) -> dict:
+        """Run configurations ``start … stop-1``; their per-pixel outputs stay on the device."""
         n = stop - start
         if n <= 0 or stop > self.tables.n_configs:
             raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
@@ -92,8 +93,31 @@ class SweepKernel:
                "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
         values = {**out, **self.buffers, "config_start": start, "n_configs": n}
         self.kernel(rt.queue, (pitch // T.lanes, n), None, *bind(ARGS, values, T))
-        m = self.tables.n_pixels
-        index = rt.fetch(out["index"], (n, pitch), T.dtype)[:, :m].astype(np.float64)
-        status, bounds, condition = (rt.fetch(out[k], (n, pitch), np.uint8)[:, :m]
+        return out
+
+    def _fetch(self, out: dict, start: int, stop: int, rows: np.ndarray | None = None) -> RawChunk:
+        n, m, pitch, T = stop - start, self.tables.n_pixels, self.pitch, self.T
+        sel = slice(None) if rows is None else rows
+        index = self.rt.fetch(out["index"], (n, pitch), T.dtype)[sel, :m]
+        status, bounds, condition = (self.rt.fetch(out[k], (n, pitch), np.uint8)[sel, :m]
                                      for k in ("status", "bounds", "condition"))
         return RawChunk(start, stop, index, status, bounds, condition)
+
+    def __call__(self, start: int, stop: int) -> RawChunk:
+        """Per-pixel results of configurations ``start … stop-1`` (index in float64)."""
+        raw = self._fetch(self._launch(start, stop), start, stop)
+        raw.index = raw.index.astype(np.float64)
+        return raw
+
+    def metrics(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Per-configuration metrics of configurations ``start … stop-1`` (:mod:`s2cl.retrieve.metrics`):
+        on the device when it has float64 (only the metric rows return), else in numpy on the host."""
+        from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics
+
+        t = self.tables
+        out = self._launch(start, stop)
+        if not MetricsKernel.available(self.rt):
+            return host_metrics(self.analysis, self._fetch(out, start, stop), t.target, len(t.class_names))
+        if self._metrics is None:
+            self._metrics = MetricsKernel(self.rt, self.T, self.analysis, t.target, self.pitch, len(t.class_names))
+        return self._metrics(out, stop - start, lambda rows: self._fetch(out, start, stop, rows))

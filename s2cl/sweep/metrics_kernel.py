@@ -1,0 +1,101 @@
+"""Host side of ``kernels/metrics.cl.mako``: a sweep chunk's per-configuration metrics on the device.
+
+The sweep kernel leaves its per-pixel outputs (index, status, bounds, condition) on the device; this
+kernel reduces them to one row of metrics per configuration, so only those rows travel back. The
+definitions are :mod:`s2cl.retrieve.metrics` (the float64 numpy twin): rows the kernel marks (singular
+normal equations, fewer than three regression pixels) are recomputed there from their fetched pixels.
+Needs float64 on the device (``cl_khr_fp64``); without it the engine computes every row on the host.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.runtime import Runtime
+from s2cl.cl.templates import render
+from s2cl.cl.vectypes import VecTypes
+from s2cl.retrieve.analysis import AnalysisSettings
+from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.sweep.raw import RawChunk
+
+TEMPLATE = "metrics.cl.mako"
+#: output columns of the regression kernel ("host": the row is recomputed on the host)
+REGRESSION = ("rms", "r2", "robust_rms", "n_valid", "constant_index", "rms_unbounded", "converged_fraction",
+              "stalled_fraction", "iteration_limit_fraction", "degenerate_fraction", "invalid_fraction",
+              "failed_fraction", "bound_fraction", "excluded_fraction", "log10_condition_median", "host")
+CLASSIFICATION = ("omission_error_pct", "overall_accuracy_pct", "unclassified_fraction", "failed_fraction", "host")
+ARGS = (Arg("out", "out", "double"), Arg("scratch", "inout", "double"), Arg("index", "in", "real"),
+        Arg("status", "in", "uchar"), Arg("bounds", "in", "uchar"), Arg("condition", "in", "uchar"),
+        Arg("target", "in", "double"), Arg("n_configs", "scalar", "uint"))
+
+
+class MetricsKernel:
+    """Per-configuration metrics of ``analysis`` over ``n_pixels`` pixels (rows ``pitch`` apart) on ``rt``.
+
+    :param T: the sweep kernel's types (the index arrives in its precision).
+    :param target: per-pixel regression target, or SAM truth class (``(n_pixels,)``).
+    """
+
+    def __init__(self, rt: Runtime, T: VecTypes, analysis: AnalysisSettings, target: np.ndarray, pitch: int,
+                 n_classes: int = 0):
+        self.rt, self.T, self.analysis, self.pitch = rt, T, analysis, pitch
+        self.classify = analysis.kind == "sam"
+        self.names = CLASSIFICATION if self.classify else REGRESSION
+        self.condition = analysis.kind == "igrm"
+        self.n_pixels = int(np.asarray(target).size)
+        self.n_classes = n_classes
+        source = render(TEMPLATE, T=T, kind="classification" if self.classify else "regression", names=self.names,
+                        n_pixels=self.n_pixels, pitch=pitch, regress=tuple(int(r) for r in analysis.regress),
+                        condition=self.condition, n_classes=n_classes, args=ARGS, signature=signature)
+        program = rt.build(source, template=TEMPLATE)
+        self.kernel = rt.kernel(program, "classification_metrics" if self.classify else "regression_metrics")
+        self.target = np.ascontiguousarray(target, dtype=np.float64)
+        self._target_d = rt.to_device(self.target)
+
+    @staticmethod
+    def available(rt: Runtime) -> bool:
+        """Whether ``rt``'s device can run it (float64)."""
+        return bool(rt.has_fp64)
+
+    def __call__(self, buffers: dict[str, Any], n_configs: int, fetch_rows: Any) -> dict[str, np.ndarray]:
+        """Metrics of ``n_configs`` configurations from the sweep kernel's device ``buffers`` (index,
+        status, bounds, condition); ``fetch_rows(rows)`` returns a :class:`RawChunk` of those rows for the
+        host's recomputation of marked ones."""
+        rt, width = self.rt, len(self.names)
+        values = {"out": rt.alloc(n_configs * width * 8), "target": self._target_d, "n_configs": n_configs,
+                  "scratch": rt.alloc(max(1, 0 if self.classify else n_configs * self.n_pixels) * 8),
+                  **{k: buffers[k] for k in ("index", "status", "bounds", "condition")}}
+        self.kernel(rt.queue, (n_configs,), None, *bind(ARGS, values, self.T))
+        table = rt.fetch(values["out"], (n_configs, width), np.float64)
+        rows = {name: table[:, k].copy() for k, name in enumerate(self.names) if name != "host"}
+        rows["n_valid"] = rows["n_valid"].astype(np.int64) if "n_valid" in rows else None
+        if "constant_index" in rows:
+            rows["constant_index"] = rows["constant_index"] != 0.0
+        if not self.condition and "log10_condition_median" in rows:
+            del rows["log10_condition_median"]
+        rows = {k: v for k, v in rows.items() if v is not None}
+        marked = np.flatnonzero(table[:, self.names.index("host")] != 0.0)
+        if marked.size:
+            redo = self.host_metrics(fetch_rows(marked))
+            for k in rows:
+                rows[k][marked] = np.asarray(redo[k])
+        return rows
+
+    def host_metrics(self, raw: RawChunk) -> dict[str, np.ndarray]:
+        """The numpy twin's metrics of ``raw`` (the same columns)."""
+        return host_metrics(self.analysis, raw, self.target, self.n_classes)
+
+
+def host_metrics(analysis: AnalysisSettings, raw: RawChunk, target: np.ndarray, n_classes: int
+                 ) -> dict[str, np.ndarray]:
+    """Per-configuration metrics of ``raw`` in numpy (:mod:`s2cl.retrieve.metrics`)."""
+    if analysis.kind == "sam":
+        m = classification_metrics(raw.index.astype(np.int64), raw.status, np.asarray(target).astype(np.int64),
+                                   n_classes)
+        m.pop("confusion")
+        return m
+    return regression_metrics(raw.index, raw.status, raw.bounds, target, regress=analysis.regress,
+                              condition=raw.condition if analysis.kind == "igrm" else None)
