@@ -13,6 +13,8 @@ S = s/xw)`` with :func:`s2cl.retrieve.igrm.kernel_config` giving ``xc``, ``xw`` 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from s2cl.retrieve.igrm import FitStatus, IgrmResult
@@ -170,17 +172,22 @@ def ldl4_solve(a: list[np.ndarray], b: list[np.ndarray], pivot_rel: float):
 def fit_numpy_lm(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *,
                  dtype=np.float32, chunk: int = 65536) -> IgrmResult:
     """The kernel's bounded LM in vectorised numpy (``dtype`` arithmetic), ``chunk`` pixels at a time."""
+    return fit_chunked(_lm_chunk, refl, wavelengths_nm, settings, dtype=dtype, chunk=chunk)
+
+
+def fit_chunked(fit_chunk: Callable[[np.ndarray, np.ndarray, KernelConfig], tuple], refl: np.ndarray,
+                wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *, dtype=np.float32,
+                chunk: int = 65536) -> IgrmResult:
+    """``fit_chunk(refl, x, config)`` (a numpy twin of one solver) over ``refl`` ``(bands, pixels)``,
+    ``chunk`` pixels at a time, in ``dtype`` arithmetic; the results joined."""
     settings = settings or IgrmSettings()
     refl = np.asarray(refl)
     nb, n = refl.shape
     c = kernel_config(settings, nb, np.dtype(dtype).name)
     x = _normalise(wavelengths_nm, c, dtype)
-    parts = [_lm_chunk(np.ascontiguousarray(refl[:, i:i + chunk], dtype=dtype), x, c) for i in range(0, n, chunk)]
-    if not parts:
-        parts = [_lm_chunk(np.zeros((nb, 0), dtype=dtype), x, c)]
+    parts = [fit_chunk(np.ascontiguousarray(refl[:, i:i + chunk], dtype=dtype), x, c)
+             for i in range(0, n, chunk)] or [fit_chunk(np.zeros((nb, 0), dtype=dtype), x, c)]
     return IgrmResult(*(np.concatenate([p[k] for p in parts]) for k in range(10)))
-
-
 
 
 def log10_condition(a) -> np.ndarray:

@@ -10,22 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from s2cl.reference.igrm import _evaluate, _finish, _gauss_newton_near, _normalise, _valid, initial_guess
+from s2cl.reference.igrm import _evaluate, _finish, _gauss_newton_near, _valid, fit_chunked, initial_guess
 from s2cl.retrieve.igrm import IgrmResult
-from s2cl.retrieve.igrm_settings import IgrmSettings, KernelConfig, kernel_config
+from s2cl.retrieve.igrm_settings import IgrmSettings, KernelConfig
 
 
 def fit_numpy_varpro(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *,
                      dtype=np.float32, chunk: int = 65536) -> IgrmResult:
     """The kernel's variable-projection fit in vectorised numpy (``dtype`` arithmetic), ``chunk`` pixels at a time."""
-    settings = settings or IgrmSettings()
-    refl = np.asarray(refl)
-    nb, n = refl.shape
-    c = kernel_config(settings, nb, np.dtype(dtype).name)
-    x = _normalise(wavelengths_nm, c, dtype)
-    parts = [_varpro_chunk(np.ascontiguousarray(refl[:, i:i + chunk], dtype=dtype), x, c)
-             for i in range(0, n, chunk)] or [_varpro_chunk(np.zeros((nb, 0), dtype=dtype), x, c)]
-    return IgrmResult(*(np.concatenate([p[k] for p in parts]) for k in range(10)))
+    return fit_chunked(_varpro_chunk, refl, wavelengths_nm, settings, dtype=dtype, chunk=chunk)
 
 
 def project(y: np.ndarray, ybar: np.ndarray, x: np.ndarray, L: np.ndarray, S: np.ndarray, c: KernelConfig):
