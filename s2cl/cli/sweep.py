@@ -50,7 +50,8 @@ def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
         click.echo(f"{checked.space.size}")
     else:
         _print_variants(sc, checked.space.size)
-    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(out))
+    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(out),
+                           host_metrics=not runtime(sc.run.device).has_fp64)  # as optimise would
     if not quiet:
         click.echo(f"memory: about {gb(plan.memory_bytes)} in chunks of {plan.chunk:,} configurations")
     if not quiet and checked.analysis is not None:
@@ -122,13 +123,16 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     out, where = output_dir(sc, output)
     checked = check_sweep(sc, budget=budget)
     check_output_dir(out, where=where)
-    plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(out, overwrite))
+    rt = runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
+    # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
+    host_metrics = bool(workers or scheduler) or not rt.has_fp64
+    plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(out, overwrite),
+                           host_metrics=host_metrics)
     require_sweep_disk(checked, out)
-    runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
     if scheduler:
         reach_scheduler(scheduler)
     t0 = time.perf_counter()
-    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget)
+    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics)
     check_folder(job, out, overwrite=overwrite)
     if not (workers or scheduler):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made

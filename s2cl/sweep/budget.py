@@ -10,8 +10,10 @@ over all slots, ``G`` grid wavelengths, ``C`` configurations per chunk):
   widest variant's support, plus :data:`TABLE_BYTES_PER_VARIANT`);
 - the common random numbers ``z`` (float64 on the host, float32 on the device) and the target:
   ``(12 · S + 16) · P``, plus the Philox work arrays of one slot while they are drawn (``160 · P``);
-- per configuration-pixel of a chunk: the metrics' float64 work arrays
-  (:data:`s2cl.sweep.engine.HOST_BYTES_PER_EVALUATION`) and the kernel's outputs with their host copies (``28``);
+- per configuration-pixel of a chunk: the kernel's outputs with their host copies (``28``), and the metrics'
+  work arrays: float64 scratch on the device (:data:`METRICS_SCRATCH_BYTES`) when the metrics run there (a
+  device with float64, one process), else the numpy metrics' float64 work arrays on the host
+  (:data:`s2cl.sweep.engine.HOST_BYTES_PER_EVALUATION`; Dask workers and devices without float64);
   per configuration of a chunk, its row of results twice (the chunk file and the merge into
   ``results.parquet``);
 - the report (:mod:`s2cl.sweep.digest`, which streams ``results.parquet``): per band variant the best value of
@@ -38,7 +40,11 @@ KERNEL_BYTES_PER_EVALUATION = 28
 PHILOX_BYTES_PER_PIXEL = 160
 PER_PIXEL_SLOT = 12
 PER_PIXEL = 16
-AUTO_CHUNK_BYTES = 512e6
+#: float64 scratch per configuration-pixel of the metrics kernel (kernels/metrics.cl.mako: the median's copy)
+METRICS_SCRATCH_BYTES = 8
+#: a chunk's work arrays at most (auto chunk): larger chunks run faster (table3-lib2-b4568a: 1.5 ms per
+#: configuration in chunks of 444, 1.05 in chunks of 1,776; python -m bench.bench_sweep --table3-run)
+AUTO_CHUNK_BYTES = 1e9
 MAX_AUTO_CHUNK = 16384
 #: a heatmap figure of at most 60 × 40 cells while matplotlib draws and writes it (measured about 150 MB)
 HEATMAP_BYTES = 200e6
@@ -60,10 +66,11 @@ class SweepPlan:
 
 
 def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budget | None = None,
-                    resumed: int | None = None) -> SweepPlan:
+                    resumed: int | None = None, host_metrics: bool = True) -> SweepPlan:
     """Estimate the sweep's memory; choose the chunk (``chunk``, else ``resumed``: the chunk of the unfinished
     sweep in the output folder, whose chunk files are keyed by it, else ``sweep.chunk``, else the largest
-    that keeps a chunk's work arrays within 512 MB and the whole within ``budget``).
+    that keeps a chunk's work arrays within 1 GB and the whole within ``budget``). ``host_metrics``: whether the
+    per-configuration metrics run in numpy on the host (default, the larger estimate) or on the device.
 
     :raises ResourceError: even one configuration per chunk does not fit, or the chunk asked for does not.
     """
@@ -81,7 +88,9 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
                  for r, n in zip(space.ranges, space.counts, strict=True))
     fixed = BASELINE_BYTES + 24.0 * spectra * scene.grid.size + tables
     held = fixed + copies * per_copy  # through the whole run; then the chunks' arrays, then the report
-    per_config = pixels * (HOST_BYTES_PER_EVALUATION + KERNEL_BYTES_PER_EVALUATION) + 16.0 * columns
+    metrics = HOST_BYTES_PER_EVALUATION if host_metrics else METRICS_SCRATCH_BYTES
+    per_evaluation = KERNEL_BYTES_PER_EVALUATION + metrics
+    per_config = pixels * per_evaluation + 16.0 * columns
 
     def need(n: int) -> float:
         return held + max(n * per_config, report)
@@ -107,7 +116,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
                        fits=f"at most {room:,} configurations per chunk fit")
         size = asked
     else:
-        size = max(1, min(n_configs, int(AUTO_CHUNK_BYTES // (pixels * HOST_BYTES_PER_EVALUATION)), MAX_AUTO_CHUNK,
+        size = max(1, min(n_configs, int(AUTO_CHUNK_BYTES // (pixels * per_evaluation)), MAX_AUTO_CHUNK,
                           room))
     return SweepPlan(chunk=int(size), memory_bytes=need(size), configurations=n_configs)
 

@@ -27,12 +27,13 @@ def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
                         class_names=classes)
 
 
-def plan_sweep(scene: Scene, *, chunk: int | None = None,
-               checked: Checked | None = None, budget: Budget | None = None) -> SweepJob:
+def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | None = None,
+               budget: Budget | None = None, host_metrics: bool = True) -> SweepJob:
     """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.scene.validate`),
-    its memory estimated against ``budget`` before the tables are built, the chunk chosen to fit."""
+    its memory estimated against ``budget`` before the tables are built (``host_metrics``: see
+    :func:`s2cl.sweep.budget.sweep_resources`), the chunk chosen to fit."""
     checked = checked or check_sweep(scene)
-    plan = sweep_resources(checked, chunk=chunk, budget=budget)
+    plan = sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics)
     assert checked.space is not None and checked.analysis is not None
     tables = _tables(scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
