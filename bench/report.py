@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from bench import plots
+from bench import design_report, plots
 from bench.common import ROOT, load_note
 from bench.registry import FAMILIES, GROUPS, KEY_COLUMNS, Column, Family, Group, Result, Row, setting_cell
 from s2cl.io.output import write_text
@@ -145,7 +145,11 @@ def _head(results: Result, docs: bool) -> list[str]:
 def markdown(results: Result, figures: dict[str, str], *, docs: bool = False) -> str:
     """The report; ``figures``: group key → the figure's path relative to the Markdown file."""
     out = _head(results, docs)
-    out += [group_md(g, results, figures.get(g.key), docs=docs) for g in GROUPS if results.get(g.key)]
+    for g in GROUPS:
+        if results.get(g.key):
+            out.append(group_md(g, results, figures.get(g.key), docs=docs))
+        if docs and g.key == "knobs" and (design := design_report.docs_section()):
+            out.append(design)  # python -m bench.design_knobs's section, kept when this page is regenerated
     if results.get("validation"):
         out.append("## Validation before timing\n\n" + table(
             (Column("check", "check", ""), Column("value", "value", "")), {},
