@@ -11,7 +11,7 @@ own resume check does not look at the code. Then ``bench.paper_sensitivity`` and
 run (they write their own results), and the summaries go into docs/paper/results.json and the
 heatmaps into docs/paper/*.png.
 
-    python -m bench.paper_runs                         # everything (about 15 min on 2 shared cores)
+    python -m bench.paper_runs                         # everything (about 11 min on 2 shared cores)
     python -m bench.paper_runs --out out/paper         # run folders elsewhere (default: s2cl-out/paper)
     python -m bench.paper_runs --scenes table4-b4,table5-b11 --no-sensitivity --no-fig7
     python -m bench.paper_runs --collect-only          # results.json and PNGs from finished runs
