@@ -14,6 +14,7 @@ Run from the repository root:
 
     python -m bench.bench_sweep                          # kernel vs numpy, Dask scaling
     python -m bench.bench_sweep --lanes 8,16             # + the kernel alone at other pixels per work-item
+    python -m bench.bench_sweep --chunks 444,1776 --scene table3-lib2-b4568a  # + evaluate_chunk by chunk size
     python -m bench.bench_sweep --table3-from /tmp/paper # + Table 3 from `/usr/bin/time -v` logs
     python -m bench.bench_sweep --table3-run             # + run Table 3 now (minutes)
 
@@ -36,6 +37,8 @@ import time
 from pathlib import Path
 from typing import Any
 from unittest import mock
+
+import numpy as np
 
 from bench.common import RESULTS, ROOT, load_average, load_note, machine_info, median_and_times, write_json
 from bench.sweep_check import spread, validate_sweep
@@ -96,7 +99,25 @@ def time_numpy(job: SweepJob) -> dict[str, Any]:
     return {"sample_configurations": sample, "evaluations": evals,
             "evaluate_s": raw_s, "evaluate_s_min": min(times), "evaluations_per_s": evals / raw_s,
             "extrapolated_whole_sweep_evaluate_s": raw_s / len(sample) * t.n_configs,
-            "what": "float64, one configuration at a time (the kernel's LM vectorised over pixels)"}
+            "what": "float64, one configuration at a time (the kernel's fit vectorised over pixels)"}
+
+
+def time_chunks(job: SweepJob, sizes: list[int], rounds: int = 3) -> dict[int, dict[str, float]]:
+    """Seconds per configuration of ``evaluate_chunk`` (kernel and metrics, as a sweep runs them) in chunks of
+    each of ``sizes`` configurations from a third of the way into the sweep, in interleaved rounds (after one
+    untimed call each): the median and the range over the rounds."""
+    lo = job.tables.n_configs // 3
+    sizes = [n for n in sizes if lo + n <= job.tables.n_configs]
+    for n in sizes:
+        evaluate_chunk(job, lo, lo + n)
+    times: dict[int, list[float]] = {n: [] for n in sizes}
+    for _ in range(rounds):
+        for n in sizes:
+            t0 = time.perf_counter()
+            evaluate_chunk(job, lo, lo + n)
+            times[n].append((time.perf_counter() - t0) / n)
+    return {n: {"ms_per_configuration": 1e3 * float(np.median(v)), "min_ms": 1e3 * min(v), "max_ms": 1e3 * max(v)}
+            for n, v in times.items()}
 
 
 def time_dask(scene: str) -> dict[str, Any]:
@@ -207,15 +228,18 @@ def main() -> None:
     ap.add_argument("--skip-dask", action="store_true")
     ap.add_argument("--lanes", default="", metavar="L[,L]",
                     help="also time the kernel with these pixels per work-item (e.g. 8,16)")
+    ap.add_argument("--chunks", default="", metavar="N[,N]",
+                    help="also time evaluate_chunk per configuration in chunks of these sizes (e.g. 444,1776)")
+    ap.add_argument("--scene", default=MAIN_SCENE, help=f"the timed sweep (default {MAIN_SCENE})")
     ap.add_argument("--output", type=Path, default=OUTPUT,
                     help=f"result file (default {OUTPUT.relative_to(ROOT)})")
     args = ap.parse_args()
 
-    job = plan_sweep(Scene.load(MAIN_SCENE))
+    job = plan_sweep(Scene.load(args.scene))
     kernel = SweepKernel(job.tables, job.analysis, get_runtime(), precision=job.precision)
     machine = machine_info(kernel.rt)
     result: dict[str, Any] = {"benchmark": "sweep", "machine": machine,
-                              "load_average_start": machine["load_average"], "scene": MAIN_SCENE,
+                              "load_average_start": machine["load_average"], "scene": args.scene,
                               "configurations": job.n_configs, "pixels": job.tables.n_pixels,
                               "evaluation": "noise + quantise + calibrate + correct + IGRM fit (+ metrics)"}
     result["validation"] = validate_sweep(job, kernel)
@@ -230,6 +254,9 @@ def main() -> None:
         result["lanes"][lanes] = (hi - lo) * job.tables.n_pixels / kernel_rate(job, other)[0]
     if result["lanes"]:
         print("kernel evaluations/s by lanes:", result["lanes"], flush=True)
+    if args.chunks:
+        result["chunks"] = time_chunks(job, sorted({int(v) for v in args.chunks.split(",") if v}))
+        print("evaluate_chunk by chunk size:", result["chunks"], flush=True)
     result["numpy"] = time_numpy(job)
     print("numpy:", result["numpy"], flush=True)
     result["ratio_kernel"] = result["opencl"]["kernel_evaluations_per_s"] / result["numpy"]["evaluations_per_s"]

@@ -8,6 +8,9 @@ subprocesses): a compiler warning on one CPU is how the AVX2 lane problem showed
 from __future__ import annotations
 
 import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -40,3 +43,18 @@ def real_t(request, rt: Runtime) -> str:
 def lanes(request) -> int:
     """A forced lane count (pixels per work-item) for the vectorised kernels."""
     return request.param
+
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def bench_path() -> Iterator[None]:
+    """The repository's ``bench/`` importable for the test (skipped where only the installed package is)."""
+    if not (REPO / "bench" / "__init__.py").is_file():
+        pytest.skip("bench/ is not in this checkout (installed package only)")
+    sys.path.insert(0, str(REPO))
+    try:
+        yield
+    finally:
+        sys.path.remove(str(REPO))

@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,16 +23,10 @@ pytestmark = pytest.mark.bench
 
 
 @pytest.fixture
-def bench_main() -> Iterator[Callable[[list[str]], int]]:
-    if not (ROOT / "bench" / "__main__.py").is_file():
-        pytest.skip("bench/ is not in this checkout (installed package only)")
-    sys.path.insert(0, str(ROOT))
-    try:
-        from bench.__main__ import main
+def bench_main(bench_path: None) -> Callable[[list[str]], int]:
+    from bench.__main__ import main
 
-        yield main
-    finally:
-        sys.path.remove(str(ROOT))
+    return main
 
 
 def test_quick_atmosphere_knob_end_to_end(bench_main: Callable[[list[str]], int], tmp_path: Path) -> None:

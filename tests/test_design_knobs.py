@@ -5,27 +5,12 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-
 pytestmark = pytest.mark.bench
-
-
-@pytest.fixture
-def bench_path() -> Iterator[None]:
-    if not (ROOT / "bench" / "design_knobs.py").is_file():
-        pytest.skip("bench/ is not in this checkout (installed package only)")
-    sys.path.insert(0, str(ROOT))
-    try:
-        yield
-    finally:
-        sys.path.remove(str(ROOT))
 
 
 def _frame(rms: list[float], centres: list[float], underdetermined: list[bool] | None = None) -> Any:

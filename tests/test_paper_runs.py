@@ -6,28 +6,18 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
-from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-
 
 @pytest.fixture
-def paper_runs() -> Iterator[ModuleType]:
-    if not (ROOT / "bench" / "paper_runs.py").is_file():
-        pytest.skip("bench/ is not in this checkout (installed package only)")
-    sys.path.insert(0, str(ROOT))
-    try:
-        from bench import paper_runs
+def paper_runs(bench_path: None) -> ModuleType:
+    from bench import paper_runs
 
-        yield paper_runs
-    finally:
-        sys.path.remove(str(ROOT))
+    return paper_runs
 
 
 @pytest.fixture
