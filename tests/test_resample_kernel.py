@@ -131,3 +131,17 @@ def test_atmosphere_effect_matches_oracle(rt, real_t: str, width: int | None) ->
     toa = ref.toa_radiance(rho.astype(cast), terms.path_radiance.astype(cast), terms.ground_term.astype(cast),
                            terms.spherical_albedo.astype(cast))
     _check(out, ref.resample(toa, plan.weights), real_t)
+
+
+def test_work_group_comes_from_the_device(rt) -> None:
+    """Launches name a work-group size the device reports (not the driver's divisor of the global
+    size); other sizes give the same bits (above)."""
+    import pyopencl as cl
+
+    r = Resampler(rt, _plan())
+    info = cl.kernel_work_group_info
+    multiple = r.kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE, rt.device)
+    assert 1 <= r.local_size <= rt.max_work_group_size(r.kernel)
+    assert r.local_size % multiple == 0 or r.local_size == rt.max_work_group_size(r.kernel)
+    spectra = _spectra(3993 * 8, seed=4)  # 3,993 work-items of 8 rows: a size PoCL would split badly
+    assert np.array_equal(r(spectra), r(spectra, local_size=1))

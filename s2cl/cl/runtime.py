@@ -135,6 +135,18 @@ class Runtime:
         cl = pyopencl()
         return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
 
+    def work_group(self, kernel: Any) -> int:
+        """Work-items per group for 1-D launches of a light kernel that guards its padded tail: the
+        kernel's preferred work-group size multiple as the device reports it (8 on PoCL CPUs), four of
+        them on other devices, never above the kernel's limit. Left to the driver, PoCL picks a divisor
+        of the global size, and a size with awkward factors (e.g. 3,993 = 3·11³) runs the resampler
+        1.6x slower (bench/bench_resample.py, issue 15)."""
+        cl = pyopencl()
+        info = cl.kernel_work_group_info
+        multiple = int(kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE, self.device))
+        wanted = multiple if "CPU" in self.info.kind else 4 * multiple
+        return max(1, min(wanted, self.max_work_group_size(kernel)))
+
     # -- buffers ---------------------------------------------------------------------------
     @cached_property
     def host_memory(self) -> bool:

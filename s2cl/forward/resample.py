@@ -113,6 +113,7 @@ class Resampler:
                              atmosphere=atmosphere is not None)
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "resample_bands")
+        self.local_size = rt.work_group(self.kernel)
         self.weights_dev = rt.to_device(weights.astype(self.dtype))
         self.atmosphere_dev = None
         if atmosphere is not None:
@@ -126,9 +127,9 @@ class Resampler:
         values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels}
         if self.atmosphere_dev:
             values.update(self.atmosphere_dev)
-        global_size = _round_up(-(-n_pixels // self.rows), local_size or 1)
-        self.kernel(self.rt.queue, (global_size,), (local_size,) if local_size else None,
-                    *bind(self.args, values, self.T))
+        local = local_size or self.local_size
+        global_size = _round_up(-(-n_pixels // self.rows), local)
+        self.kernel(self.rt.queue, (global_size,), (local,), *bind(self.args, values, self.T))
 
     def __call__(self, spectra: np.ndarray, *, chunk_pixels: int | None = None,
                  local_size: int | None = None) -> np.ndarray:
@@ -148,9 +149,12 @@ class Resampler:
         return out
 
     def default_chunk(self) -> int:
-        """Pixels per chunk: input at most 256 MiB and a quarter of the device's largest allocation."""
+        """Pixels per chunk: input at most a quarter of the device's largest allocation, and 256 MiB
+        where it is copied to the device (1 GiB where the device reads host memory in place: no copy,
+        and fewer, larger launches run faster on PoCL)."""
         row = self.plan.n_wavelengths * self.dtype().itemsize
-        return max(1, min(256 * 2**20, self.rt.max_alloc_bytes // 4) // row)
+        cap = 2**30 if self.rt.host_memory else 256 * 2**20
+        return max(1, min(cap, self.rt.max_alloc_bytes // 4) // row)
 
 
 def _round_up(n: int, m: int) -> int:

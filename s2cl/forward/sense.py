@@ -140,6 +140,7 @@ class Sensing:
                              quantise=effects.quantise, calibrate=effects.calibrate, correct=effects.correct)
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "sense_bands")
+        self.local_size = rt.work_group(self.kernel)
         r = radiometry
         constants = {"noise_a": r.noise_a, "noise_b": r.noise_b, "lmin": r.lmin, "lmax": r.lmax,
                      "scale": r.scale, "gain": r.gain}
@@ -198,9 +199,9 @@ class Sensing:
         if self.effects.correct:
             outs["reflectance"] = rt.empty(nb * m * item)
         values.update(outs, pixel_offset=pixel_offset + lo, n_pixels=m)
-        global_size = -(-m // (local_size or 1)) * (local_size or 1)
-        self.kernel(rt.queue, (global_size,), (local_size,) if local_size else None,
-                    *bind(self.args, values, self.T))
+        local = local_size or self.local_size
+        global_size = -(-m // local) * local
+        self.kernel(rt.queue, (global_size,), (local,), *bind(self.args, values, self.T))
         if "noisy" in outs:
             result.noisy[:, lo:hi] = rt.fetch(outs["noisy"], (nb, m), self.dtype)
         if "dn" in outs:
