@@ -50,7 +50,9 @@ def test_loaders_shapes_groups_params_and_linear_interpolation_onto_the_grid():
     soils, npv = el.soil_library(GRID), el.npv_library(GRID)
     assert soils.spectra.shape == (4168, GRID.size) and npv.spectra.shape == (104, GRID.size)
     assert set(soils.groups) == {"soil"} and all(g.startswith("npv:") for g in npv.groups)
-    assert set(soils.params) == {"fe_band_depth", "redness_index"} and not npv.params
+    assert set(soils.params) == {"fe_band_depth", "redness_index", "site"} and not npv.params
+    site = soils.params["site"]
+    assert site.max() > 500 and (site == 0).sum() == 448 and np.all(site == np.round(site))
     raw = _raw()
     i = raw.names.index(soils.names[7])
     # on measured wavelengths the grid holds the measured value; between them, the straight line

@@ -108,6 +108,23 @@ def select(names: list[str], rows: list[dict[str, str]]) -> tuple[list[int], lis
     return soils + npv, groups
 
 
+def site_numbers(rows: list[dict[str, str]]) -> np.ndarray:
+    """1, 2, … per distinct (LAT, LON) of ``rows`` in order of first appearance; 0 where the location is
+    missing or the 0/0 placeholder (ICRAF soils of one profile share a site)."""
+    sites: dict[tuple[float, float], int] = {}
+    out = []
+    for r in rows:
+        try:
+            lat, lon = float(r["LAT"]), float(r["LON"])
+        except ValueError:
+            lat = lon = float("nan")
+        if not (np.isfinite(lat) and np.isfinite(lon)) or (lat == 0.0 and lon == 0.0):
+            out.append(0)
+            continue
+        out.append(sites.setdefault((lat, lon), len(sites) + 1))
+    return np.asarray(out, dtype=np.float64)
+
+
 def unique_names(names: list[str]) -> list[str]:
     """Names made unique: a repeated name gets `` #2``, `` #3``… (earthlib repeats a few NPV names)."""
     seen: dict[str, int] = {}
@@ -152,9 +169,16 @@ def main() -> None:
         "storage": "float32, the .sli values unchanged",
         "npv_sources": sorted({f"{rows[i]['SOURCE']}: {rows[i]['NOTES']}" for i in keep[n_soil:]}),
     }
+    site = site_numbers([rows[i] for i in keep])
+    site[n_soil:] = 0.0  # sites are given for soils only
+    metadata["site"] = ("param site: 1, 2, ... per distinct (LAT, LON) of earthlib's metadata among the soils (the "
+                        "horizons of one ICRAF profile share a site); 0 = no usable location (missing or 0/0), "
+                        "and for every NPV spectrum")
     path = write_library_file(args.out, wavelength_nm=w_nm, spectra=sel,
-                              names=unique_names([names[i] for i in keep]), groups=groups, metadata=metadata)
-    print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB): {n_soil} soils, {len(keep) - n_soil} NPV; "
+                              names=unique_names([names[i] for i in keep]), groups=groups,
+                              params={"site": site}, metadata=metadata)
+    print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB): {n_soil} soils at {int(site.max())} sites "
+          f"({int((site[:n_soil] == 0).sum())} without one), {len(keep) - n_soil} NPV; "
           f"wheel sha256 {sha}")
     for g in sorted(set(groups)):
         print(f"  {g:12s} {groups.count(g)}")

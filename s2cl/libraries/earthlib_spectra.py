@@ -3,7 +3,8 @@
 
 * :func:`soil_library` — the 4,168 ICRAF-ISRIC soil spectra (group ``soil``), with two iron indices as
   parameters computed on the measured 10 nm samples: ``fe_band_depth`` (:func:`fe_band_depth`) and
-  ``redness_index`` (:func:`redness_index`);
+  ``redness_index`` (:func:`redness_index`), and ``site`` (1, 2, … per distinct location in earthlib's
+  metadata, shared by the horizons of one profile; 0 = no usable location);
 * :func:`npv_library` — the measured litter, bark, wood and other NPV spectra (groups ``npv:litter``,
   ``npv:bark``, ``npv:wood``, ``npv:npv``).
 
@@ -152,16 +153,29 @@ def soil_indices() -> dict[str, np.ndarray]:
 
 def soil_library(grid: SpectralGrid) -> SpectralLibrary:
     """The 4,168 ICRAF-ISRIC soils on ``grid`` (inside 400–2450 nm); names are the ICRAF sample ids, params
-    ``fe_band_depth`` and ``redness_index`` (unitless, from the measured samples)."""
+    ``fe_band_depth`` and ``redness_index`` (unitless, from the measured samples) and ``site``."""
     lib = _load(grid, "earthlib-soils", list(_soil_rows()))
-    lib.params = {k: v.copy() for k, v in soil_indices().items()}
+    lib.params = {**{k: v.copy() for k, v in soil_indices().items()}, "site": lib.params["site"]}
     return lib
 
 
 def npv_library(grid: SpectralGrid) -> SpectralLibrary:
     """The measured non-photosynthetic vegetation (litter, bark, wood, npv) on ``grid`` (inside 400–2450 nm)."""
     rows = [i for i, g in enumerate(_file().groups) if g.startswith(NPV_GROUP_PREFIX)]
-    return _load(grid, "earthlib-npv", rows)
+    lib = _load(grid, "earthlib-npv", rows)
+    lib.params = {}
+    return lib
+
+
+def is_soil(name: str) -> bool:
+    """Whether ``name`` is the ICRAF sample id of a shipped soil."""
+    return name in _soil_names()
+
+
+@cache
+def _soil_names() -> frozenset[str]:
+    f = _file()
+    return frozenset(f.names[i] for i in _soil_rows())
 
 
 def soil_spectrum(name: str, grid: SpectralGrid) -> np.ndarray:

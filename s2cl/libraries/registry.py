@@ -56,7 +56,7 @@ _BUILTINS: dict[str, tuple[str, Callable[[SpectralGrid], SpectralLibrary]]] = {
         iron_backgrounds,
     ),
     "earthlib-soils": (
-        "earthlib 1.1.0: 4168 measured ICRAF-ISRIC soils, params fe_band_depth, redness_index; grid inside "
+        "earthlib 1.1.0: 4168 measured ICRAF-ISRIC soils, params fe_band_depth, redness_index, site; grid inside "
         "400-2450 nm (water-vapour bands interpolated)",
         soil_library,
     ),
