@@ -167,6 +167,23 @@ def per_subset(scene: Scene, job: SweepJob, index: np.ndarray, status: np.ndarra
     return out
 
 
+def subset_rms(scene: Scene, job: SweepJob, by: tuple[str, ...],
+               centres: tuple[float, ...] = (660.0, 665.0, 675.0, 680.0)) -> dict[str, dict[str, dict[str, float]]]:
+    """RMS per subset (:func:`per_subset`, each of ``by``) at B4 ``centres`` with FWHM 30 nm:
+    ``{by: {"660/30": {subset: rms}}}``."""
+    from s2cl.sweep.engine import kernel_evaluator
+
+    raw = kernel_evaluator(job)(0, job.n_configs)
+    idx = variant_indices(job.tables, 0, job.n_configs)
+    c, w = job.tables.centre[0][idx[:, 0]], job.tables.width[0][idx[:, 0]]
+    out = {}
+    for key in by:
+        per = per_subset(scene, job, raw.index, raw.status, key)
+        out[key] = {f"{centre:g}/30": {g: float(v[(c == centre) & (w == 30)][0]) for g, v in per.items()}
+                    for centre in centres}
+    return out
+
+
 def summarise(rows: dict[str, np.ndarray]) -> dict[str, Any]:
     c, w, rms = (np.asarray(rows[k], dtype=np.float64) for k in ("B4_centre_nm", "B4_width_nm", "rms"))
     best = int(np.nanargmin(rms))
@@ -205,17 +222,9 @@ def main() -> None:
         out["variants"][f"noise-x{k:g}"] = variant_entry(f"noise-x{k:g}", {"sigma_scale": k}, rows,
                                                          time.perf_counter() - t0)
     # RMS of the shipped fit per background and per LAI (each subset regressed alone), Lib1 and Lib2
-    from s2cl.sweep.engine import kernel_evaluator as evaluator
-
     for lib_name, (scene, job) in jobs.items():
-        raw = evaluator(job)(0, job.n_configs)
-        idx = variant_indices(job.tables, 0, job.n_configs)
-        c, w = job.tables.centre[0][idx[:, 0]], job.tables.width[0][idx[:, 0]]
-        for key, per in (("background", per_subset(scene, job, raw.index, raw.status, "groups")),
-                         ("lai", per_subset(scene, job, raw.index, raw.status, "lai"))):
-            out[f"per_{key}_{lib_name}"] = {
-                f"{centre:g}/30": {g: float(v[(c == centre) & (w == 30)][0]) for g, v in per.items()}
-                for centre in (660.0, 665.0, 675.0, 680.0)}
+        for key, per in subset_rms(scene, job, ("groups", "lai")).items():
+            out[f"per_{'background' if key == 'groups' else key}_{lib_name}"] = per
     out["swir"] = swir()
     print("wrote", write_json(RESULT, out))
     plot(out)

@@ -10,7 +10,9 @@ from s2cl.grid import DEFAULT_GRID, SpectralGrid
 from s2cl.libraries.registry import available_libraries, load_library
 
 SWIR = SpectralGrid(1500.0, 2500.0, 1.0)
-EXPECTED_SIZES = {"flat": 2, "lib1": 120, "lib2": 180, "leaf-water": 246, "minerals": 8, "iron-backgrounds": 3}
+EXPECTED_SIZES = {"flat": 2, "lib1": 120, "lib2": 180, "leaf-water": 246, "minerals": 8, "iron-backgrounds": 3,
+                  "earthlib-soils": 4168, "earthlib-npv": 104}
+EARTHLIB_GRID = SpectralGrid(400.0, 2450.0, 1.0)  # earthlib is measured to 2450 nm only
 
 
 def test_every_builtin_is_listed_with_a_description_and_loads():
@@ -18,7 +20,7 @@ def test_every_builtin_is_listed_with_a_description_and_loads():
     assert set(names) == {*EXPECTED_SIZES, "minerals-swir"}
     for name, desc in names.items():
         assert desc and "\n" not in desc
-        grid = SWIR if name == "minerals-swir" else DEFAULT_GRID
+        grid = SWIR if name == "minerals-swir" else EARTHLIB_GRID if name.startswith("earthlib") else DEFAULT_GRID
         lib = load_library(f"builtin:{name}", grid)
         assert lib.grid == grid
         assert np.all(np.isfinite(lib.spectra))

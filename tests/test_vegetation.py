@@ -234,3 +234,33 @@ def test_cache_key_depends_on_spec_and_prosail_version():
     assert k == vegetation.cache_key(LIB1, "2.0.5")
     assert k != vegetation.cache_key(LIB1, "2.0.6")
     assert k != vegetation.cache_key(LIB2, "2.0.5")
+
+
+@needs_prosail
+def test_earthlib_soil_backgrounds_cut_the_library_at_2450nm(tmp_path, monkeypatch):
+    from s2cl.libraries import earthlib_spectra
+
+    monkeypatch.setenv("S2CL_CACHE", str(tmp_path))
+    soil = "FS15R_FS4275"
+    spec = VegetationSpec("over soil", cab=(10.0, 60.0), lai=(0.5,), backgrounds=(f"earthlib:{soil}", "siderite"))
+    assert spec.grid == SpectralGrid(400.0, 2450.0, 1.0)
+    lib = load_vegetation(spec, spec.grid)
+    assert lib.size == 4 and lib.groups == [f"earthlib:{soil}"] * 2 + ["siderite"] * 2
+    assert "ICRAF-ISRIC soils from earthlib" in lib.source and "USGS" in lib.source
+    # the file ends where the soil's measurement ends: nothing held beyond 2450 nm reaches the library
+    assert read_library_file(vegetation.library_file(spec)).wavelength_nm[-1] == 2450.0
+    with pytest.raises(InputError, match=r"grid: PROSAIL library over soil covers 400–2450 nm .*; "
+                                         r"set grid\.stop_nm <= 2450"):
+        load_vegetation(spec, DEFAULT_GRID)
+    # a sparse canopy over a brighter soil is brighter in the red, where leaves transmit little
+    red = spec.grid.index(660.0)
+    soil_red = earthlib_spectra.soil_spectrum(soil, spec.grid)[red]
+    bg_red = minerals.background_spectrum("siderite", spec.grid)[red]
+    assert (lib.spectra[0, red] > lib.spectra[2, red]) == (soil_red > bg_red)
+
+
+def test_unknown_earthlib_background_is_refused():
+    with pytest.raises(InputError, match=r"prosail\.backgrounds: unknown earthlib soil 'earthlib:FS0'"):
+        VegetationSpec("x", cab=(20.0,), lai=(1.0,), backgrounds=("earthlib:FS0",)).validate()
+    with pytest.raises(InputError, match=r"unknown background 'goethite'; available: .* or earthlib:<ICRAF soil id>"):
+        VegetationSpec("x", cab=(20.0,), lai=(1.0,), backgrounds=("goethite",)).validate()

@@ -17,6 +17,7 @@ from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
 from s2cl.io.budget import Budget
 from s2cl.io.inputs import input_file, parse_number
+from s2cl.libraries.earthlib_spectra import npv_library, soil_library
 from s2cl.libraries.files import load_csv_library, load_envi_library
 from s2cl.libraries.library import DEFAULT_FLAT_VALUES, Quantity, SpectralLibrary, flat_targets
 from s2cl.libraries.minerals import iron_backgrounds, mineral_library, mineral_library_swir
@@ -53,6 +54,16 @@ _BUILTINS: dict[str, tuple[str, Callable[[SpectralGrid], SpectralLibrary]]] = {
     "iron-backgrounds": (
         "USGS splib07 iron-bearing spectra used as PROSAIL backgrounds (stand-ins for goethite/hematite)",
         iron_backgrounds,
+    ),
+    "earthlib-soils": (
+        "earthlib 1.1.0: 4168 measured ICRAF-ISRIC soils, params fe_band_depth, redness_index, site; grid inside "
+        "400-2450 nm (water-vapour bands interpolated)",
+        soil_library,
+    ),
+    "earthlib-npv": (
+        "earthlib 1.1.0: 104 measured litter, bark, wood (non-photosynthetic vegetation); grid inside 400-2450 nm "
+        "(water-vapour bands interpolated)",
+        npv_library,
     ),
 }
 

@@ -7,8 +7,12 @@ The paper's libraries (Segl et al. 2012, sections 4.1 and 4.2.1):
 * **leaf-water** — equivalent water thickness 100–500 µm step 10 at LAI 3 and 4;
 
 each over the measured iron-bearing USGS backgrounds of :mod:`s2cl.libraries.minerals` (stand-ins for
-the paper's goethite/hematite). The three default libraries ship as package data
-(``s2cl/data/prosail_*.npz``, float32) so a simulation needs neither prosail nor numba.
+the paper's goethite/hematite). A spec may name measured soils of :mod:`s2cl.libraries.earthlib_spectra`
+instead (``earthlib:<ICRAF id>``): those are measured to 2450 nm only, so such a library covers
+400–2450 nm (PROSAIL is run per wavelength; the soil value held from 2450 to 2500 nm to fill PROSAIL's fixed
+axis reaches no kept wavelength, the canopy spectra are cut at 2450 nm).
+The three default libraries ship as package data (``s2cl/data/prosail_*.npz``, float32) so a simulation
+needs neither prosail nor numba.
 Any other :class:`VegetationSpec` is generated with prosail (``pip install "s2cl[prosail]"``)
 and cached under :func:`s2cl.io.cache.cache_dir` keyed by spec, backgrounds and prosail version.
 
@@ -28,6 +32,7 @@ import numpy as np
 from s2cl.errors import DependencyError, InputError
 from s2cl.grid import DEFAULT_GRID, SpectralGrid
 from s2cl.io.cache import cache_dir, digest
+from s2cl.libraries import earthlib_spectra
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.minerals import BACKGROUND_KEYS, iron_backgrounds
 from s2cl.libraries.npz import LibraryFile, read_library_file, write_library_file
@@ -36,6 +41,8 @@ from s2cl.libraries.npz import LibraryFile, read_library_file, write_library_fil
 PROSAIL_GRID = SpectralGrid(400.0, 2500.0, 1.0)
 PROSAIL_HINT = 'PROSAIL libraries other than the shipped ones need prosail: pip install "s2cl[prosail]"'
 DEFAULT_BACKGROUNDS = ("jarosite-muscovite", "siderite", "chlorite")
+#: background key prefix of a measured earthlib soil: ``earthlib:FS15R_FS4275``
+EARTHLIB_PREFIX = "earthlib:"
 CACHE_FORMAT = 1
 
 
@@ -108,7 +115,8 @@ class VegetationSpec:
     :param cab: leaf chlorophyll a+b values, µg/cm².
     :param lai: leaf area index values, m²/m².
     :param ewt: leaf equivalent water thickness values, µm (prosail's ``cw`` is in cm = µm·1e-4).
-    :param backgrounds: keys of :data:`s2cl.libraries.minerals.BACKGROUND_KEYS` values.
+    :param backgrounds: keys of :data:`s2cl.libraries.minerals.BACKGROUND_KEYS` values, or
+        ``earthlib:<ICRAF sample id>`` (a measured soil of :func:`s2cl.libraries.earthlib_spectra.soil_library`).
     """
 
     name: str
@@ -165,12 +173,24 @@ class VegetationSpec:
                 )
         allowed = sorted(BACKGROUND_KEYS.values())
         for bg in self.backgrounds:
-            if bg not in allowed:
+            if bg.startswith(EARTHLIB_PREFIX):
+                if not earthlib_spectra.is_soil(bg[len(EARTHLIB_PREFIX):]):
+                    raise InputError(f"unknown earthlib soil {bg!r}; names are ICRAF sample ids of "
+                                     "builtin:earthlib-soils, e.g. 'earthlib:FS15R_FS4275'", source=source,
+                                     key=f"{key}.backgrounds")
+            elif bg not in allowed:
                 raise InputError(
-                    f"unknown background {bg!r}; available: {', '.join(allowed)}",
+                    f"unknown background {bg!r}; available: {', '.join(allowed)} or earthlib:<ICRAF soil id>",
                     source=source,
                     key=f"{key}.backgrounds",
                 )
+
+    @property
+    def grid(self) -> SpectralGrid:
+        """The library's own axis: :data:`PROSAIL_GRID`, cut at 2450 nm when a background is an earthlib soil."""
+        if any(bg.startswith(EARTHLIB_PREFIX) for bg in self.backgrounds):
+            return SpectralGrid(PROSAIL_GRID.start_nm, earthlib_spectra.MEASURED_RANGE_NM[1], PROSAIL_GRID.step_nm)
+        return PROSAIL_GRID
 
 
 def _values(raw: Any, pname: str, *, source: str | None, key: str) -> tuple[float, ...]:
@@ -217,9 +237,19 @@ def _run_prosail() -> Any:
 
 
 def _background_spectra(keys: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Each background on :data:`PROSAIL_GRID`; an earthlib soil (measured to 2450 nm) holds its 2450 nm value
+    beyond, which only reaches canopy wavelengths that :func:`generate` cuts away."""
     bg = iron_backgrounds(PROSAIL_GRID)
     by_key = {BACKGROUND_KEYS[n]: s for n, s in zip(bg.names, bg.spectra, strict=True)}
-    return {k: by_key[k] for k in keys}
+    out = {}
+    for k in keys:
+        if k.startswith(EARTHLIB_PREFIX):
+            hi = earthlib_spectra.MEASURED_RANGE_NM[1]
+            measured = earthlib_spectra.soil_spectrum(k[len(EARTHLIB_PREFIX):], SpectralGrid(400.0, hi, 1.0))
+            out[k] = np.concatenate([measured, np.full(PROSAIL_GRID.size - measured.size, measured[-1])])
+        else:
+            out[k] = by_key[k]
+    return out
 
 
 def simulate(spec: VegetationSpec, *, cab: float, lai: float, ewt: float, background: np.ndarray) -> np.ndarray:
@@ -248,11 +278,11 @@ def generate(spec: VegetationSpec) -> SpectralLibrary:
                     groups.append(bg)
                     for k, v in (("cab", cab), ("lai", lai), ("ewt", ewt)):
                         params[k].append(v)
-    spectra = np.asarray(rows)
+    spectra = np.asarray(rows)[:, : spec.grid.size]  # spec.grid starts where PROSAIL_GRID does, same step
     if not np.all(np.isfinite(spectra)) or spectra.min() < 0.0 or spectra.max() > 1.0:
         raise InputError(f"PROSAIL produced reflectance outside [0, 1] for library {spec.name}")
     return SpectralLibrary(
-        grid=PROSAIL_GRID,
+        grid=spec.grid,
         spectra=spectra,
         names=names,
         groups=groups,
@@ -262,10 +292,13 @@ def generate(spec: VegetationSpec) -> SpectralLibrary:
 
 
 def _source_text(spec: VegetationSpec, version: str) -> str:
-    return (
-        f"{spec.name}: PROSAIL (PROSPECT-{spec.constants.prospect_version} + 4SAIL, prosail {version}) over measured "
-        "USGS splib07 iron-bearing stand-in backgrounds (Kokaly et al. 2017, doi:10.3133/ds1035)"
-    )
+    over = []
+    if any(not bg.startswith(EARTHLIB_PREFIX) for bg in spec.backgrounds):
+        over.append("measured USGS splib07 iron-bearing stand-in backgrounds (Kokaly et al. 2017, doi:10.3133/ds1035)")
+    if any(bg.startswith(EARTHLIB_PREFIX) for bg in spec.backgrounds):
+        over.append(f"measured ICRAF-ISRIC soils from earthlib {earthlib_spectra.EARTHLIB_VERSION} (400-2450 nm)")
+    return (f"{spec.name}: PROSAIL (PROSPECT-{spec.constants.prospect_version} + 4SAIL, prosail {version}) over "
+            + " and ".join(over))
 
 
 def cache_key(spec: VegetationSpec, version: str) -> str:
@@ -290,7 +323,7 @@ def write_library(spec: VegetationSpec, lib: SpectralLibrary, path: Path, *, ver
             "cache_key": cache_key(spec, version),
             "storage": "float32 (max abs rounding error < 3e-8 in reflectance)",
             "param_units": {"cab": "ug/cm2", "lai": "m2/m2", "ewt": "um"},
-            "groups": "background key (see s2cl.libraries.minerals.BACKGROUND_KEYS)",
+            "groups": "background key (s2cl.libraries.minerals.BACKGROUND_KEYS, or earthlib:<ICRAF soil id>)",
         },
     )
 
@@ -302,8 +335,11 @@ def _from_file(f: LibraryFile, spec: VegetationSpec, grid: SpectralGrid) -> Spec
             "regenerate it with tools/make_prosail_libraries.py",
             source=f.path,
         )
-    lib = f.to_library(PROSAIL_GRID)
-    return lib.on_grid(grid)
+    if not spec.grid.covers(grid.start_nm, grid.stop_nm):
+        raise InputError(f"PROSAIL library {spec.name} covers {spec.grid.start_nm:g}–{spec.grid.stop_nm:g} nm (its "
+                         f"backgrounds are measured there), the grid is {grid.describe()}; set grid.stop_nm <= "
+                         f"{spec.grid.stop_nm:g}", key="grid")
+    return f.to_library(grid)
 
 
 def load_vegetation(spec: VegetationSpec | str, grid: SpectralGrid = DEFAULT_GRID) -> SpectralLibrary:
@@ -321,6 +357,14 @@ def load_vegetation(spec: VegetationSpec | str, grid: SpectralGrid = DEFAULT_GRI
     if SHIPPED.get(spec.name) == spec:
         return _from_file(read_library_file(shipped_path(spec.name)), spec, grid)
     return _from_file(_cached_file(spec), spec, grid)
+
+
+def library_file(spec: VegetationSpec) -> Path:
+    """Path of the s2cl library file (``.npz``) holding ``spec``: the shipped one, else the user-cache entry
+    (generated with prosail when missing). A scene can name it: ``[surface] library = "<path>"``."""
+    if SHIPPED.get(spec.name) == spec:
+        return shipped_path(spec.name)
+    return Path(_cached_file(spec).path)
 
 
 def _cached_file(spec: VegetationSpec) -> LibraryFile:
