@@ -157,4 +157,4 @@ def test_quick_run_through_the_cli(tmp_path):
     # B8a and the window barely absorb, B9 does
     sens = d["water_sensitivity_pct"]
     assert sens["B9"][0] > 50 and sens["B8a"][0] < 1 and max(sens["N1020"]) < 5
-    assert set(d["winter"]) == {"two", "three"}
+    assert set(d["winter"]) == {"two", "three", "three_best"}

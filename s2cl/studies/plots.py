@@ -191,7 +191,9 @@ def plot_water_vapour_1020(data: Data, path: Path) -> Path:
     ax.legend(fontsize=7)
     ax = axes[1][1]
     winter = data["winter"]
-    bars = [(f"{tag}-channel, {lut.split('_')[1]} LUT", winter[tag][lut]) for tag in ("two", "three")
+    tags = {"two": "two-channel", "three": f"{name} {var[head, 0]:g}/{var[head, 1]:g}",
+            "three_best": f"{name} {var[best, 0]:g}/{var[best, 1]:g}"}
+    bars = [(f"{tags[tag]}, {lut.split('_')[1]} LUT", winter[tag][lut]) for tag in winter
             for lut in ("midlatitude_winter", "midlatitude_summer")]
     width = 0.8 / len(bars)
     for i, (label, vals) in enumerate(bars):
@@ -209,7 +211,8 @@ def plot_water_vapour_1020(data: Data, path: Path) -> Path:
     ax.set_xticks(xs, names)
     ax.set_ylabel("mean |ρ_continuum − ρ(B9)| / ρ(B9) (%)")
     ax.set_title(f"surface continuum error at B9 ({name} {var[head, 0]:g}/{var[head, 1]:g})", fontsize=9)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.set_ylim(0, 1.3 * max([*surf["two"].values(), *surf["three"].values(), 1e-9]))
+    ax.legend(fontsize=7, loc="upper left")
     for ax in axes[1][3:]:
         ax.axis("off")
     fig.tight_layout()

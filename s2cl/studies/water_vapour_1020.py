@@ -32,6 +32,7 @@ from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, apply
 from s2cl.studies.water_vapour import (
     SUMMER,
     WINTER,
+    Retrieval,
     Truth,
     band_weights,
     continuum,
@@ -147,21 +148,28 @@ def run(setup: StudySetup) -> StudyResult:
     best = int(np.argmin([s["all"] for s in three[k]]))
     i9, i8 = space.indices(0, space.size)[k]
 
-    # winter scenes, nominal B9/B8a and the headline window: both retrievals on the same noisy pixels
-    nom = {ABSORPTION: i9, WINDOW: i8, name: head}
-    nom_vars = {b: variants[b][[i]] for b, i in nom.items()}
-    nom_weights = {b: [weights[b][i]] for b, i in nom.items()}
-    c9, c8, cw = (nom_vars[b][0, 0] for b in (ABSORPTION, WINDOW, name))
+    # winter scenes, nominal B9/B8a with the headline and the best window (one noise stream per band, as in the
+    # sweep): both retrievals on the same noisy pixels
+    nom = {ABSORPTION: [i9], WINDOW: [i8], name: [head, best]}
+    nom_vars = {b: variants[b][i] for b, i in nom.items()}
+    nom_weights = {b: [weights[b][j] for j in i] for b, i in nom.items()}
+    c9, c8 = variants[ABSORPTION][i9, 0], variants[WINDOW][i8, 0]
 
-    def retrieval(windows: list[str], centres: list[float]):
+    def retrieval(jw: int | None) -> Retrieval:
+        """Two-channel (``jw`` None) or three-channel with window variant ``jw`` of ``nom[name]``."""
         def run_one(rad: dict[str, np.ndarray], lt: Terms) -> np.ndarray:
-            refs = [reference(rad[b][0], lt[b][0]) for b in windows]
+            refs = [reference(rad[WINDOW][0], lt[WINDOW][0])]
+            centres = [c8]
+            if jw is not None:
+                refs.append(reference(rad[name][jw], lt[name][jw]))
+                centres.append(nom_vars[name][jw, 0])
             return retrieve_continuum(rad[ABSORPTION][0], lt[ABSORPTION][0], axis,
                                       continuum(refs, interpolation_weights(centres, c9)))
         return run_one
 
-    winter = winter_scores(setup, axis, nom_vars, nom_weights, {b: [lut[b][i]] for b, i in nom.items()}, targets,
-                           {"two": retrieval([WINDOW], [c8]), "three": retrieval([WINDOW, name], [c8, cw])})
+    winter = winter_scores(setup, axis, nom_vars, nom_weights,
+                           {b: [lut[b][j] for j in i] for b, i in nom.items()}, targets,
+                           {"two": retrieval(None), "three": retrieval(0), "three_best": retrieval(1)})
     surface = _surface_continuum(targets, weights, variants, name, i9, i8, head)
 
     def band(b: str, i: int) -> str:
@@ -174,9 +182,10 @@ def run(setup: StudySetup) -> StudyResult:
             ["  no noise", b9, b8, band(name, head), *(f"{three_nf[k][head][c]:.2f}" for c in classes)],
             [f"best {name} (all)", b9, b8, band(name, best), *(f"{three[k][best][c]:.2f}" for c in classes)],
             ["  no noise", b9, b8, band(name, best), *(f"{three_nf[k][best][c]:.2f}" for c in classes)]]
-    for tag, cw_ in (("two", "–"), ("three", band(name, head))):
+    for tag, cw_ in (("two", "–"), ("three", band(name, head)), ("three_best", band(name, best))):
         for prof, lab in ((WINTER, "winter LUT"), (SUMMER, "summer LUT")):
-            rows.append([f"winter, {lab}, {tag}", b9, b8, cw_, *(f"{winter[tag][prof][c]:.2f}" for c in classes)])
+            rows.append([f"winter, {lab}, {tag.replace('_', ' ')}", b9, b8, cw_,
+                         *(f"{winter[tag][prof][c]:.2f}" for c in classes)])
     figures = [KeyFigure(f"relative RMS of WV, three-channel ({name} {band(name, head)}) minus two-channel, {c}",
                          round(three[k][head][c] - two[k][c], 2), None, "pp",
                          f"{two[k][c]:.2f} → {three[k][head][c]:.2f} %; paper: third channel 'improved'")
