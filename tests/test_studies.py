@@ -245,9 +245,9 @@ def test_apda_noise_free_recovers_water_vapour():
     setup = load_study(scene)
     variants = {"B9": np.array([[945.0, 20.0], [920.0, 20.0]]), "B8a": np.array([[865.0, 20.0]])}
     weights = water_vapour.band_weights(setup, variants)
-    truth = water_vapour._Truth(setup, water_vapour.SUMMER, variants, weights, setup.targets())
+    truth = water_vapour.Truth(setup, water_vapour.SUMMER, variants, weights, setup.targets())
     axis = water_vapour.wv_axis(setup)
-    terms = water_vapour._lut_terms(setup, water_vapour.SUMMER, axis, weights)
+    terms = water_vapour.lut_terms(setup, water_vapour.SUMMER, axis, weights)
     for i9 in range(2):
         wv = water_vapour.retrieve(truth.radiance["B9"][i9], truth.radiance["B8a"][0], terms["B9"][i9],
                                    terms["B8a"][0], axis)

@@ -45,6 +45,22 @@ def _water_vapour() -> dict:
                        "relative_increase_pct": {"veg": 10.0, "soil": 3.3, "all": 7.3}}}
 
 
+def _water_vapour_1020() -> dict:
+    variants = [[c, w] for w in (10.0, 20.0) for c in (1000.0, 1020.0, 1040.0)]
+    classes = ("veg", "soil", "all")
+    three = {c: [np.linspace(2 + i, 5 + i, len(variants)).tolist()] for i, c in enumerate(classes)}
+    two = {c: [8.0 + i] for i, c in enumerate(classes)}
+    scores = {"veg": 4.0, "soil": 12.0, "all": 8.0}
+    return {"nominal_configuration": 0,
+            "window": {"name": "N1020", "noise_band": "B9", "variants": variants, "headline": 4, "best": 0},
+            "two_channel": {"rel_rms_pct": two, "rel_rms_pct_no_noise": {c: [v[0] - 1] for c, v in two.items()}},
+            "three_channel": {"rel_rms_pct": three,
+                              "rel_rms_pct_no_noise": {c: [[x - 1 for x in v[0]]] for c, v in three.items()}},
+            "continuum_error_pct": {"two": {"veg": 3.5, "soil": 16.0}, "three": {"veg": 1.8, "soil": 8.0}},
+            "winter": {t: {p: {c: v * f for c, v in scores.items()} for p, f in
+                           (("midlatitude_winter", 1.0), ("midlatitude_summer", 1.1))} for t in ("two", "three")}}
+
+
 def _aerosol() -> dict:
     return {"factor_errors": [-0.2, -0.1, 0.0, 0.1, 0.2], "rel_rms_pct_vs_factor_error": [30, 14, 3, 15, 31],
             "calibration_gain": 1.05, "rel_rms_pct_calibration": 12.0,
@@ -84,7 +100,8 @@ def _stability() -> dict:
             "applications": [app("IGRM", ["B5", "B6"], 5.0), app("SAM", ["B12"], 36.0)]}
 
 
-SYNTHETIC = {"cirrus": _cirrus, "water-vapour": _water_vapour, "aerosol": _aerosol, "ozone": _ozone,
+SYNTHETIC = {"cirrus": _cirrus, "water-vapour": _water_vapour, "water-vapour-1020": _water_vapour_1020,
+             "aerosol": _aerosol, "ozone": _ozone,
              "methane": _methane, "stability": _stability}
 
 

@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from s2cl.errors import InputError, key_token, token
 from s2cl.retrieve.indices import INDICES, ROLE_KEYS
+from s2cl.sensor.names import BAND_NAME, BAND_NAME_RULE
 from s2cl.sensor.srf import DEFAULT_SUPPORT
 
 UINT32_MAX = 2**32 - 1
@@ -182,11 +183,49 @@ class ComputeSpec(_Section):
                                "--device wins; default: $PYOPENCL_CTX, else the first PoCL CPU device)")
 
 
+class WindowSpec(_Section):
+    """A second window (reference) channel for the three-channel water-vapour retrieval
+    (``s2cl study water-vapour-1020``): a band that is not in the sensor, swept over ``centres`` × ``widths``
+    (nm), with the noise model of the sensor band ``noise_band`` at each width; ``centre``/``width`` is the
+    headline variant the tables report (one of the grid's)."""
+
+    name: str = Field("N1020", description="the channel's name (not a sensor band's)")
+    noise_band: str = Field("B9", description="sensor band whose SNR model (scaled with width) the channel uses")
+    centres: list[float] = Field(min_length=1, description="centres, nm")
+    widths: list[float] = Field(min_length=1, description="widths (FWHM), nm")
+    centre: float = Field(1020.0, description="headline centre, nm")
+    width: float = Field(20.0, gt=0, description="headline width, nm")
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, value: str) -> str:
+        if not BAND_NAME.fullmatch(value):
+            raise ValueError(f"band name {token(value)} is not allowed: a band name is {BAND_NAME_RULE}")
+        return value
+
+    @field_validator("centres", "widths")
+    @classmethod
+    def _shapes(cls, values: list[float]) -> list[float]:
+        bad = [v for v in values if not (math.isfinite(v) and v > 0)]
+        if bad:
+            raise ValueError(f"values must be finite and > 0 nm, got {bad[0]}")
+        if len(set(values)) != len(values):
+            raise ValueError("values hold duplicates")
+        return values
+
+    @model_validator(mode="after")
+    def _headline_in_grid(self) -> WindowSpec:
+        if self.centre not in self.centres or self.width not in self.widths:
+            raise ValueError(f"the headline channel {self.centre:g}/{self.width:g} nm (centre, width) must be one "
+                             "of the grid's centres × widths")
+        return self
+
+
 class StudySpec(_Section):
     """A study (``s2cl study NAME``): the paper's atmospheric-band studies vary the bands of the [sweep] section;
     ``stability`` drifts the bands of each scene in ``applications``."""
 
-    kind: Literal["cirrus", "water-vapour", "aerosol", "ozone", "methane", "stability"]
+    kind: Literal["cirrus", "water-vapour", "water-vapour-1020", "aerosol", "ozone", "methane", "stability"]
     reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
     targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
     spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
@@ -202,6 +241,8 @@ class StudySpec(_Section):
     width_factors: list[float] = Field(default_factory=list, description="stability: band-width factors, unitless")
     growth: float = Field(0.1, gt=0, le=10, description="stability: error growth over the nominal that sets a "
                           "requirement (0.1: +10 %)")
+    window2: WindowSpec | None = Field(None, description="water-vapour-1020: the second window channel "
+                                       "(name, noise_band, centres, widths, centre, width)")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
     @field_validator("reflectance")

@@ -17,11 +17,12 @@ from pathlib import Path
 from s2cl.errors import InputError
 from s2cl.io.output import write_json
 from s2cl.scene.scene import Scene
-from s2cl.studies import aerosol, cirrus, methane, ozone, stability, water_vapour
+from s2cl.studies import aerosol, cirrus, methane, ozone, stability, water_vapour, water_vapour_1020
 from s2cl.studies.common import StudyResult, StudySetup, load_study
 from s2cl.studies.plots import replot
 
-_MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "aerosol": aerosol, "ozone": ozone, "methane": methane,
+_MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "water-vapour-1020": water_vapour_1020,
+            "aerosol": aerosol, "ozone": ozone, "methane": methane,
             "stability": stability}
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {name: m.run for name, m in _MODULES.items()}
 

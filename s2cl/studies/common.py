@@ -7,7 +7,7 @@ Radiances are W m⁻² sr⁻¹ µm⁻¹, reflectances unitless, wavelengths nm, 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -114,6 +114,16 @@ class StudySetup:
         return k
 
     def band(self, name: str) -> Band:
+        """Sensor band ``name``, else the [study] ``window2`` channel: the sensor band ``window2.noise_band``
+        (its SNR model) renamed and moved to the headline centre/width."""
+        w = self.study.window2
+        sensor_band = name.lower() in (n.lower() for n in self.scene.sensor.band_names)
+        if w is not None and not sensor_band and name.lower() == w.name.lower():
+            try:
+                template = self.scene.sensor.band(w.noise_band)
+            except InputError as err:
+                raise InputError(err.detail, source=self.source, key="study.window2.noise_band") from None
+            return replace(template.with_shape(w.centre, w.width), name=w.name)
         return self.scene.sensor.band(name)
 
     def weights(self, name: str, centre_nm: float, width_nm: float) -> BandWeights:

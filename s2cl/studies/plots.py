@@ -140,6 +140,85 @@ def plot_water_vapour(data: Data, path: Path) -> Path:
     return save_png(fig, path)
 
 
+def plot_water_vapour_1020(data: Data, path: Path) -> Path:
+    """Three- vs two-channel water vapour (nominal B9/B8a): per target class the three-channel relative RMS over
+    the second window's centre × width (two-channel value in the title); the two retrievals with and without
+    noise; winter scenes with the winter and the summer LUT; the surface continuum error at B9."""
+    plt = pyplot()
+    k = int(data["nominal_configuration"])
+    win = data["window"]
+    var = np.asarray(win["variants"], dtype=np.float64)
+    head, best = int(win["headline"]), int(win["best"])
+    two, three = data["two_channel"], data["three_channel"]
+    classes = list(two["rel_rms_pct"])
+    name = win["name"]
+    ncol = max(len(classes), 3)
+    fig, axes = plt.subplots(2, ncol, figsize=(4.2 * ncol, 7.6), dpi=110, squeeze=False)
+    cs, ws = sorted(set(var[:, 0].tolist())), sorted(set(var[:, 1].tolist()))
+    dc = (cs[1] - cs[0]) / 2 if len(cs) > 1 else 5.0
+    dw = (ws[1] - ws[0]) / 2 if len(ws) > 1 else 5.0
+    for ax, c in zip(axes[0], classes, strict=False):
+        grid = np.full((len(ws), len(cs)), np.nan)
+        for j, (cc, ww) in enumerate(var):
+            grid[ws.index(ww), cs.index(cc)] = three["rel_rms_pct"][c][k][j]
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis",
+                       extent=(cs[0] - dc, cs[-1] + dc, ws[0] - dw, ws[-1] + dw))
+        fig.colorbar(im, ax=ax, label="relative RMS of WV (%)")
+        ax.plot(*var[head], "wo", mfc="none", ms=9)
+        ax.set_xlabel(f"{name} centre (nm)")
+        ax.set_ylabel(f"{name} width (nm)")
+        ax.set_title(f"{c}: three-channel; two-channel {two['rel_rms_pct'][c][k]:.2f} %", fontsize=9)
+    for ax in axes[0][len(classes):]:
+        ax.axis("off")
+    ax = axes[1][0]
+    x = np.arange(len(classes))
+    def per_class(d: dict, j: int | None) -> list[float]:
+        return [d[c][k] if j is None else d[c][k][j] for c in classes]
+
+    cases = [(label, per_class(three["rel_rms_pct"] if j is not None else two["rel_rms_pct"], j),
+              per_class(three["rel_rms_pct_no_noise"] if j is not None else two["rel_rms_pct_no_noise"], j))
+             for label, j in (("two-channel", None), (f"{name} {var[head, 0]:g}/{var[head, 1]:g}", head),
+                              (f"{name} {var[best, 0]:g}/{var[best, 1]:g} (best)", best))]
+    width = 0.8 / len(cases)
+    for i, (label, noisy, quiet) in enumerate(cases):
+        pos = x + (i - (len(cases) - 1) / 2) * width
+        ax.bar(pos, noisy, width, color=f"C{i}", label=label)
+        ax.bar(pos, quiet, width, color="none", edgecolor="k", hatch="//", lw=0.6)
+    ax.axhspan(*PAPER_RMS_PCT, color="tab:red", alpha=0.12, label="paper (two-channel): 5–10 %")
+    ax.set_xticks(x, classes)
+    ax.set_ylabel("relative RMS of WV (%)")
+    ax.set_title("two- vs three-channel, same pixels (hatched: without noise)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[1][1]
+    winter = data["winter"]
+    tags = {"two": "two-channel", "three": f"{name} {var[head, 0]:g}/{var[head, 1]:g}",
+            "three_best": f"{name} {var[best, 0]:g}/{var[best, 1]:g}"}
+    bars = [(f"{tags[tag]}, {lut.split('_')[1]} LUT", winter[tag][lut]) for tag in winter
+            for lut in ("midlatitude_winter", "midlatitude_summer")]
+    width = 0.8 / len(bars)
+    for i, (label, vals) in enumerate(bars):
+        ax.bar(x + (i - (len(bars) - 1) / 2) * width, [vals[c] for c in classes], width, label=label)
+    ax.set_xticks(x, classes)
+    ax.set_ylabel("relative RMS of WV (%)")
+    ax.set_title("winter scenes (MLW truth)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[1][2]
+    surf = data["continuum_error_pct"]
+    names = list(surf["two"])
+    xs = np.arange(len(names))
+    ax.bar(xs - 0.2, [surf["two"][c] for c in names], 0.4, label="ρ(B8a) (two-channel)")
+    ax.bar(xs + 0.2, [surf["three"][c] for c in names], 0.4, label=f"linear B8a–{name} (three-channel)")
+    ax.set_xticks(xs, names)
+    ax.set_ylabel("mean |ρ_continuum − ρ(B9)| / ρ(B9) (%)")
+    ax.set_title(f"surface continuum error at B9 ({name} {var[head, 0]:g}/{var[head, 1]:g})", fontsize=9)
+    ax.set_ylim(0, 1.3 * max([*surf["two"].values(), *surf["three"].values(), 1e-9]))
+    ax.legend(fontsize=7, loc="upper left")
+    for ax in axes[1][3:]:
+        ax.axis("off")
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
 def plot_aerosol(data: Data, path: Path) -> Path:
     """DDV: AOT550 relative RMS against the correlation-factor error beside the calibration case, and per
     B1 variant as the blue band."""
@@ -299,6 +378,7 @@ def _ratio(values: list, nominal: float | None) -> np.ndarray:
 PLOTS: dict[str, Callable[[Data, Path], Path]] = {
     "cirrus": plot_cirrus,
     "water-vapour": plot_water_vapour,
+    "water-vapour-1020": plot_water_vapour_1020,
     "aerosol": plot_aerosol,
     "ozone": plot_ozone,
     "methane": plot_methane,
