@@ -64,16 +64,18 @@ class _Chain:
         self.setup, self.mix, self.pixels = setup, mixtures, st.pixels
         wvs = st.water_vapour or [setup.truth().water_vapour]
         self.states = [(float(wv), float(k)) for wv in wvs for k in st.co2_factors]
-        self.truth: list[AtmosphericTerms] = [
+        self.true_terms: list[AtmosphericTerms] = [
             setup.terms(setup.truth(water_vapour=wv)).with_gas_column(CO2, k) for wv, k in self.states]
         self.assumed = setup.terms(setup.assumed())
         f = np.tile(mixtures.f_npv, len(self.states))          # (n_states · n_mix,)
-        self.f_free, self.f_noisy = f, np.repeat(f, self.pixels)
+        self.f_noisy = np.repeat(f, self.pixels)
+        #: true f_NPV of the three outputs of :meth:`reflectance`
+        self.truth = (self.f_noisy, f, mixtures.f_npv)
 
     def reflectance(self, band: Band, weights: BandWeights, slot: int) -> tuple[np.ndarray, ...]:
         """Band reflectance: corrected, of every pixel (noisy, ``(n_states · n_mix · pixels,)``); corrected, of
         every mixture and state without noise (``(n_states · n_mix,)``); of the surface (``(n_mix,)``)."""
-        L = np.concatenate([band_radiance(t, self.mix.reflectance, weights) for t in self.truth])
+        L = np.concatenate([band_radiance(t, self.mix.reflectance, weights) for t in self.true_terms])
         t = band_terms([self.assumed], [weights])[0]
         noisy_L = noisy(self.setup, [band], L[None], [slot], self.pixels)[0]
         surface = apply(weights, self.mix.reflectance)
@@ -81,19 +83,18 @@ class _Chain:
 
     def ne_delta_rho(self, band: Band, weights: BandWeights) -> float:
         """Noise-equivalent reflectance (unitless) at the mixtures' mean band radiance: σ(L̄) / G_band."""
-        L = np.concatenate([band_radiance(t, self.mix.reflectance, weights) for t in self.truth])
+        L = np.concatenate([band_radiance(t, self.mix.reflectance, weights) for t in self.true_terms])
         a, b = band.noise_coefficients()
         g = band_terms([self.assumed], [weights])[0]["g"]
         return float(noise_sigma(L.mean(), a, b) / g[0])
 
 
-def score(chain: _Chain, index: Callable[..., np.ndarray], *bands: tuple[np.ndarray, ...]) -> Score:
-    """Linear regression of f_NPV on ``index`` of the bands' reflectances (each a :meth:`_Chain.reflectance`
-    triple): noisy pixels, noise-free, surface."""
-    fit = fit_polynomial(index(*(b[0] for b in bands)), chain.f_noisy, degree=1)
-    free = fit_polynomial(index(*(b[1] for b in bands)), chain.f_free, degree=1)
-    surface = fit_polynomial(index(*(b[2] for b in bands)), chain.mix.f_npv, degree=1)
-    return Score(fit.rms, fit.r2, free.rms, surface.rms, fit)
+def score(truth: tuple[np.ndarray, ...], index: Callable[..., np.ndarray], *bands: tuple[np.ndarray, ...]) -> Score:
+    """Linear regression of f_NPV on ``index`` of the bands' reflectances, each band a triple (noisy pixels,
+    noise-free, surface: :meth:`_Chain.reflectance`), against the matching true fractions ``truth``
+    (:attr:`_Chain.truth`)."""
+    fits = [fit_polynomial(index(*(b[k] for b in bands)), f, degree=1) for k, f in enumerate(truth)]
+    return Score(fits[0].rms, fits[0].r2, fits[1].rms, fits[2].rms, fits[0])
 
 
 def check(setup: StudySetup, variants: np.ndarray) -> None:
@@ -165,10 +166,10 @@ def run(setup: StudySetup) -> StudyResult:
     hi = chain.reflectance(shoulders[1], sh_w[1], SLOT_HIGH)
     scores, co2_signal, nedr = [], [], []
     for band, wt in zip(var_bands, var_w, strict=True):
-        scores.append(score(chain, cai, lo, chain.reflectance(band, wt, SLOT_21), hi))
+        scores.append(score(chain.truth, cai, lo, chain.reflectance(band, wt, SLOT_21), hi))
         co2_signal.append(gas_signal_fraction(chain.assumed, CO2, wt))
         nedr.append(chain.ne_delta_rho(band, wt))
-    base_score = score(chain, ndti, *(chain.reflectance(b, w, slot)
+    base_score = score(chain.truth, ndti, *(chain.reflectance(b, w, slot)
                                       for b, w, slot in zip(base, base_w, (SLOT_B11, SLOT_B12), strict=True)))
     shoulder_co2 = [gas_signal_fraction(chain.assumed, CO2, w) for w in sh_w]
     return _result(setup, chain, variants, scores, co2_signal, nedr, base_score, shoulder_co2, means)
