@@ -233,18 +233,12 @@ class StudySpec(_Section):
     @field_validator("npv_fractions", "green_fractions")
     @classmethod
     def _fractions(cls, values: list[float]) -> list[float]:
-        bad = [v for v in values if not (math.isfinite(v) and 0 <= v <= 1)]
-        if bad:
-            raise ValueError(f"fractions must be in [0, 1], got {bad[0]}")
-        return values
+        return _each_within(values, 0.0, 1.0, "fractions")
 
     @field_validator("co2_factors")
     @classmethod
     def _co2(cls, values: list[float]) -> list[float]:
-        bad = [v for v in values if not (math.isfinite(v) and 0 <= v <= MAX_GAS_FACTOR)]
-        if bad:
-            raise ValueError(f"CO2 column factors must be in [0, {MAX_GAS_FACTOR:g}], got {bad[0]}")
-        return values
+        return _each_within(values, 0.0, MAX_GAS_FACTOR, "CO2 column factors")
 
     @field_validator("shoulders")
     @classmethod
@@ -286,6 +280,14 @@ class StudySpec(_Section):
             if not scene:
                 raise ValueError(f"application {token(label)} names no scene")
         return values
+
+
+def _each_within(values: list[float], lo: float, hi: float, what: str) -> list[float]:
+    """``values`` if each is finite and in [lo, hi]; else a ValueError naming the first that is not."""
+    bad = [v for v in values if not (math.isfinite(v) and lo <= v <= hi)]
+    if bad:
+        raise ValueError(f"{what} must be in [{lo:g}, {hi:g}], got {bad[0]}")
+    return values
 
 
 class SceneSpec(_Section):

@@ -11,6 +11,11 @@ import numpy as np
 
 from s2cl.io.plots import pyplot, save_png
 
+#: Nagler et al.'s 2.1 µm band, 2091–2111 nm: its centre (nm)
+NAGLER_CENTRE_NM = 2101.0
+#: the heatmap's contour: the share of the band's signal CO₂ absorbs
+CO2_LEVEL = 0.05
+
 
 def plot_cellulose(data: dict[str, Any], path: Path) -> Path:
     plt = pyplot()
@@ -20,7 +25,8 @@ def plot_cellulose(data: dict[str, Any], path: Path) -> Path:
     best = int(data["best"])
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.3), dpi=110)
     _spectra(axes[0], data, variants[best])
-    _heatmap(fig, axes[1], variants, rms, best, float(data["base"]["rms"]))
+    co2 = np.asarray(data["co2_signal_fraction"], dtype=np.float64) if "co2_signal_fraction" in data else None
+    _heatmap(fig, axes[1], variants, rms, best, float(data["base"]["rms"]), co2)
     _per_width(axes[2], variants, rms, free, data["base"])
     fig.tight_layout()
     return save_png(fig, path)
@@ -38,25 +44,38 @@ def _spectra(ax: Any, data: dict[str, Any], best: np.ndarray) -> None:
                label=f"best 2.1 µm band {best[0]:g}/{best[1]:g}")
     ax.set_xlabel("wavelength (nm)")
     ax.set_ylabel("reflectance")
-    ax.legend(fontsize=7, loc="upper left")
+    ax.set_ylim(0, max(ax.get_ylim()[1], 0.55) * 1.25)   # room for the legends above the spectra
+    ax.legend(fontsize=7, loc="upper left", ncol=2)
     tx = ax.twinx()
     tx.plot(wl, data["co2_transmittance"], color="k", lw=0.7, label="CO₂ (6S)")
     tx.plot(wl, data["water_transmittance"], color="tab:blue", lw=0.6, ls=":", label="H₂O (6S)")
-    tx.set_ylim(0, 1.05)
+    tx.set_ylim(0, 1.3)
     tx.set_ylabel("two-way transmittance")
-    tx.legend(fontsize=7, loc="lower right")
+    tx.legend(fontsize=7, loc="upper right")
     ax.set_title("end-members, gases; shoulders grey", fontsize=9)
 
 
-def _heatmap(fig: Any, ax: Any, variants: np.ndarray, rms: np.ndarray, best: int, base: float) -> None:
-    """RMS of f_NPV on the centre × width grid; the best design circled."""
+def _on_grid(variants: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``values`` of the variants as a (width, centre) grid (NaN where a pair is not swept)."""
     centres, widths = np.unique(variants[:, 0]), np.unique(variants[:, 1])
     grid = np.full((widths.size, centres.size), np.nan)
-    for (c, w), r in zip(variants, rms, strict=True):
-        grid[np.searchsorted(widths, w), np.searchsorted(centres, c)] = r
+    for (c, w), v in zip(variants, values, strict=True):
+        grid[np.searchsorted(widths, w), np.searchsorted(centres, c)] = v
+    return centres, widths, grid
+
+
+def _heatmap(fig: Any, ax: Any, variants: np.ndarray, rms: np.ndarray, best: int, base: float,
+             co2: np.ndarray | None) -> None:
+    """RMS of f_NPV on the centre × width grid; the best design circled; where CO₂ takes 5 % of the signal."""
+    centres, widths, grid = _on_grid(variants, rms)
     im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis",
                    extent=(centres[0] - _half(centres), centres[-1] + _half(centres),
                            widths[0] - _half(widths), widths[-1] + _half(widths)))
+    if co2 is not None and centres.size > 1 and widths.size > 1:
+        _, _, loss = _on_grid(variants, 1 - co2)
+        if np.nanmin(loss) < CO2_LEVEL < np.nanmax(loss):
+            cs = ax.contour(centres, widths, loss, levels=[CO2_LEVEL], colors="w", linewidths=0.9, linestyles="--")
+            ax.clabel(cs, fmt={CO2_LEVEL: f"CO₂ takes {100 * CO2_LEVEL:g} %"}, fontsize=7)
     ax.plot(*variants[best], "o", mfc="none", mec="w", ms=10)
     fig.colorbar(im, ax=ax, label="RMS of f_NPV")
     ax.set_xlabel("2.1 µm band centre (nm)")
@@ -70,16 +89,22 @@ def _half(values: np.ndarray) -> float:
 
 
 def _per_width(ax: Any, variants: np.ndarray, rms: np.ndarray, free: np.ndarray, base: dict[str, Any]) -> None:
-    """Best RMS over centres at each width, noisy and noise-free, with the NDTI base."""
+    """Best RMS over centres at each width, noisy and noise-free; the same at the centre nearest Nagler's
+    2.1 µm band; the NDTI base."""
     widths = np.unique(variants[:, 1])
     noisy = [rms[variants[:, 1] == w].min() for w in widths]
     clean = [free[variants[:, 1] == w].min() for w in widths]
-    ax.plot(widths, noisy, "o-", label="CAI, with noise")
-    ax.plot(widths, clean, "s--", label="CAI, no noise")
+    ax.plot(widths, noisy, "o-", color="C0", label="CAI, best centre, with noise")
+    ax.plot(widths, clean, "s--", color="C0", label="CAI, best centre, no noise")
+    centre = variants[np.argmin(np.abs(variants[:, 0] - NAGLER_CENTRE_NM)), 0]
+    at = variants[:, 0] == centre
+    order = np.argsort(variants[at, 1])
+    ax.plot(variants[at, 1][order], rms[at][order], "o-", color="C1", ms=4, label=f"CAI at {centre:g} nm, with noise")
+    ax.plot(variants[at, 1][order], free[at][order], "s--", color="C1", ms=4, label=f"CAI at {centre:g} nm, no noise")
     ax.axhline(base["rms"], color="tab:red", ls=":", label="NDTI (B11, B12), with noise")
     ax.axhline(base["rms_noise_free"], color="tab:red", ls="-.", lw=0.8, label="NDTI, no noise")
     ax.set_ylim(bottom=0)
     ax.set_xlabel("2.1 µm band width (nm)")
-    ax.set_ylabel("RMS of f_NPV (best centre)")
+    ax.set_ylabel("RMS of f_NPV")
     ax.set_title("narrow vs wide", fontsize=9)
     ax.legend(fontsize=7)
