@@ -100,9 +100,22 @@ def _stability() -> dict:
             "applications": [app("IGRM", ["B5", "B6"], 5.0), app("SAM", ["B12"], 36.0)]}
 
 
+def _cellulose() -> dict:
+    wl = np.arange(1950.0, 2301.0)
+    variants = [[c, w] for c in (2080.0, 2100.0, 2120.0) for w in (10.0, 40.0)]
+    rms = np.linspace(0.12, 0.2, len(variants))
+    return {"variants": variants, "rms": rms.tolist(), "rms_noise_free": (rms - 0.01).tolist(), "best": 0,
+            "co2_signal_fraction": [0.7, 0.8, 0.97, 0.96, 1.0, 0.99],
+            "base": {"rms": 0.23, "rms_noise_free": 0.22}, "shoulders": [[2030.0, 20.0], [2210.0, 20.0]],
+            "wavelength_nm": wl.tolist(), "co2_transmittance": (1 - 0.5 * np.exp(-((wl - 2060) / 15) ** 2)).tolist(),
+            "water_transmittance": np.full(wl.size, 0.95).tolist(),
+            "mean_reflectance": {"soil": np.full(wl.size, 0.4).tolist(), "npv": (0.3 - 0.03 * np.exp(
+                -((wl - 2100) / 30) ** 2)).tolist()}}
+
+
 SYNTHETIC = {"cirrus": _cirrus, "water-vapour": _water_vapour, "water-vapour-1020": _water_vapour_1020,
              "aerosol": _aerosol, "ozone": _ozone,
-             "methane": _methane, "stability": _stability}
+             "methane": _methane, "stability": _stability, "cellulose": _cellulose}
 
 
 def _pixels(path: Path) -> np.ndarray:

@@ -9,8 +9,9 @@ for how the LUT gives them).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -103,3 +104,26 @@ class AtmosphericTerms:
         """Forward in reflectance units: pi L / (mu_s E0)."""
         return np.pi * self.toa_radiance(rho) / (self.mu_s * self.e0)
 
+
+    def with_gas_column(self, gas: str, factor: float) -> AtmosphericTerms:
+        """These terms with the column of ``gas`` scaled by ``factor`` (unitless; 0 removes the gas): its
+        optical depth −ln T scales by ``factor``, i.e. ``T → T**factor``.
+
+        Only a gas that all of the path radiance and the ground term carry (every gas but water: the LUT's
+        formula puts water above the aerosol, :mod:`s2cl.atmos.atmosphere`): then Lp, ρ_path and G scale by
+        ``T**(factor − 1)`` and S is unchanged, exactly for that formula. Scaling the optical depth is the
+        same assumption the LUT makes between solar-zenith nodes (ln T linear in the air mass); 6S's band
+        model is not exactly Beer's law, so a factor far from 1 is an approximation.
+        """
+        if gas not in self.transmittance or gas == "water":
+            allowed = ", ".join(g for g in self.transmittance if g != "water")
+            raise InputError(f"cannot scale {gas!r}; gases: {allowed}", key="gas")
+        if not (math.isfinite(factor) and factor >= 0):
+            raise InputError(f"must be a finite number >= 0, got {factor}", key="factor")
+        t = np.asarray(self.transmittance[gas], dtype=np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(t > 0, np.power(np.where(t > 0, t, 1.0), factor - 1.0), 0.0 if factor > 0 else 1.0)
+        trans = dict(self.transmittance)
+        trans[gas] = t * ratio
+        return replace(self, path_radiance=self.path_radiance * ratio, ground_term=self.ground_term * ratio,
+                       path_reflectance=self.path_reflectance * ratio, t_gas=self.t_gas * ratio, transmittance=trans)

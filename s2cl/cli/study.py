@@ -24,7 +24,8 @@ def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
     NAME: cirrus (B10, Fig. 4), water-vapour (B9 APDA), water-vapour-1020
           (three-channel APDA with a 1020 nm window), aerosol (DDV, B1),
           ozone (B1-B5, Fig. 5), methane (B11), stability (band drift vs
-          IGRM, GVMI, SAM errors); or a scene file with a [study] section.
+          IGRM, GVMI, SAM errors), cellulose (a 2.1 um band for the NPV
+          fraction, Sec. 5); or a scene file with a [study] section.
     """
     from rich.table import Table
 

@@ -20,6 +20,8 @@ from s2cl.sensor.srf import DEFAULT_SUPPORT
 UINT32_MAX = 2**32 - 1
 #: stability study: largest band-centre shift (nm) and width factor a [study] may ask for
 MAX_SHIFT_NM, MAX_WIDTH_FACTOR = 100.0, 5.0
+#: cellulose study: largest factor on a fixed gas's column a [study] may ask for
+MAX_GAS_FACTOR = 3.0
 #: a scene name is a folder name: no separators, no leading dot
 SCENE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
@@ -225,7 +227,8 @@ class StudySpec(_Section):
     """A study (``s2cl study NAME``): the paper's atmospheric-band studies vary the bands of the [sweep] section;
     ``stability`` drifts the bands of each scene in ``applications``."""
 
-    kind: Literal["cirrus", "water-vapour", "water-vapour-1020", "aerosol", "ozone", "methane", "stability"]
+    kind: Literal["cirrus", "water-vapour", "water-vapour-1020", "aerosol", "ozone", "methane", "stability",
+                  "cellulose"]
     reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
     targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
     spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
@@ -243,6 +246,14 @@ class StudySpec(_Section):
                           "requirement (0.1: +10 %)")
     window2: WindowSpec | None = Field(None, description="water-vapour-1020: the second window channel "
                                        "(name, noise_band, centres, widths, centre, width)")
+    npv_fractions: list[float] = Field(default_factory=list, description="cellulose: fractions of non-photosynthetic "
+                                       "vegetation in the soil + NPV (+ green) mixtures, each in [0, 1]")
+    green_fractions: list[float] = Field([0.0], min_length=1, description="cellulose: fractions of green vegetation "
+                                         "(targets.green), each in [0, 1]; the soil takes the rest")
+    shoulders: list[list[float]] = Field(default_factory=list, description="cellulose: the CAI's two fixed shoulder "
+                                         "bands [[centre, width], [centre, width]] (nm), below and above 2.1 um")
+    co2_factors: list[float] = Field([1.0], min_length=1, description="cellulose: true CO2 columns as factors of the "
+                                     "LUT's (6S's fixed profile); the correction assumes 1")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
     @field_validator("reflectance")
@@ -259,6 +270,31 @@ class StudySpec(_Section):
         bad = [v for v in values if not math.isfinite(v)]
         if bad:
             raise ValueError(f"values must be finite numbers, got {bad[0]}")
+        return values
+
+    @field_validator("npv_fractions", "green_fractions")
+    @classmethod
+    def _fractions(cls, values: list[float]) -> list[float]:
+        return _each_within(values, 0.0, 1.0, "fractions")
+
+    @field_validator("co2_factors")
+    @classmethod
+    def _co2(cls, values: list[float]) -> list[float]:
+        return _each_within(values, 0.0, MAX_GAS_FACTOR, "CO2 column factors")
+
+    @field_validator("shoulders")
+    @classmethod
+    def _shoulders(cls, values: list[list[float]]) -> list[list[float]]:
+        if not values:
+            return values
+        if len(values) != 2 or any(len(v) != 2 for v in values):
+            raise ValueError("give two shoulder bands as [[centre, width], [centre, width]] (nm)")
+        for centre, width in values:
+            if not (math.isfinite(centre) and math.isfinite(width) and width > 0):
+                raise ValueError(f"a shoulder needs a finite centre and a width > 0 nm, got [{centre}, {width}]")
+        if not values[0][0] < values[1][0]:
+            raise ValueError(f"the first shoulder must lie below the second, got centres {values[0][0]:g} and "
+                             f"{values[1][0]:g} nm")
         return values
 
     @field_validator("shifts_nm")
@@ -286,6 +322,14 @@ class StudySpec(_Section):
             if not scene:
                 raise ValueError(f"application {token(label)} names no scene")
         return values
+
+
+def _each_within(values: list[float], lo: float, hi: float, what: str) -> list[float]:
+    """``values`` if each is finite and in [lo, hi]; else a ValueError naming the first that is not."""
+    bad = [v for v in values if not (math.isfinite(v) and lo <= v <= hi)]
+    if bad:
+        raise ValueError(f"{what} must be in [{lo:g}, {hi:g}], got {bad[0]}")
+    return values
 
 
 class SceneSpec(_Section):

@@ -26,8 +26,9 @@ def run(setup: StudySetup) -> StudyResult:
     t_ch4 = terms.t_methane
     wl = setup.scene.grid.wavelengths
     radiance = {rho: terms.toa_radiance(np.full(wl.size, rho)) for rho in st.reflectance}
-    # correction without methane: all of Lp, and G, divided by T_CH4; S as the band's
-    lp_free, g_free = terms.path_radiance / t_ch4, terms.ground_term / t_ch4
+    # correction without methane: Lp and G with the CH4 column removed (both divided by T_CH4); S as the band's
+    free = terms.with_gas_column("methane", 0.0)
+    lp_free, g_free = free.path_radiance, free.ground_term
     rows, trans, errs = [], [], []
     for c, w in variants:
         wt = setup.weights(BAND, c, w)

@@ -1,7 +1,7 @@
 """The studies' figures, drawn from a study's JSON ``data`` alone (what :func:`s2cl.studies.run_study`
 writes into ``NAME.json``), so that :func:`replot` redraws ``NAME.png`` from a saved JSON without
-re-running the study. The study modules compute; only this module and its per-subject companions
-(:mod:`s2cl.studies.water_vapour_plots`) draw (matplotlib, Agg).
+re-running the study. The study modules compute; only this module and the ``*_plots.py`` modules it
+registers draw (matplotlib, Agg).
 
 Every ``plot_NAME(data, path)`` takes the data dict as saved (keys that were numbers are strings after
 the JSON round trip; in-memory dicts with float keys work too) and writes a PNG to ``path``.
@@ -20,6 +20,7 @@ import numpy as np
 from s2cl.errors import InputError
 from s2cl.io.plots import pyplot, save_png
 from s2cl.studies.aerosol import PAPER_DOMINANT_ABOVE
+from s2cl.studies.cellulose_plots import plot_cellulose
 from s2cl.studies.cirrus_report import PAPER_CHANGE_PCT
 from s2cl.studies.cirrus_spikes import SINGLE_SPIKE_NM
 from s2cl.studies.methane import PAPER_MAX_PCT
@@ -255,6 +256,7 @@ PLOTS: dict[str, Callable[[Data, Path], Path]] = {
     "ozone": plot_ozone,
     "methane": plot_methane,
     "stability": plot_stability,
+    "cellulose": plot_cellulose,
 }
 """Study kind (the ``study`` key of ``NAME.json``) → its figure."""
 
