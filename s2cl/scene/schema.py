@@ -119,8 +119,20 @@ class RangeSpec(_Section):
     width: float | None = Field(None, gt=0)
 
 
+class AddSpec(RangeSpec):
+    """A band-addition sweep's one added band (not a band of the sensor): its name, the sensor band whose
+    radiometry (Lmin, Lmax, SNR table at that band's own width) it takes, and where it moves (any form of
+    :class:`RangeSpec`); the [sweep] bands are then the fixed base set (s2cl.sweep.addition)."""
+
+    name: str = Field(min_length=1, description="name of the added band (1-32 letters, digits, '_' or '-'; "
+                      "not a band of the sensor), e.g. 'N2300'")
+    like: str = Field(min_length=1, description="sensor band whose radiometry the added band takes (noise "
+                      "rescaled to each width as for any swept band)")
+
+
 class SweepSpec(_Section):
-    bands: list[str] = Field(min_length=1, description="swept bands, in fit order")
+    bands: list[str] = Field(min_length=1, description="swept bands, in fit order (with [sweep.add]: the fixed base "
+                             "set; the added band is analysed after them)")
     preset: Literal["none", "table2"] = Field("none", description="take unlisted ranges from the paper's Table 2")
     step_nm: float = Field(5.0, gt=0, le=100)
     ranges: dict[str, RangeSpec] = Field(default_factory=dict)
@@ -128,6 +140,8 @@ class SweepSpec(_Section):
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
+    add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
+                                "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
 
 
 #: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), SAM
