@@ -189,3 +189,21 @@ def test_an_igrm_addition_flags_exactly_what_the_design_rule_refuses() -> None:
     np.testing.assert_allclose(rows["gain"], job.addition["base_score"] - rows["rms"])
 
 # }}}
+# {{{ surface.select: the low-chlorophyll end of a library (the 620 nm scene)
+
+
+def test_select_keeps_the_spectra_whose_parameter_lies_in_the_range() -> None:
+    from s2cl.forward.simulate import scene_library
+
+    lib = scene_library(_scene(VEG, **{"surface.select": {"cab": [0.0, 25.0]}, "sweep": None}))
+    assert lib.size == 5 * 2 * 3 and set(lib.params["cab"]) == {5.0, 10.0, 15.0, 20.0, 25.0}
+    with pytest.raises(InputError) as err:
+        scene_library(_scene(VEG, **{"surface.select": {"chl": [0.0, 25.0]}, "sweep": None}))
+    assert err.value.key == "surface.select.chl" and "it has cab, ewt, lai" in str(err.value)
+    with pytest.raises(InputError, match="no spectrum of the library lies in these ranges"):
+        scene_library(_scene(VEG, **{"surface.select": {"cab": [200.0, 300.0]}, "sweep": None}))
+    with pytest.raises(InputError, match=r"must be \[low, high\]") as err:
+        _scene(VEG, **{"surface.select": {"cab": [25.0, 0.0]}})
+    assert err.value.key == "surface.select"
+
+# }}}

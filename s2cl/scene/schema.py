@@ -50,6 +50,16 @@ class SurfaceSpec(_Section):
     )
     copies: int = Field(100, ge=1, le=1_000_000, description="noisy copies of each library spectrum")
     layout: Literal["rows", "blocks"] = Field("rows", description="image layout of the copies")
+    select: dict[str, list[float]] = Field(default_factory=dict, description="keep the library's spectra whose "
+                                           "parameter lies in [low, high] (inclusive), e.g. cab = [0, 25]")
+
+    @field_validator("select")
+    @classmethod
+    def _select(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
+        for name, bounds in value.items():
+            if len(bounds) != 2 or not all(math.isfinite(v) for v in bounds) or bounds[0] > bounds[1]:
+                raise ValueError(f"select.{name} must be [low, high] with finite low <= high, got {bounds}")
+        return value
 
 
 class SensorSpec(_Section):
