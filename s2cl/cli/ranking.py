@@ -15,9 +15,14 @@ def report_sweep(digest: Any, summary: dict[str, Any], folder: Path, bands: list
     """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder`` from the
     results' :class:`~s2cl.sweep.digest.Digest`; print the ranking and the paper-style table; return the
     files written."""
+    from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
     from s2cl.sweep.report import heatmap, write_summary
 
     plots = _paper(digest, summary, folder)
+    record = addition_of(digest.meta)
+    if record is not None and digest.ranked:
+        summary["addition"] = summarise_addition(digest, summary, record)
+        plots += gain_plots(digest, record, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
     written += [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
@@ -105,7 +110,8 @@ def _print_sweep(summary: dict[str, Any]) -> None:
     if metric == "rms":
         table.add_column("bound_fraction", justify="right")
         table.add_column("converged", justify="right")
-    rows = [("reference", summary["reference"])] if "reference" in summary else []
+    label = "base" if "addition" in summary else "reference"
+    rows = [(label, summary["reference"])] if "reference" in summary else []
     rows += [(f"#{i + 1}", e) for i, e in enumerate(summary["top"][:5])]
     for label, e in rows:
         table.add_row(label, *_ranking_cells(e, bands, metric))
@@ -115,7 +121,7 @@ def _print_sweep(summary: dict[str, Any]) -> None:
 
 def _ranking_cells(e: dict[str, Any], bands: list[str], metric: str) -> list[str]:
     """One ranking row: each band's centre/width, the metric, its robust twin and the failure fractions."""
-    cells = [f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
+    cells = ["–" if e["bands"][b][0] is None else f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
     cells += [f"{e[metric]:.3g}", f"{e.get('robust_rms', e.get('overall_accuracy_pct', float('nan'))):.3g}",
               f"{e['failed_fraction']:.2%}"]
     if metric == "rms":
@@ -132,6 +138,14 @@ def _print_ranking_notes(summary: dict[str, Any]) -> None:
         fate = "kept in the ranking, flagged" if u.get("ranking") == "keep" else "left out of the ranking"
         click.echo(f"{u['count']:,} configurations are underdetermined (the analysis cannot fit them"
                    + (f"; bands on one centre: {which}" if which else "") + f"): {fate}")
-    if "reference" in summary:
+    add = summary.get("addition")
+    if add is not None:
+        click.echo(f"base = {', '.join(add['base_bands'])} alone: {add['metric']} {add['base_score']:.4g}; "
+                   f"{add['candidates_better']:,} of {add['candidates']:,} added {add['band']} bands do better")
+        if "best" in add:
+            b = add["best"]
+            click.echo(f"best added band: {add['band']} {b['centre_nm']:g}/{b['width_nm']:g} nm, {add['metric']} "
+                       f"{b[add['metric']]:.4g}, gain {b['gain']:.4g} over the base set")
+    elif "reference" in summary:
         click.echo(f"reference = the sensor's own bands; {summary['reference']['configurations_better']:,} "
                    "configurations do better")

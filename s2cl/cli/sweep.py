@@ -132,7 +132,8 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
     if scheduler:
         reach_scheduler(scheduler)
     t0 = time.perf_counter()
-    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics)
+    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics,
+                     device=device)
     check_folder(job, out, overwrite=overwrite)
     if not (workers or scheduler):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made

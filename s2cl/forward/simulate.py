@@ -274,7 +274,21 @@ def scene_library(scene: Scene, *, budget: Budget | None = None) -> SpectralLibr
     if lib.quantity != want:
         raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
                          source=scene.source, key="surface.quantity")
-    return lib
+    return _selected(scene, lib)
+
+
+def _selected(scene: Scene, lib: SpectralLibrary) -> SpectralLibrary:
+    """The spectra of ``lib`` whose parameters lie in the scene's ``surface.select`` ranges (all without one)."""
+    keep = np.ones(lib.size, dtype=bool)
+    for name, (low, high) in scene.spec.surface.select.items():
+        if name not in lib.params:
+            raise InputError(f"library has no parameter {name!r}; it has {', '.join(sorted(lib.params)) or 'none'}",
+                             source=scene.source, key=f"surface.select.{name}")
+        keep &= (lib.params[name] >= low) & (lib.params[name] <= high)
+    if not keep.any():
+        raise InputError("no spectrum of the library lies in these ranges", source=scene.source,
+                         key="surface.select")
+    return lib if keep.all() else lib.subset(np.flatnonzero(keep))
 
 
 def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:

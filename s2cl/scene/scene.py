@@ -203,6 +203,9 @@ def _check_surface(spec: SceneSpec, source: str) -> None:
         raise InputError(f"layout 'blocks' lays each spectrum's copies out as a square tile: copies must be a square "
                          f"number (such as {root * root} or {(root + 1) ** 2}), got {s.copies}", source=source,
                          key="surface.copies")
+    if s.cube is not None and s.select:
+        raise InputError("surface.select picks library spectra by parameter; an image cube has none",
+                         source=source, key="surface.select")
     if s.cube is not None and s.gsd_m is None:
         raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
                          source=source, key="surface.gsd_m")

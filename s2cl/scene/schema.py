@@ -53,6 +53,16 @@ class SurfaceSpec(_Section):
     )
     copies: int = Field(100, ge=1, le=1_000_000, description="noisy copies of each library spectrum")
     layout: Literal["rows", "blocks"] = Field("rows", description="image layout of the copies")
+    select: dict[str, list[float]] = Field(default_factory=dict, description="keep the library's spectra whose "
+                                           "parameter lies in [low, high] (inclusive), e.g. cab = [0, 25]")
+
+    @field_validator("select")
+    @classmethod
+    def _select(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
+        for name, bounds in value.items():
+            if len(bounds) != 2 or not all(math.isfinite(v) for v in bounds) or bounds[0] > bounds[1]:
+                raise ValueError(f"select.{name} must be [low, high] with finite low <= high, got {bounds}")
+        return value
 
 
 class SensorSpec(_Section):
@@ -122,8 +132,20 @@ class RangeSpec(_Section):
     width: float | None = Field(None, gt=0)
 
 
+class AddSpec(RangeSpec):
+    """A band-addition sweep's one added band (not a band of the sensor): its name, the sensor band whose
+    radiometry (Lmin, Lmax, SNR table at that band's own width) it takes, and where it moves (any form of
+    :class:`RangeSpec`); the [sweep] bands are then the fixed base set (s2cl.sweep.addition)."""
+
+    name: str = Field(min_length=1, description="name of the added band (1-32 letters, digits, '_' or '-'; "
+                      "not a band of the sensor), e.g. 'N2300'")
+    like: str = Field(min_length=1, description="sensor band whose radiometry the added band takes (noise "
+                      "rescaled to each width as for any swept band)")
+
+
 class SweepSpec(_Section):
-    bands: list[str] = Field(min_length=1, description="swept bands, in fit order")
+    bands: list[str] = Field(min_length=1, description="swept bands, in fit order (with [sweep.add]: the fixed base "
+                             "set; the added band is analysed after them)")
     preset: Literal["none", "table2"] = Field("none", description="take unlisted ranges from the paper's Table 2")
     step_nm: float = Field(5.0, gt=0, le=100)
     ranges: dict[str, RangeSpec] = Field(default_factory=dict)
@@ -131,6 +153,8 @@ class SweepSpec(_Section):
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
+    add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
+                                "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
 
 
 #: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), SAM

@@ -36,6 +36,8 @@ class Checked:
     analysis: AnalysisSettings | None
     analysis_bands: list[str] = field(default_factory=list)
     caveats: list[Caveat] = field(default_factory=list)
+    #: a band-addition sweep's base set and the analysis that scores it alone (s2cl.sweep.addition)
+    base: Any = None
 
 
 def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
@@ -68,9 +70,13 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
     _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
     analysis = _analysis(scene, space.bands, library)
     check_fittable(scene, space, analysis)
+    from s2cl.sweep.addition import check_base
+
+    base = check_base(scene, space, library)  # an addition sweep: its base set scorable alone
     _atmosphere(scene)
-    caveats = _caveats(scene, space, space.bands) + srf_caveats(scene, list(space.bands))
-    return Checked(scene, library, space, analysis, list(space.bands), caveats)
+    known = [b for b in space.bands if base is None or b != base.added]  # the added band has the model SRF
+    caveats = _caveats(scene, space, known) + srf_caveats(scene, known)
+    return Checked(scene, library, space, analysis, list(space.bands), caveats, base)
 
 
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:

@@ -36,6 +36,7 @@ from s2cl.resources import code_fingerprint
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
 from s2cl.status import REGRESS_NAMES
+from s2cl.sweep.addition import META_KEY as ADDITION_META
 from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_chunk
 from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
@@ -63,6 +64,10 @@ class SweepJob:
     scene_text: str = ""
     #: ranking policy for designs the analysis cannot fit ("exclude" or "keep"; sweep.underdetermined)
     underdetermined: str = "exclude"
+    #: a band-addition sweep (s2cl.sweep.addition): the base set's row of metrics, and the record of the
+    #: addition (added band, base bands, metric, base score) from which each row's ``gain`` is taken
+    base_row: dict[str, Any] | None = None
+    addition: dict[str, Any] | None = None
 
     @property
     def n_configs(self) -> int:
@@ -77,6 +82,8 @@ class SweepJob:
         # the chunk is not part of the identity: a configuration's metrics do not depend on its chunk
         # (s2cl.retrieve.metrics), and a resumed sweep keeps the chunk of its manifest (resumable_chunk)
         h.update(repr((self.analysis, self.precision, __version__, code_fingerprint())).encode())
+        if self.addition is not None:
+            h.update(json.dumps(self.addition, sort_keys=True).encode())
         return h.hexdigest()
 
     def columns(self) -> list[str]:
@@ -130,6 +137,8 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
     m = metrics(start, stop) if metrics else host_metrics(a, ev(start, stop), t.target, len(t.class_names))
     for k, v in m.items():
         rows[k] = np.asarray(v)
+    if job.addition is not None:  # a band-addition sweep: the gain over the base set alone (positive: better)
+        rows["gain"] = job.addition["base_score"] - rows[job.addition["metric"]]
     return rows
 
 
@@ -245,6 +254,8 @@ def merge_results(job: SweepJob, out: Path) -> Path:
             b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode(),
             b"underdetermined": job.underdetermined.encode(),
             b"regress": json.dumps([REGRESS_LABELS[c] for c in job.analysis.regress]).encode()}
+    if job.addition is not None:
+        meta[ADDITION_META.encode()] = json.dumps(job.addition).encode()
     return merge_chunks(out, [lo for lo, _ in job.chunks()], meta)
 
 

@@ -15,8 +15,10 @@ from s2cl.retrieve.design import count_underdetermined
 from s2cl.scene.scene import Scene
 from s2cl.scene.validate import Checked, check_sweep
 from s2cl.sensor.variants import BandRange, SweepSpace
+from s2cl.sweep.addition import base_reference, check_base_score, meta_of
 from s2cl.sweep.budget import Budget, sweep_resources
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.space import addition_scene
 from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
 
 
@@ -28,19 +30,27 @@ def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
 
 
 def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | None = None,
-               budget: Budget | None = None, host_metrics: bool = True) -> SweepJob:
+               budget: Budget | None = None, host_metrics: bool = True, device: str | None = None) -> SweepJob:
     """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.scene.validate`),
     its memory estimated against ``budget`` before the tables are built (``host_metrics``: see
-    :func:`s2cl.sweep.budget.sweep_resources`), the chunk chosen to fit."""
+    :func:`s2cl.sweep.budget.sweep_resources`), the chunk chosen to fit. A band-addition sweep's base set is
+    scored here, on ``device`` (:func:`fixed_row`), and the job carries it (each row's ``gain``)."""
     checked = checked or check_sweep(scene)
     plan = sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics)
     assert checked.space is not None and checked.analysis is not None
-    tables = _tables(scene, checked.space, checked.analysis, checked.library)
+    tables_scene = addition_scene(scene)  # with [sweep.add]: the added band in the sensor
+    tables = _tables(tables_scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
     run = scene.run
-    return SweepJob(tables, checked.analysis, chunk=plan.chunk, precision=run.precision, lanes=run.lanes,
-                    device=run.device, scene_name=scene.name, scene_text=text,
-                    underdetermined=scene.spec.sweep.underdetermined)
+    job = SweepJob(tables, checked.analysis, chunk=plan.chunk, precision=run.precision, lanes=run.lanes,
+                   device=run.device, scene_name=scene.name, scene_text=text,
+                   underdetermined=scene.spec.sweep.underdetermined)
+    base = checked.base
+    if base is None:
+        return job
+    row = fixed_row(tables_scene, job, base.space, base.analysis, checked.library, device)
+    score = check_base_score(scene, row, base.analysis)
+    return replace(job, base_row=row, addition=meta_of(base, score))
 
 
 def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
@@ -50,12 +60,22 @@ def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int 
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
-    """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise."""
+    """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise; for a
+    band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`)."""
+    if job.base_row is not None:
+        return base_reference(job.base_row, job.addition["band"])
     fixed = SweepSpace(tuple(BandRange.fixed(b, scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm)
                              for b in job.tables.bands)).validate(scene.source)
-    tables = _tables(scene, fixed, job.analysis)
-    ref = replace(job, tables=tables, chunk=1)
-    rows = evaluate_chunk(ref, 0, 1, device)
+    return fixed_row(scene, job, fixed, job.analysis, device=device)
+
+
+def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
+              library: SpectralLibrary | None = None, device: str | None = None) -> dict[str, Any]:
+    """Metrics of the one configuration of ``space`` (fixed bands) scored by ``analysis``, with ``job``'s library,
+    atmosphere, noise deviates (keyed by each band's index in ``scene``'s sensor), precision and device."""
+    tables = _tables(scene, space, analysis, library)
+    one = replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None)
+    rows = evaluate_chunk(one, 0, 1, device)
     return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
 
 

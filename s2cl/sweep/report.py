@@ -186,12 +186,14 @@ def _label(value: Any) -> str:
     return value if isinstance(value, str) else f"{value:g}"
 
 
-def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
-               digits: int | None = None) -> Any:
+def draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
+              digits: int | None = None, best: str = "min") -> Any:
     """Centre × width table ``values`` on ``ax``: cells written where there are at most 150, the
-    lowest boxed in red; its own colour scale. Returns the image (for a colour bar)."""
+    best (``best``: the lowest, or with ``"max"`` the highest, e.g. a gain) boxed in red; its own colour scale
+    (the best end dark). Returns the image (for a colour bar)."""
     plt = pyplot()
-    im = ax.imshow(values, origin="lower", aspect="auto", cmap="viridis_r", interpolation="nearest")
+    cmap = "viridis_r" if best == "min" else "viridis"
+    im = ax.imshow(values, origin="lower", aspect="auto", cmap=cmap, interpolation="nearest")
     ax.set_xticks(range(len(widths)), [_label(w) for w in widths], fontsize=fontsize,
                   rotation=90 if any("–" in _label(w) for w in widths) else 0)
     ax.set_yticks(range(len(centres)), [_label(c) for c in centres], fontsize=fontsize)
@@ -204,10 +206,12 @@ def _draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str
             spread = np.ptp(finite) if finite.size else 0.0
             digits = 1 if spread >= 2 else (2 if spread >= 0.2 else 3)
         for i, j in zip(*np.nonzero(np.isfinite(values)), strict=True):
+            dark = values[i, j] > mid if best == "min" else values[i, j] < mid
             ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=fontsize - 1,
-                    color="white" if values[i, j] > mid else "black")
+                    color="white" if dark else "black")
     if finite.size:
-        i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        pick = np.nanargmin if best == "min" else np.nanargmax
+        i, j = np.unravel_index(pick(values), values.shape)
         ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2))
     return im
 
@@ -223,7 +227,7 @@ def heatmap(data: Any, band: str, path: str | Path, *, metric: str | None = None
     # cells shrink when there are many (at most 60 × 40: about 1,700 × 2,000 pixels)
     cell_w, cell_h = (0.62 if len(widths) <= 20 else 0.32), (0.42 if len(centres) <= 30 else 0.26)
     fig, ax = pyplot().subplots(figsize=(1.0 + cell_w * len(widths), 1.2 + cell_h * len(centres)), dpi=120)
-    im = _draw_grid(ax, centres, widths, values, band, fontsize=8)
+    im = draw_grid(ax, centres, widths, values, band, fontsize=8)
     fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
     grouped = f"; cells group {gc} centres × {gw} widths" if gc * gw > 1 else ""
     ax.set_title(title or f"{band}: {metric} (best over the other bands{grouped}; red: best)", fontsize=9)
@@ -352,7 +356,7 @@ def heatmap_vs_paper(comparison: dict[str, Any], path: str | Path) -> Path:
     grids = {"s2cl": np.array(comparison["s2cl"], dtype=float), "Segl et al. 2012": np.array(comparison["paper"])}
     fig, axes = pyplot().subplots(1, 2, figsize=(2.0 + 1.1 * len(pw), 1.4 + 0.38 * len(pc)), dpi=110)
     for ax, (label, v) in zip(axes, grids.items(), strict=True):
-        im = _draw_grid(ax, pc, pw, v, comparison["band"], fontsize=7, digits=1)
+        im = draw_grid(ax, pc, pw, v, comparison["band"], fontsize=7, digits=1)
         fig.colorbar(im, ax=ax, fraction=0.05)
         ax.set_title(f"{label}: {comparison['metric']} {comparison['unit']}".strip(), fontsize=8)
     fig.tight_layout()

@@ -28,72 +28,10 @@ from s2cl.forward.resample import AtmosphereArrays
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.scene import Scene
 from s2cl.sensor.noise_model import noise_sigma
-from s2cl.sensor.sensor import Band
-from s2cl.sensor.variants import TABLE2, BandGrid, BandRange, SweepSpace
+from s2cl.sensor.variants import SweepSpace
+from s2cl.sweep.space import sweep_space
 
-
-def sweep_space(scene: Scene) -> SweepSpace:
-    """The scene's [sweep] section as a :class:`SweepSpace` (bands checked against the sensor)."""
-    spec = scene.spec.sweep
-    if spec is None:
-        raise InputError("the scene has no [sweep] section", source=scene.source, key="sweep")
-    ranges = []
-    for name in spec.bands:
-        band = _sensor_band(scene, name, "sweep.bands")
-        r = spec.ranges.get(name) or spec.ranges.get(band.name)
-        if r is None:
-            if spec.preset == "table2" and band.name in TABLE2:
-                ranges.append(BandRange(band.name, *map(float, TABLE2[band.name]), step_nm=spec.step_nm))
-                continue
-            raise InputError(f"no range for band {name}: give [sweep.ranges.{name}] or preset = 'table2'",
-                             source=scene.source, key=f"sweep.ranges.{name}")
-        window = [v is not None for v in (r.left, r.right, r.min_width, r.max_width)]
-        if r.centres is not None or r.widths is not None:
-            if r.centres is None or r.widths is None or any(window) or r.centre is not None or r.width is not None:
-                raise InputError("a grid band gives centres and widths only", source=scene.source,
-                                 key=f"sweep.ranges.{name}")
-            ranges.append(BandGrid(band.name, tuple(r.centres), tuple(r.widths)))
-            continue
-        if r.centre is not None or r.width is not None:
-            if r.centre is None or r.width is None or any(window):
-                raise InputError("a fixed band gives centre and width only", source=scene.source,
-                                 key=f"sweep.ranges.{name}")
-            ranges.append(BandRange.fixed(band.name, r.centre, r.width))
-            continue
-        missing = [k for k in ("left", "right", "min_width", "max_width") if getattr(r, k) is None]
-        if missing:
-            raise InputError(f"missing {', '.join(missing)} (or give centres and widths for a grid, or centre and "
-                             "width for a fixed band)",
-                             source=scene.source, key=f"sweep.ranges.{name}")
-        ranges.append(BandRange(band.name, r.left, r.right, r.min_width, r.max_width, step_nm=spec.step_nm))
-    unknown = set(spec.ranges) - set(spec.bands)
-    if unknown:
-        raise InputError(f"ranges for bands not swept: {', '.join(sorted(unknown))}", source=scene.source,
-                         key="sweep.ranges")
-    space = SweepSpace(tuple(ranges)).validate(scene.source)
-    _check_on_grid(scene, space)
-    return space
-
-
-def _check_on_grid(scene: Scene, space: SweepSpace) -> None:
-    """Every variant's model SRF (centre ± sensor.support × width) inside the scene's grid: the one check that
-    ``sweep count``, ``simulate`` and ``optimise`` share (:func:`s2cl.scene.validate.check_sweep`), before any
-    table is built."""
-    grid, support = scene.grid, scene.run.support
-    for r in space.ranges:
-        lo, hi = r.support_extent(support)
-        if not grid.covers(lo, hi):
-            raise InputError(f"the variants' SRFs (centre ± {support:g} × width, sensor.support) reach {lo:g}–{hi:g} "
-                             f"nm, outside the spectral grid {grid.describe()}; move or narrow the band's range, or "
-                             "widen the grid", source=scene.source, key=f"sweep.ranges.{r.band}")
-
-
-def _sensor_band(scene: Scene, name: str, key: str) -> Band:
-    try:
-        return scene.sensor.band(name)
-    except InputError:
-        raise InputError(f"sensor has no band {name!r}; bands: {', '.join(scene.sensor.band_names)}",
-                         source=scene.source, key=key) from None
+__all__ = ["SweepTables", "build_tables", "sweep_space"]
 
 
 @dataclass(frozen=True, eq=False)
