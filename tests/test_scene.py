@@ -112,3 +112,18 @@ def test_sensor_file_in_scene(tmp_path) -> None:
     with pytest.raises(InputError) as err:
         _load(tmp_path, '[scene]\nname = "t"\n[surface]\nlibrary = "l.csv"\n[sensor]\nfile = "s.csv"\n')
     assert "s.csv" in str(err.value) and "X1.fwhm_nm" in str(err.value)
+
+
+def test_results_name_scenes_without_machine_folders(tmp_path, monkeypatch) -> None:
+    """Result files (study JSONs) name a scene portably: built-in as scenes/NAME.toml, below the working
+    folder relative to it, elsewhere by file name alone."""
+    builtin = Scene.load("default")
+    assert builtin.portable_source == "scenes/default.toml"
+    own = tmp_path / "mine" / "s.toml"
+    own.parent.mkdir()
+    own.write_text(builtin.path.read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    assert Scene.load(own).portable_source == "mine/s.toml"
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert Scene.load(own).portable_source == "s.toml"

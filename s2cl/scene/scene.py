@@ -51,6 +51,19 @@ class Scene:
         return str(self.path) if self.path else f"scene {self.name!r}"
 
     @property
+    def portable_source(self) -> str:
+        """The scene as a result file should name it, without this machine's folders: ``scenes/NAME.toml``
+        for a built-in scene, the path relative to the working folder where it lies below it, else the
+        file's name."""
+        if not self.path:
+            return self.source
+        path = self.path.resolve()
+        for base, prefix in ((scene_dir().resolve(), "scenes"), (Path.cwd().resolve(), "")):
+            if path.is_relative_to(base):
+                return str(Path(prefix) / path.relative_to(base)) if prefix else str(path.relative_to(base))
+        return path.name
+
+    @property
     def output_dir(self) -> Path:
         d = self.spec.output.directory
         return self.resolve(d) if d else Path("s2cl-out") / self.name

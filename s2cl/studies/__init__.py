@@ -75,7 +75,7 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
                      writes=(f"{stem}.json", f"{stem}.png"))
     result = STUDIES[stem](setup)
     with claim(out):
-        payload = {"study": stem, **result.to_json(), "scene": scene.source, "quick": quick,
+        payload = {"study": stem, **result.to_json(), "scene": scene.portable_source, "quick": quick,
                    "s2cl_version": __version__}
         js = write_json(out / f"{stem}.json", payload)
         png = replot(js, out / f"{stem}.png")
