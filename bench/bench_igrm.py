@@ -83,12 +83,28 @@ def population(kind: str, n: int, bands: tuple[str, ...]) -> np.ndarray:
     return np.ascontiguousarray(y64, dtype=np.float32)
 
 
-def _timed(fit: Callable[[np.ndarray], IgrmResult], y: np.ndarray, ref: IgrmResult, repeat: int
-           ) -> tuple[float, dict[str, Any], IgrmResult]:
-    """Fits/s of ``fit`` on ``y`` (after one untimed call), its accuracy against ``ref`` and its result."""
+def lane_use(iterations: np.ndarray, lanes: int) -> float:
+    """Share of the vector work that advances a fit: pixels run ``lanes`` at a time in lock-step until the
+    slowest of them stops, so the share is mean iterations ÷ mean of each lane group's maximum (what lane
+    refill could win back at most)."""
+    it = np.asarray(iterations, dtype=np.float64)
+    groups = it[: it.size // lanes * lanes].reshape(-1, lanes)
+    return float(groups.mean() / groups.max(axis=1).mean()) if groups.size else float("nan")
+
+
+def _timed(fit: Callable[[np.ndarray], IgrmResult], y: np.ndarray, ref: IgrmResult, repeat: int,
+           lanes: int = 1) -> tuple[float, dict[str, Any], IgrmResult]:
+    """Fits/s of ``fit`` on ``y`` (after one untimed call), its accuracy against ``ref`` and its result;
+    ``lanes``: pixels per work-item in lock-step (the lane use is recorded where above 1)."""
     r = fit(y)
     accuracy = {"frac_at_float64_optimum": float(at_optimum(r, ref).mean()),
                 "mean_iterations": float(r.iterations.mean()), "status_counts": r.counts()}
+    if lanes > 1:
+        accuracy["lane_use"] = lane_use(r.iterations, lanes)
+        missed = ~at_optimum(r, ref)
+        l0_min = IgrmSettings().l0_min_nm
+        accuracy["missed"] = [{"status": int(r.status[i]), "lp_error_nm": float(abs(float(r.lp[i]) - ref.lp[i])),
+                               "l0_on_bound": bool(r.l0[i] <= l0_min + 1e-3)} for i in np.flatnonzero(missed)[:20]]
     return y.shape[1] / median_time(lambda: fit(y), repeat), accuracy, r
 
 
@@ -107,7 +123,7 @@ def igrm_baseline(ctx: Context, n: int, n_scipy: int, n_numpy: int, bands: tuple
     lm = IgrmFitter(get_runtime(), len(bands), IgrmSettings(solver="lm"))
     launch, n_kernel = kernel_launcher(fast, y, wl)
     s2cl_, scipy_ = "s2cl OpenCL float32 (lanes, own exp)", "scipy least_squares trf per pixel (sampled, extrapolated)"
-    measured = {s2cl_: _timed(lambda v: fast.fit(v, wl), y, ref, ctx.repeat),
+    measured = {s2cl_: _timed(lambda v: fast.fit(v, wl), y, ref, ctx.repeat, lanes=fast.types.lanes),
                 "s2cl OpenCL float32 kernel alone (data on the device)":
                     (n_kernel / median_time(launch, ctx.repeat, warmup=1), {}, None),
                 "s2cl OpenCL float32 plain (1 lane, builtin exp)": _timed(lambda v: plain.fit(v, wl), y, ref, 1),
@@ -144,6 +160,9 @@ def main() -> None:
             case = igrm_baseline(ctx, args.n, args.n_scipy, args.n_numpy or args.n, names, kind)
             print_comparison(case)
             print("float32 - float64 |d lp| quantiles (nm):", case["float32_vs_float64"]["lp"])
+            fast_row = case["rows"][0]
+            print(f"lane use {fast_row['lane_use']:.1%} (mean iterations / slowest lane's); fits off the float64 "
+                  f"optimum: {fast_row['missed'][:5]}")
             result["cases"].append(case)
     print("wrote", write_json("igrm.json", result))
 

@@ -86,7 +86,8 @@ def test_chunks_and_work_groups_give_identical_bits(rt) -> None:
         assert np.array_equal(r(spectra, chunk_pixels=chunk, local_size=local), base)
 
 
-@pytest.mark.parametrize(("centre", "fwhm"), [(1000.0, 1.0), (1000.0, 0.3), (1450.0, 1000.0), (401.0, 1.0)])
+@pytest.mark.parametrize(("centre", "fwhm"), [(1000.0, 1.0), (1000.0, 0.3), (1450.0, 1000.0), (401.0, 1.0),
+                                              (2499.0, 1.0), (2490.0, 7.0)])
 def test_extreme_band_widths(rt, real_t: str, centre: float, fwhm: float) -> None:
     w = band_weights(DEFAULT_GRID, name="x", centre_nm=centre, fwhm_nm=fwhm)
     plan = _plan(bands=[w])
@@ -133,15 +134,29 @@ def test_atmosphere_effect_matches_oracle(rt, real_t: str, width: int | None) ->
     _check(out, ref.resample(toa, plan.weights), real_t)
 
 
-def test_work_group_comes_from_the_device(rt) -> None:
-    """Launches name a work-group size the device reports (not the driver's divisor of the global
-    size); other sizes give the same bits (above)."""
-    import pyopencl as cl
-
+def test_launches_name_their_work_group(rt) -> None:
+    """Launches name a work-group size (single items on CPUs, the device's preferred multiple elsewhere),
+    never the driver's divisor of the global size; any other size gives the same bits (above)."""
     r = Resampler(rt, _plan())
-    info = cl.kernel_work_group_info
-    multiple = r.kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE, rt.device)
+    assert r.local_size == rt.work_group(r.kernel)
     assert 1 <= r.local_size <= rt.max_work_group_size(r.kernel)
-    assert r.local_size % multiple == 0 or r.local_size == rt.max_work_group_size(r.kernel)
+    if "CPU" in rt.info.kind:
+        assert r.local_size == 1
     spectra = _spectra(3993 * 8, seed=4)  # 3,993 work-items of 8 rows: a size PoCL would split badly
-    assert np.array_equal(r(spectra), r(spectra, local_size=1))
+    assert np.array_equal(r(spectra), r(spectra, local_size=8))
+    assert rt.local_size(r.kernel, 3993) == ((1,) if r.local_size == 1 else None) or 3993 % r.local_size == 0
+
+
+@pytest.mark.parametrize("multiple", [4, 8, 16])
+def test_supports_padded_to_whole_vectors_keep_the_weights(multiple: int) -> None:
+    """The kernel reads whole vectors only: each support is padded with zero weights, inside the grid."""
+    plan = _plan()
+    exact, _ = plan.packed(1)
+    bands, weights = plan.packed(multiple)
+    dense = np.zeros((plan.n_bands, plan.n_wavelengths))
+    for k, b in enumerate(bands):
+        assert b["length"] % multiple == 0 or b["length"] == plan.n_wavelengths
+        assert 0 <= b["start"] and b["start"] + b["length"] <= plan.n_wavelengths
+        dense[k, b["start"]:b["start"] + b["length"]] = weights[b["offset"]:b["offset"] + b["length"]]
+    assert np.array_equal(dense, plan.dense())
+    assert sum(b["length"] for b in exact) == sum(w.weights.size for w in plan.weights)

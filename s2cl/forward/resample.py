@@ -57,13 +57,21 @@ class ResamplePlan:
     def n_bands(self) -> int:
         return len(self.weights)
 
-    def packed(self) -> tuple[list[dict], np.ndarray]:
-        """Band descriptors for the template and the concatenated weight array (float64)."""
-        bands, offset = [], 0
+    def packed(self, multiple: int = 1) -> tuple[list[dict], np.ndarray]:
+        """Band descriptors for the template and the concatenated weight array (float64); each support
+        padded with zero weights to a whole number of ``multiple``-wide vectors (extended to the right, or
+        to the left at the grid's end), so the kernel needs no scalar tail."""
+        bands, parts, offset = [], [], 0
         for name, w in zip(self.names, self.weights, strict=True):
-            bands.append({"name": name, "start": w.start, "length": int(w.weights.size), "offset": offset})
-            offset += int(w.weights.size)
-        return bands, np.concatenate([w.weights for w in self.weights])
+            n = int(w.weights.size)
+            length = min(-(-n // multiple) * multiple, self.n_wavelengths)
+            start = min(w.start, self.n_wavelengths - length)
+            padded = np.zeros(length)
+            padded[w.start - start : w.start - start + n] = w.weights
+            bands.append({"name": name, "start": start, "length": length, "offset": offset})
+            parts.append(padded)
+            offset += length
+        return bands, np.concatenate(parts)
 
     def dense(self) -> np.ndarray:
         """The dense SRF matrix ``(n_bands, n_wavelengths)`` (float64), e.g. for numpy baselines."""
@@ -99,12 +107,12 @@ class Resampler:
         self.rt, self.plan, self.real_t = rt, plan, real_t
         self.dtype = self.T.dtype.type
         self.args = _args(atmosphere is not None)
-        bands, weights = plan.packed()
         if vector_width not in (None, 4, 8, 16):
             raise InputError(f"must be 4, 8 or 16, got {vector_width!r}", key="vector_width")
         if vector_width is None:
             vector_width = max(4, min(DEFAULT_VECTOR_WIDTH, rt.native_lanes(real_t)))
         self.vw = max(4, rt.lanes(real_t, vector_width))  # a width this CPU cannot use falls back
+        bands, weights = plan.packed(self.vw)
         if rows_per_item is not None and rows_per_item not in (1, 2, 4, 8, 16):
             raise InputError(f"must be 1, 2, 4, 8 or 16, got {rows_per_item!r}", key="rows_per_item")
         self.rows = rows_per_item or (DEFAULT_ROWS_PER_ITEM if "CPU" in rt.info.kind else 1)

@@ -107,6 +107,6 @@ def analysis_targets(scene: Any, lib: SpectralLibrary, analysis: AnalysisSetting
         return lib, np.array([wanted.index(g) for g in lib.groups], dtype=np.float64), tuple(wanted)
     param = analysis.parameter
     if param not in lib.params:
-        raise InputError(f"library has no parameter {param!r}; it has {', '.join(sorted(lib.params)) or 'none'}",
+        raise InputError(f"library has no parameter {token(param)}; it has {', '.join(sorted(lib.params)) or 'none'}",
                          source=scene.source, key="analysis.parameter")
     return lib, np.asarray(lib.params[param], dtype=np.float64), ()

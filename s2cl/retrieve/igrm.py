@@ -222,7 +222,8 @@ class IgrmFitter:
 
     def enqueue(self, v: dict[str, Any]) -> None:
         """Queue the fit on the arguments ``v`` (:meth:`buffers`); returns at once."""
-        self.kernel(self.rt.queue, (v["pitch"] // self.types.lanes,), None, *bind(self.args, v, self.types))
+        items = v["pitch"] // self.types.lanes
+        self.kernel(self.rt.queue, (items,), self.rt.local_size(self.kernel, items), *bind(self.args, v, self.types))
 
     def _fit_chunk(self, refl: np.ndarray, wl: np.ndarray) -> IgrmResult:
         n, T, rt = refl.shape[1], self.types, self.rt

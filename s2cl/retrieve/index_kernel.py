@@ -65,7 +65,7 @@ class IndexKernel:
         host, pitch = pad_pixels(refl[[int(band_a), int(band_b)]], T.lanes, T.dtype)
         values = {"index": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
                   "refl": rt.upload_new(host), "band_a": 0, "band_b": 1, "pitch": pitch}
-        self.kernel(rt.queue, (pitch // T.lanes,), None, *bind(ARGS, values, T))
+        self.kernel(rt.queue, (pitch // T.lanes,), rt.local_size(self.kernel, pitch // T.lanes), *bind(ARGS, values, T))
         return IndexResult(rt.fetch(values["index"], (pitch,), T.dtype)[:n],
                            rt.fetch(values["status"], (pitch,), np.uint8)[:n])
 

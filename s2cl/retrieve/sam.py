@@ -114,7 +114,8 @@ class SamClassifier:
 
     def enqueue(self, v: dict[str, Any]) -> None:
         """Queue the classification on the arguments ``v`` (:meth:`buffers`); returns at once."""
-        self.kernel(self.rt.queue, (v["pitch"] // self.types.lanes,), None, *bind(ARGS, v, self.types))
+        items = v["pitch"] // self.types.lanes
+        self.kernel(self.rt.queue, (items,), self.rt.local_size(self.kernel, items), *bind(ARGS, v, self.types))
 
     def classify(self, refl: np.ndarray) -> SamResult:
         """Classify every pixel of ``refl`` (n_bands, n_pixels)."""
