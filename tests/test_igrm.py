@@ -229,11 +229,12 @@ def test_work_group_size_changes_no_bits(rt, monkeypatch, group: int) -> None:
     choice where it does not), the fits are the same bits."""
     y, _ = synthetic(1024, WL4, noise=0.003, seed=5)
     y = y.astype(np.float32)
-    for n in (1024, 1000):  # 1,024: every group divides the work-items at 1-16 lanes; 1,000: none at 8 or 16 lanes
+    for n in (1024, 1000):  # 1,024: every group divides the work-items at 1-16 lanes; 1,000: none at 8 or 16
         base = IgrmFitter(rt, 4).fit(y[:, :n], WL4)
         with monkeypatch.context() as m:
             m.setattr(type(rt), "work_group", lambda self, kernel: group)
-            assert rt.local_size(None, 64) == (group,) and rt.local_size(None, 63) is None
+            assert rt.local_size(None, 64) == (group,)
+            assert rt.local_size(None, 63) == ((1,) if "CPU" in rt.info.kind else None)
             other = IgrmFitter(rt, 4).fit(y[:, :n], WL4)
         for name in ("lp", "status", "iterations", "rmin", "rmax", "l0", "s"):
             assert np.array_equal(getattr(base, name), getattr(other, name)), name

@@ -136,23 +136,27 @@ class Runtime:
         return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
 
     def work_group(self, kernel: Any) -> int:
-        """Work-items per group for s2cl's 1-D launches: 1 on CPU devices, elsewhere four times the
-        kernel's preferred work-group size multiple as the device reports it (never above the kernel's
-        limit). s2cl's kernels vectorise inside a work-item (lanes, vector loads), so on a CPU PoCL's
-        work-group vectorisation has nothing to pack, while its own choice of group size (a divisor of the
-        global size) can be poor for awkward sizes: the resampling API ran 3.9 M spectra/s with it against
-        7.6 with explicit groups, IGRM fits 52-53 against 54-55 M fits/s (issue 15)."""
-        if "CPU" in self.info.kind:
-            return 1
+        """Work-items per group for s2cl's 1-D launches: the kernel's preferred work-group size multiple as
+        the device reports it (8 on PoCL CPUs), four of them on other devices, never above the kernel's
+        limit. Left to itself, PoCL picks a divisor of the global size, which can be poor for awkward
+        sizes: the resampling API ran 3.9 M spectra/s with PoCL's choice against 7.6 with named groups
+        (issue 15); single-item groups cost scheduling per item on small launches instead (atmosphere
+        bench, 2·10⁴ spectra: 4.5 against 7.8 M/s)."""
         cl = pyopencl()
         info = cl.kernel_work_group_info
         multiple = int(kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE, self.device))
-        return max(1, min(4 * multiple, self.max_work_group_size(kernel)))
+        wanted = multiple if "CPU" in self.info.kind else 4 * multiple
+        return max(1, min(wanted, self.max_work_group_size(kernel)))
 
     def local_size(self, kernel: Any, global_size: int) -> tuple[int] | None:
-        """``(work_group(kernel),)`` for a launch of ``global_size`` items that it divides, else None (the
-        driver's choice): for kernels that cannot pad their launch (no tail guard)."""
+        """The work-group of a launch of ``global_size`` items that cannot be padded (no tail guard): the
+        largest power of two up to :meth:`work_group` that divides it on CPUs; elsewhere
+        :meth:`work_group` where it divides, else None (the driver's choice)."""
         group = self.work_group(kernel)
+        if "CPU" in self.info.kind:
+            while group > 1 and global_size % group:
+                group //= 2
+            return (group,)
         return (group,) if global_size % group == 0 else None
 
     # -- buffers ---------------------------------------------------------------------------
