@@ -238,3 +238,27 @@ def test_work_group_size_changes_no_bits(rt, monkeypatch, group: int) -> None:
             other = IgrmFitter(rt, 4).fit(y[:, :n], WL4)
         for name in ("lp", "status", "iterations", "rmin", "rmax", "l0", "s"):
             assert np.array_equal(getattr(base, name), getattr(other, name)), name
+
+
+def test_fits_read_and_write_host_memory_in_place_only_when_aligned(rt) -> None:
+    """On host-memory devices the fit reads an aligned input in place and writes its outputs into aligned
+    host arrays (no copies); a misaligned input is copied first (PoCL's vector loads need alignment): the
+    same bits either way."""
+    y, _ = synthetic(4096, WL4, noise=0.003, seed=9)
+    y = y.astype(np.float32)
+    align = rt.alignment
+    raw = np.empty(y.size * 4 + 2 * align + 4, np.uint8)
+    start = (-raw.ctypes.data) % align
+    aligned = raw[start:start + y.nbytes].view(np.float32).reshape(y.shape)
+    misaligned = raw[start + 4:start + 4 + y.nbytes].view(np.float32).reshape(y.shape)
+    aligned[:] = y
+    a = IgrmFitter(rt, 4).fit(aligned, WL4)
+    misaligned[:] = y
+    b = IgrmFitter(rt, 4).fit(misaligned, WL4)
+    assert rt.aligned(aligned) and not rt.aligned(misaligned)
+    for name in ("lp", "status", "iterations", "bounds"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    array, buffer = rt.output((3, 5), np.float32)
+    assert array.shape == (3, 5) and (not rt.host_memory or rt.aligned(array))
+    rt.upload(buffer, np.arange(15, dtype=np.float32).reshape(3, 5))
+    assert np.array_equal(rt.result(buffer, array), np.arange(15, dtype=np.float32).reshape(3, 5))

@@ -200,6 +200,43 @@ class Runtime:
             cl.enqueue_copy(self.queue, out, buffer)
         return out
 
+    @cached_property
+    def alignment(self) -> int:
+        """Bytes a host array must be aligned to for the device to use it in place (the device's
+        ``MEM_BASE_ADDR_ALIGN``; PoCL's kernels may load vectors from it with aligned instructions)."""
+        return max(int(self.device.mem_base_addr_align) // 8, 16)
+
+    def aligned(self, array: np.ndarray) -> bool:
+        """Whether ``array`` starts on :attr:`alignment`."""
+        return array.ctypes.data % self.alignment == 0
+
+    def output(self, shape: tuple[int, ...], dtype: Any) -> tuple[np.ndarray, Any]:
+        """A host array and a device buffer that fills it: on devices that work in host memory the kernel
+        writes into the (aligned) array in place, so :meth:`result` copies nothing; elsewhere a buffer
+        from :attr:`pool` that :meth:`result` copies back."""
+        dtype = np.dtype(dtype)
+        size = int(np.prod(shape)) * dtype.itemsize
+        if not self.host_memory:
+            return np.empty(shape, dtype), self.alloc(size)
+        raw = np.empty(max(size, 1) + self.alignment, np.uint8)
+        start = (-raw.ctypes.data) % self.alignment
+        host = raw[start:start + max(size, 1)]
+        cl = pyopencl()
+        buffer = cl.Buffer(self.context, cl.mem_flags.READ_WRITE | cl.mem_flags.USE_HOST_PTR, hostbuf=host)
+        return host[:size].view(dtype).reshape(shape), buffer
+
+    def result(self, buffer: Any, array: np.ndarray) -> np.ndarray:
+        """``array`` holding what the device wrote into ``buffer`` (from :meth:`output`; blocking)."""
+        cl = pyopencl()
+        if not self.host_memory:
+            if array.nbytes:
+                cl.enqueue_copy(self.queue, array, buffer)
+            return array
+        mapped, event = cl.enqueue_map_buffer(self.queue, buffer, cl.map_flags.READ, 0, (buffer.size,), np.uint8)
+        event.wait()  # the kernel's writes are visible in the host array once mapped
+        mapped.base.release(self.queue)
+        return array
+
     def upload(self, buffer: Any, array: np.ndarray) -> None:
         """Copy a host array into an existing device buffer (blocking)."""
         pyopencl().enqueue_copy(self.queue, buffer, np.ascontiguousarray(array))

@@ -214,11 +214,21 @@ class IgrmFitter:
         """One launch's arguments, named as :attr:`args`: ``refl`` (n_bands, n_pixels) padded to whole lanes
         and uploaded with the centres ``wl`` (nm), the outputs allocated (7 parameter rows: the six
         parameters and the condition estimate), ``pitch`` the padded pixel count."""
+        return self._buffers(refl, wl)[0]
+
+    def _buffers(self, refl: np.ndarray, wl: np.ndarray) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """:meth:`buffers` and the host arrays the outputs land in (:meth:`Runtime.output`)."""
         T, rt = self.types, self.rt
         host, pitch = pad_pixels(refl, T.lanes, T.dtype)
-        return {"params": rt.alloc(7 * pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
-                "iterations": rt.alloc(pitch * self.iter_dtype.itemsize), "bounds": rt.alloc(pitch),
-                "refl": rt.upload_new(host), "wavelength": rt.upload_new(wl.astype(T.dtype)), "pitch": pitch}
+        shapes = {"params": ((7, pitch), T.dtype), "status": ((pitch,), np.uint8),
+                  "iterations": ((pitch,), self.iter_dtype), "bounds": ((pitch,), np.uint8)}
+        arrays, v = {}, {}
+        for name, (shape, dtype) in shapes.items():
+            arrays[name], v[name] = rt.output(shape, dtype)
+        # read in place where the device can (host memory, aligned: PoCL's vector loads need it), else copied
+        v["refl"] = rt.to_device(host, zero_copy=True) if rt.host_memory and rt.aligned(host) else rt.upload_new(host)
+        v["wavelength"], v["pitch"] = rt.upload_new(wl.astype(T.dtype)), pitch
+        return v, arrays
 
     def enqueue(self, v: dict[str, Any]) -> None:
         """Queue the fit on the arguments ``v`` (:meth:`buffers`); returns at once."""
@@ -226,18 +236,13 @@ class IgrmFitter:
         self.kernel(self.rt.queue, (items,), self.rt.local_size(self.kernel, items), *bind(self.args, v, self.types))
 
     def _fit_chunk(self, refl: np.ndarray, wl: np.ndarray) -> IgrmResult:
-        n, T, rt = refl.shape[1], self.types, self.rt
-        v = self.buffers(refl, wl)
+        n, rt = refl.shape[1], self.rt
+        v, arrays = self._buffers(refl, wl)
         self.enqueue(v)
-        pitch = v["pitch"]
-        params = rt.fetch(v["params"], (7, pitch), T.dtype)[:, :n]
-        return IgrmResult(
-            *params[:6],
-            status=rt.fetch(v["status"], (pitch,), np.uint8)[:n],
-            iterations=rt.fetch(v["iterations"], (pitch,), self.iter_dtype)[:n],
-            bounds=rt.fetch(v["bounds"], (pitch,), np.uint8)[:n],
-            log10_condition=params[6],
-        )
+        out = {name: rt.result(v[name], array) for name, array in arrays.items()}
+        params = out["params"][:, :n]
+        return IgrmResult(*params[:6], status=out["status"][:n], iterations=out["iterations"][:n],
+                          bounds=out["bounds"][:n], log10_condition=params[6])
 
 
 def fit_igrm(refl: np.ndarray, wavelengths_nm: np.ndarray, settings: IgrmSettings | None = None, *,
