@@ -63,11 +63,11 @@ class IndexKernel:
         n = refl.shape[1]
         T, rt = self.types, self.rt
         host, pitch = pad_pixels(refl[[int(band_a), int(band_b)]], T.lanes, T.dtype)
-        values = {"index": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
-                  "refl": rt.upload_new(host), "band_a": 0, "band_b": 1, "pitch": pitch}
+        (index, index_d), (status, status_d) = rt.output((pitch,), T.dtype), rt.output((pitch,), np.uint8)
+        values = {"index": index_d, "status": status_d, "refl": rt.upload_new(host), "band_a": 0, "band_b": 1,
+                  "pitch": pitch}
         self.kernel(rt.queue, (pitch // T.lanes,), rt.local_size(self.kernel, pitch // T.lanes), *bind(ARGS, values, T))
-        return IndexResult(rt.fetch(values["index"], (pitch,), T.dtype)[:n],
-                           rt.fetch(values["status"], (pitch,), np.uint8)[:n])
+        return IndexResult(rt.result(index_d, index)[:n], rt.result(status_d, status)[:n])
 
 
 def normalised_difference(refl: np.ndarray, kind: str, band_a: int, band_b: int, *, real_t: str = "float32",

@@ -107,10 +107,17 @@ class SamClassifier:
     def buffers(self, refl: np.ndarray) -> dict[str, Any]:
         """One launch's arguments, named as the kernel's: ``refl`` (n_bands, n_pixels) padded to whole
         lanes and uploaded, the outputs allocated, ``pitch`` the padded pixel count."""
+        return self._buffers(refl)[0]
+
+    def _buffers(self, refl: np.ndarray) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """:meth:`buffers` and the host arrays the outputs land in (:meth:`Runtime.output`)."""
         T, rt = self.types, self.rt
         host, pitch = pad_pixels(refl, T.lanes, T.dtype)
-        return {"best": rt.alloc(4 * pitch), "angle": rt.alloc(pitch * T.dtype.itemsize), "status": rt.alloc(pitch),
-                "refl": rt.upload_new(host), "refs": self._refs_d, "cos_min": self.cos_min, "pitch": pitch}
+        arrays, v = {}, {}
+        for name, dtype in (("best", np.int32), ("angle", T.dtype), ("status", np.uint8)):
+            arrays[name], v[name] = rt.output((pitch,), dtype)
+        v.update(refl=rt.upload_new(host), refs=self._refs_d, cos_min=self.cos_min, pitch=pitch)
+        return v, arrays
 
     def enqueue(self, v: dict[str, Any]) -> None:
         """Queue the classification on the arguments ``v`` (:meth:`buffers`); returns at once."""
@@ -122,14 +129,13 @@ class SamClassifier:
         refl = np.asarray(refl)
         if refl.ndim != 2 or refl.shape[0] != self.n_bands:
             raise InputError(f"must have shape ({self.n_bands}, n_pixels), got {refl.shape}", key="reflectance")
-        n, T, rt = refl.shape[1], self.types, self.rt
-        v = self.buffers(refl)
+        n, rt = refl.shape[1], self.rt
+        v, arrays = self._buffers(refl)
         self.enqueue(v)
-        pitch = v["pitch"]
-        best = rt.fetch(v["best"], (pitch,), np.int32)[:n]
+        out = {name: rt.result(v[name], array)[:n] for name, array in arrays.items()}
+        best = out["best"]
         label = np.where(best >= 0, self.classes[np.maximum(best, 0)], -1).astype(np.int32)
-        return SamResult(best, label, rt.fetch(v["angle"], (pitch,), T.dtype)[:n],
-                         rt.fetch(v["status"], (pitch,), np.uint8)[:n])
+        return SamResult(best, label, out["angle"], out["status"])
 
 
 def confusion_matrix(true_class: np.ndarray, predicted: np.ndarray, n_classes: int) -> np.ndarray:
