@@ -73,7 +73,9 @@ def _refused(scene: Scene, key: str, text: str) -> None:
     ({"sweep.add.widths": [-5.0]}, "sweep.add", "widths must be > 0"),
     ({"sweep.add.centres": None}, "sweep.add", "a grid band gives centres and widths only"),
     ({"sweep.ranges.N2300": {"centre": 2300.0, "width": 20.0}}, "sweep.ranges", "goes in [sweep.add]"),
-    ({"sweep.add.centres": [2480.0]}, "sweep.ranges.N2300", "outside the spectral grid"),
+    ({"sweep.add.centres": [2480.0]}, "sweep.add", "outside the spectral grid"),
+    ({"sweep.add.centres": [2190.0], "sweep.add.widths": [180.0000001]}, "sweep.add",  # one band by the design rule
+     "is base band B12 itself"),
     ({"sweep.bands": ["B12"], "sweep.ranges": {}}, "sweep.add", "the base set B12 alone cannot be scored by sam"),
 ])
 def test_bad_addition_sections_are_refused_in_one_line(changes: dict[str, Any], key: str, text: str) -> None:
@@ -109,11 +111,14 @@ def test_a_base_the_direct_api_refuses_is_refused_by_the_addition_sweep() -> Non
     assert check_sweep(four).base.space.bands == ["B4", "B5", "B6", "B7"]
 
 
-def test_an_index_whose_role_is_the_added_band_has_no_base_score() -> None:
-    scene = _scene(VEG, **{"analysis": {"kind": "ndvi", "parameter": "cab", "nir": "B8a", "red": "N620"},
-                           "sweep.bands": ["B8a"],
+@pytest.mark.parametrize("red", ["N620", "B4"])
+def test_an_index_measures_no_gain_whichever_band_it_reads(red: str) -> None:
+    """A two-band index either gives the added band a role (the base set alone has no index) or leaves it
+    out (every candidate would score the base exactly): refused both ways."""
+    scene = _scene(VEG, **{"analysis": {"kind": "ndvi", "parameter": "cab", "nir": "B8a", "red": red},
+                           "sweep.bands": ["B8a", "B4"],
                            "sweep.add": {"name": "N620", "like": "B4", "centres": [620.0], "widths": [20.0]}})
-    _refused(scene, "sweep.add", "cannot be scored by ndvi")
+    _refused(scene, "sweep.add", "needs an analysis that uses every band")
 
 # }}}
 # {{{ the numbers: gain = base − candidate, against the ordinary sweep path

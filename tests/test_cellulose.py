@@ -117,6 +117,17 @@ def test_gas_column_scaling_is_beer_law_on_the_terms():
     np.testing.assert_allclose(more.ground_term, terms.ground_term * t ** 0.1, rtol=1e-12)
     np.testing.assert_allclose(more.path_radiance, terms.path_radiance * t ** 0.1, rtol=1e-12)
     np.testing.assert_array_equal(more.spherical_albedo, terms.spherical_albedo)
+    # Beer's law composes: scaling by a then b is scaling by a·b, and by 1 changes nothing; the other gases
+    # and the terms' gas-free part (G / T_co2) are untouched
+    both = terms.with_gas_column(CO2, 1.1).with_gas_column(CO2, 0.5)
+    np.testing.assert_allclose(both.ground_term, terms.with_gas_column(CO2, 0.55).ground_term, rtol=1e-12)
+    np.testing.assert_allclose(terms.with_gas_column(CO2, 1.0).path_radiance, terms.path_radiance, rtol=1e-15)
+    keep = t > 1e-12
+    np.testing.assert_allclose((more.ground_term / more.transmittance[CO2])[keep],
+                               (terms.ground_term / t)[keep], rtol=1e-12)
+    for gas, tr in terms.transmittance.items():
+        if gas != CO2:
+            np.testing.assert_array_equal(more.transmittance[gas], tr)
     with pytest.raises(InputError, match="cannot scale 'water'"):
         terms.with_gas_column("water", 2.0)
     with pytest.raises(InputError, match=">= 0"):

@@ -55,3 +55,15 @@ def test_gvmi_input_errors(rt):
         normalised_difference(np.zeros(4), "gvmi", 0, 1)
     with pytest.raises(InputError, match="unknown index 'evi'; known: gvmi"):
         normalised_difference(np.zeros((2, 4)), "evi", 0, 1)
+
+
+@pytest.mark.parametrize("group", [2, 8, 64])
+def test_work_group_size_changes_no_bits(rt, monkeypatch, group: int) -> None:
+    rng = np.random.default_rng(3)
+    refl = np.vstack([rng.uniform(0.2, 0.7, 1037), rng.uniform(0.05, 0.5, 1037)])
+    base = IndexKernel(rt, "gvmi")(refl, 0, 1)
+    with monkeypatch.context() as m:
+        m.setattr(type(rt), "work_group", lambda self, kernel: group)
+        for n in (1024, 1037):
+            other = IndexKernel(rt, "gvmi")(refl[:, :n], 0, 1)
+            assert np.array_equal(other.index, base.index[:n]) and np.array_equal(other.status, base.status[:n])

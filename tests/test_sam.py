@@ -106,3 +106,20 @@ def test_confusion_and_mean_omission(rt):
     s = score_classification(np.array([0, 0, 0, 1, 1]), r, 2)
     np.testing.assert_allclose(s.omission, [2 / 3, 0.0])
     assert s.mean_omission == pytest.approx(1 / 3) and s.frac_unclassified == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("group", [2, 8, 64])
+def test_work_group_size_changes_no_bits(rt, monkeypatch, group: int) -> None:
+    """Any work-group size the device might ask for (dividing the launch or not) classifies alike; the
+    outputs land in host arrays (in place on host-memory devices) that no later call overwrites."""
+    refs, _, pix = _scene(1024 + 13, seed=4)
+    base = SamClassifier(rt, refs).classify(pix)
+    with monkeypatch.context() as m:
+        m.setattr(type(rt), "work_group", lambda self, kernel: group)
+        for n in (1024, 1024 + 13):
+            other = SamClassifier(rt, refs).classify(pix[:, :n])
+            for name in ("reference", "label", "angle", "status"):
+                assert np.array_equal(getattr(other, name), getattr(base, name)[:n]), name
+    again = SamClassifier(rt, refs).classify(pix[:, ::-1])  # a later call leaves earlier results alone
+    assert np.array_equal(again.reference[::-1], base.reference)
+    assert np.array_equal(other.reference, base.reference) and not np.shares_memory(again.reference, base.reference)

@@ -106,14 +106,16 @@ class AtmosphericTerms:
 
 
     def with_gas_column(self, gas: str, factor: float) -> AtmosphericTerms:
-        """These terms with the column of ``gas`` scaled by ``factor`` (unitless; 0 removes the gas): its
+        """These terms with the column of ``gas`` scaled by ``factor`` (unitless; 0 removes the gas, see below): its
         optical depth −ln T scales by ``factor``, i.e. ``T → T**factor``.
 
         Only a gas that all of the path radiance and the ground term carry (every gas but water: the LUT's
         formula puts water above the aerosol, :mod:`s2cl.atmos.atmosphere`): then Lp, ρ_path and G scale by
         ``T**(factor − 1)`` and S is unchanged, exactly for that formula. Scaling the optical depth is the
         same assumption the LUT makes between solar-zenith nodes (ln T linear in the air mass); 6S's band
-        model is not exactly Beer's law, so a factor far from 1 is an approximation.
+        model is not exactly Beer's law, so a factor far from 1 is an approximation. Where 6S gives the gas a
+        transmittance of exactly 0, the terms there hold nothing to restore: they stay 0 for every factor
+        (``factor = 0`` removes the gas everywhere else).
         """
         if gas not in self.transmittance or gas == "water":
             allowed = ", ".join(g for g in self.transmittance if g != "water")

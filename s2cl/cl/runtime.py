@@ -136,12 +136,14 @@ class Runtime:
         return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
 
     def work_group(self, kernel: Any) -> int:
-        """Work-items per group for s2cl's 1-D launches: the kernel's preferred work-group size multiple as
-        the device reports it (8 on PoCL CPUs), four of them on other devices, never above the kernel's
-        limit. Left to itself, PoCL picks a divisor of the global size, which can be poor for awkward
-        sizes: the resampling API ran 3.9 M spectra/s with PoCL's choice against 7.6 with named groups
-        (issue 15); single-item groups cost scheduling per item on small launches instead (atmosphere
-        bench, 2·10⁴ spectra: 4.5 against 7.8 M/s)."""
+        """Work-items per group for the light 1-D launches (resampling, sensing, IGRM, SAM, indices; the sweep
+        and metrics kernels keep the driver's choice, which measured no worse for them): the kernel's
+        preferred work-group size multiple as the device reports it (8 on PoCL CPUs), four of them on other
+        devices, never above the kernel's limit. Left to itself, PoCL picks a divisor of the global size,
+        which can be poor for awkward sizes: the resampling API ran 3.9 M spectra/s with PoCL's choice
+        against 7.5 with named groups (``python -m bench.bench_resample``, issue 15); single-item groups cost
+        scheduling per item on small launches instead (``python -m bench.bench_atmosphere``, 2·10⁴ spectra:
+        4.5 against 6.6 M/s in runs minutes apart)."""
         cl = pyopencl()
         info = cl.kernel_work_group_info
         multiple = int(kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE, self.device))

@@ -23,6 +23,9 @@ import numpy as np
 from s2cl.errors import InputError, key_token, token
 from s2cl.io.inputs import parse_number
 
+#: units of the built-in libraries' parameters (user parameters carry none: labels then say "parameter units")
+PARAMETER_UNITS = {"cab": "µg/cm²", "ewt": "µm", "lai": "m²/m²"}
+
 #: a parameter name: it becomes ``analysis.parameter`` and the NetCDF coordinate ``param_NAME``
 PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,31}")
 NAME_RULE = "1-32 letters, digits or _, starting with a letter"

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -28,8 +29,14 @@ from s2cl.retrieve.indices import INDICES
 from s2cl.sensor.variants import SweepSpace
 
 IGRM_PARAMETERS = 4
-#: centres closer than this (nm) count as one abscissa
+#: centres (and widths) closer than this (nm) count as one abscissa (one band)
 SAME_CENTRE_NM = 1e-6
+
+
+def same_band(c1: Any, w1: Any, c2: Any, w2: Any) -> Any:
+    """Whether bands (centre, width in nm) are one band: centres and widths each within
+    :data:`SAME_CENTRE_NM` (elementwise on arrays)."""
+    return (np.abs(np.subtract(c1, c2)) <= SAME_CENTRE_NM) & (np.abs(np.subtract(w1, w2)) <= SAME_CENTRE_NM)
 
 
 def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], widths: Sequence[float], *,
@@ -46,14 +53,13 @@ def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], wi
         return None
     if kind in INDICES:
         a, b = slots
-        if abs(c[a] - c[b]) <= SAME_CENTRE_NM and w[a] == w[b]:
+        if same_band(c[a], w[a], c[b], w[b]):
             role_a, role_b = INDICES[kind].roles
             return (f"underdetermined: the {kind.upper()}'s {role_a} band {names[a]} and {role_b} band {names[b]} "
                     f"are the same band ({c[a]:g}/{w[a]:g} nm)")
         return None
     if kind == "sam":
-        pairs = {(round(float(a), 6), float(b)) for a, b in zip(c, w, strict=True)}
-        if len(pairs) < 2:
+        if bool(np.all(same_band(c, w, c[0], w[0]))):
             return "underdetermined: SAM needs at least two distinct bands; every band here is the same"
         return None
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
@@ -79,9 +85,9 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *,
         return distinct < IGRM_PARAMETERS
     if kind in INDICES:
         a, b = slots
-        return (np.abs(c[:, a] - c[:, b]) <= SAME_CENTRE_NM) & (w[:, a] == w[:, b])
+        return same_band(c[:, a], w[:, a], c[:, b], w[:, b])
     if kind == "sam":
-        same = (np.abs(c - c[:, :1]) <= SAME_CENTRE_NM) & (w == w[:, :1])
+        same = same_band(c, w, c[:, :1], w[:, :1])
         return same.all(axis=1)
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
 

@@ -29,6 +29,7 @@ from s2cl.atmos.scene_terms import correction_terms, scene_terms
 from s2cl.errors import InputError, key_token
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.params import PARAMETER_UNITS
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.retrieve.quantify import fit_polynomial
@@ -38,8 +39,6 @@ from s2cl.sensor.variants import BandList, SweepSpace
 from s2cl.sweep.raw import ChunkEvaluator
 from s2cl.sweep.tables import SweepTables, build_tables
 
-#: units of the library parameters an application may regress
-UNITS = {"cab": "µg/cm²", "ewt": "µm", "lai": "m²/m²"}
 #: host bytes per pixel of one configuration's evaluation (kernel outputs, float64 index, fit temporaries)
 BYTES_PER_PIXEL = 160
 
@@ -66,7 +65,7 @@ class Application:
     def unit(self) -> str:
         if self.analysis.kind == "sam":
             return "%"
-        return UNITS.get(str(self.analysis.parameter), "")
+        return PARAMETER_UNITS.get(str(self.analysis.parameter), "")
 
 
 def load_application(study: Scene, label: str, ref: str, copies: int) -> Application:

@@ -2,8 +2,8 @@
 scored by its gain over the base set alone, on the same pixels and noise.
 
 - The base set is scored by the same analysis on the base bands alone (:func:`check_base`: a base the analysis
-  cannot run, e.g. an IGRM on fewer than four bands or an index whose role names the added band, is refused
-  before any work, in one line).
+  cannot run, e.g. an IGRM on fewer than four bands, is refused before any work, in one line; so are the
+  two-band indices, which either leave the added band out or the base set without an index).
 - The base score is a fixed-band sweep of the base bands (:func:`s2cl.sweep.plan.fixed_row`): the same library,
   atmosphere, and noise deviates, because the base bands keep their noise streams and the added band draws its
   own (:func:`s2cl.sweep.space.addition_scene`).
@@ -23,8 +23,10 @@ import numpy as np
 
 from s2cl.errors import InputError
 from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.params import PARAMETER_UNITS
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design
+from s2cl.retrieve.indices import INDICES
 from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import SweepSpace
 from s2cl.sweep.space import ADD_KEY
@@ -61,7 +63,14 @@ def check_base(scene: Scene, space: SweepSpace, library: SpectralLibrary | None)
         return None
     base = SweepSpace(space.ranges[:-1])
     names = base.bands
-    what = f"the base set {', '.join(names)} alone cannot be scored by {scene.spec.analysis.kind}, so no gain"
+    kind = scene.spec.analysis.kind if scene.spec.analysis is not None else None
+    if kind in INDICES:
+        # a two-band index either leaves the added band out (every candidate scores the base: no gain to
+        # measure) or gives it a role (then the base set alone has no index): neither measures a gain
+        raise InputError(f"a band addition needs an analysis that uses every band (igrm or sam); the {kind} index "
+                         "reads two named bands, so the added band would either not enter it or leave the base "
+                         "set without one", source=scene.source, key=ADD_KEY)
+    what = f"the base set {', '.join(names)} alone cannot be scored by {kind}, so no gain"
     try:
         analysis = AnalysisSettings.from_scene(scene, names)
         shape = base.shapes(0, 1)[0]
@@ -91,7 +100,7 @@ def base_reference(row: dict[str, Any], added: str) -> dict[str, Any]:
 def meta_of(base: AdditionBase, score: float) -> dict[str, Any]:
     """What results.parquet's metadata records of an addition sweep."""
     return {"band": base.added, "like": base.like, "base_bands": base.space.bands,
-            "metric": score_column(base.analysis), "base_score": score}
+            "metric": score_column(base.analysis), "base_score": score, "parameter": base.analysis.parameter}
 
 
 def addition_of(meta: dict[str, str]) -> dict[str, Any] | None:
@@ -142,7 +151,8 @@ def gain_plots(digest: Any, record: dict[str, Any], folder: Path) -> list[Path]:
 
     band, metric = record["band"], record["metric"]
     centres, widths, gain = gain_table(digest, record)
-    unit = "µg/cm²" if metric == "rms" else "points"
+    unit = (PARAMETER_UNITS.get(str(record.get("parameter")), "parameter units") if metric == "rms"
+            else "percentage points")
     base = f"base {'+'.join(record['base_bands'])} alone: {metric} {record['base_score']:.3g}"
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from s2cl.errors import InputError
-from s2cl.retrieve.design import SAME_CENTRE_NM
+from s2cl.retrieve.design import same_band
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import RangeSpec
 from s2cl.sensor.names import check_band_name
@@ -80,12 +80,14 @@ def _check_on_grid(scene: Scene, space: SweepSpace) -> None:
     ``sweep count``, ``simulate`` and ``optimise`` share (:func:`s2cl.scene.validate.check_sweep`), before any
     table is built."""
     grid, support = scene.grid, scene.run.support
+    add = scene.spec.sweep.add if scene.spec.sweep is not None else None
     for r in space.ranges:
         lo, hi = r.support_extent(support)
         if not grid.covers(lo, hi):
+            key = ADD_KEY if add is not None and r.band == add.name else f"sweep.ranges.{r.band}"
             raise InputError(f"the variants' SRFs (centre ± {support:g} × width, sensor.support) reach {lo:g}–{hi:g} "
                              f"nm, outside the spectral grid {grid.describe()}; move or narrow the band's range, or "
-                             "widen the grid", source=scene.source, key=f"sweep.ranges.{r.band}")
+                             "widen the grid", source=scene.source, key=key)
 
 
 def _sensor_band(scene: Scene, name: str, key: str) -> Band:
@@ -136,7 +138,7 @@ def _added_range(scene: Scene, base: list[BandRange | BandGrid]) -> BandRange | 
     shapes = added.variants()
     for r in base:
         c0, _, w0, _ = r.extent()
-        same = (abs(shapes[:, 0] - c0) <= SAME_CENTRE_NM) & (shapes[:, 1] == w0)
+        same = same_band(shapes[:, 0], shapes[:, 1], c0, w0)
         if same.any():
             raise InputError(f"candidate {c0:g}/{w0:g} nm of {band.name} is base band {r.band} itself; leave it out "
                              "of the added band's centres and widths", source=scene.source, key=ADD_KEY)
