@@ -18,7 +18,8 @@ Arguments (IgrmFitter.args; outputs first; all arrays structure-of-arrays, pixel
                                     S2_DEGENERATE, S2_INVALID, S2_STALLED)
   iterations  out [pitch] iter_t    LM trial steps
   bounds      out [pitch] uchar     active-bound bits (see common/igrm_lm.mako)
-  refl        in  [n_bands][pitch] real  band reflectance
+  refl        in  [n_bands][pitch] real  band reflectance (read with vloadN: any alignment, so the host
+                                    may pass its own array in place)
   wavelength  in  [n_bands] real    band centres, nm (the fit's x values, same for all pixels)
   pitch       int                   elements per band row; a multiple of T.lanes
 Global size: pitch / T.lanes work-items (the host pads pixels to a multiple of T.lanes).
@@ -29,8 +30,10 @@ Global size: pitch / T.lanes work-items (the host pads pixels to a multiple of T
 <%def name="ptr(base, plane, const)">\
 % if T.lanes == 1:
 (${base} + ${plane} * pitch)[gid]\
+% elif const:
+vload${T.lanes}(gid, ${base} + ${plane} * pitch)\
 % else:
-((__global ${"const " if const else ""}${T.V} *)(${base} + ${plane} * pitch))[gid]\
+((__global ${T.V} *)(${base} + ${plane} * pitch))[gid]\
 % endif
 </%def>
 <%def name="store_int(base, ctype, value)">\

@@ -205,12 +205,9 @@ class Runtime:
     @cached_property
     def alignment(self) -> int:
         """Bytes a host array must be aligned to for the device to use it in place (the device's
-        ``MEM_BASE_ADDR_ALIGN``; PoCL's kernels may load vectors from it with aligned instructions)."""
+        ``MEM_BASE_ADDR_ALIGN``): PoCL stores (and loads) whole vectors with aligned instructions, and a
+        misaligned in-place buffer crashed an IGRM launch; inputs that kernels read with vloadN need none."""
         return max(int(self.device.mem_base_addr_align) // 8, 16)
-
-    def aligned(self, array: np.ndarray) -> bool:
-        """Whether ``array`` starts on :attr:`alignment`."""
-        return array.ctypes.data % self.alignment == 0
 
     def output(self, shape: tuple[int, ...], dtype: Any) -> tuple[np.ndarray, Any]:
         """A host array and a device buffer that fills it: on devices that work in host memory the kernel

@@ -225,8 +225,8 @@ class IgrmFitter:
         arrays, v = {}, {}
         for name, (shape, dtype) in shapes.items():
             arrays[name], v[name] = rt.output(shape, dtype)
-        # read in place where the device can (host memory, aligned: PoCL's vector loads need it), else copied
-        v["refl"] = rt.to_device(host, zero_copy=True) if rt.host_memory and rt.aligned(host) else rt.upload_new(host)
+        # read in place on host-memory devices (the kernel loads it with vloadN: any alignment), else copied
+        v["refl"] = rt.to_device(host, zero_copy=True) if rt.host_memory else rt.upload_new(host)
         v["wavelength"], v["pitch"] = rt.upload_new(wl.astype(T.dtype)), pitch
         return v, arrays
 
