@@ -33,9 +33,20 @@ we do not rely on PoCL's implicit work-group vectorisation (shared/notes/pocl-pe
     vtype = f"{R}{vw}"
     lanes = "0123456789abcdef"[:vw]
 %>
+/* Sum of the lanes as a pairwise tree ((a0 + a1) + (a2 + a3)) + ...: the order the rows == vw path's
+   transposed reduction takes, so every rows-per-work-item setting gives the same bits. */
 static inline ${R} s2_hsum(${vtype} a)
 {
-    return ${" + ".join(f"a.s{c}" for c in lanes)};
+<%
+    width, expr, k = vw, "a", 0
+%>
+% while width > 2:
+    const ${R}${width // 2} t${k} = ${expr}.even + ${expr}.odd;
+<%
+    expr, width, k = f"t{k}", width // 2, k + 1
+%>
+% endwhile
+    return ${expr}.s0 + ${expr}.s1;
 }
 
 % if atmosphere:
@@ -84,6 +95,45 @@ __kernel void resample_bands(
     % endfor
   % endif
         }
+  % if rows == vw:
+        /* the ${rows} rows' sums at once: halve, pairing rows, until lane r holds row r's sum (measured
+           1.10-1.17x the kernel with one scalar reduction per row, same process, interleaved) */
+<%
+    level = [f"acc{r}" for r in range(rows)]
+    depth = 0
+%>
+    % while len(level) > 1:
+<%
+    pairs = list(zip(level[0::2], level[1::2]))
+    names = [f"h{depth}_{i}" for i in range(len(pairs))]
+%>
+      % for name, (x, y) in zip(names, pairs):
+        const ${vtype} ${name} = (${vtype})(${x}.even, ${y}.even) + (${vtype})(${x}.odd, ${y}.odd);
+      % endfor
+<%
+    level = names
+    depth += 1
+%>
+    % endwhile
+        ${vtype} sums = ${level[0]};
+    % for t in range(nvec * vw, b["length"]):
+      % for r in range(rows):
+        % if atmosphere:
+        sums.s${lanes[r]} += weights[${w0 + t}] * s2_toa(row${r}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+        % else:
+        sums.s${lanes[r]} += weights[${w0 + t}] * row${r}[${s0 + t}];
+        % endif
+      % endfor
+    % endfor
+        if (i0 + ${rows}u <= n_pixels) {
+            vstore${vw}(sums, 0, out + ${k}u * n_pixels + i0);
+        } else {
+    % for r in range(rows):
+            if (i0 + ${r}u < n_pixels)
+                out[${k}u * n_pixels + i0 + ${r}u] = sums.s${lanes[r]};
+    % endfor
+        }
+  % else:
   % for r in range(rows):
         ${R} sum${r} = s2_hsum(acc${r});
     % for t in range(nvec * vw, b["length"]):
@@ -100,6 +150,7 @@ __kernel void resample_bands(
             out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
     % endif
   % endfor
+  % endif
     }
 % endfor
 }

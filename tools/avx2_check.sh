@@ -15,7 +15,7 @@ export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}" POCL_KERNEL_CACHE=0 S2CL_BUI
 unhwloc() { grep -v -e "hwloc x86 backend" -e "hwloc-gather-cpuid" -e "HWLOC_CPUID_PATH" || true; }
 
 "${vg[@]}" "$py" -m s2cl -v devices 2>&1 | unhwloc | grep -E "DEBUG: OpenCL device|^\*"
-"${vg[@]}" "$py" -m pytest -q -p no:cacheprovider tests/test_runtime.py tests/test_vecmath.py tests/test_gvmi.py \
+"${vg[@]}" "$py" -m pytest -q -p no:cacheprovider tests/test_runtime.py tests/test_vecmath.py tests/test_indices.py tests/test_noise_kernel.py \
   tests/test_sam.py tests/test_resample_kernel.py tests/test_sweep_kernel.py \
   "tests/test_igrm.py::test_lane_width_does_not_change_results"
 out=$(mktemp -d)
