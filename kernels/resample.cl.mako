@@ -21,8 +21,10 @@ Arguments (in order; see s2cl/forward/resample.py)
   (atmosphere) path_radiance, ground_term, spherical_albedo  [n_wl] real
   n_pixels                        uint
 
-One work-item per pixel; each reads its row with `vw`-wide vector loads (rows are contiguous, so
-the hardware prefetcher streams them) and accumulates in vectors. Loops over vectors are fine here:
+Each work-item takes `rows` pixels and reads their rows with `vw`-wide vector loads (rows are
+contiguous, so the hardware prefetcher streams them) and accumulates in vectors. A work-item whose rows
+all exist addresses them from one pointer; only the last work-item clamps its row pointers and guards
+its stores (the same sums, so the bits do not depend on where a pixel falls). Loops over vectors are fine here:
 we do not rely on PoCL's implicit work-group vectorisation (shared/notes/pocl-performance.md).
 </%doc>
 % if T.double:
@@ -61,16 +63,9 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
 }
 % endif
 
-__kernel void resample_bands(
-    ${signature(args, T)})
-{
-    /* ${rows} rows per work-item: their loads interleave, so ${rows} streams are in flight at once */
-    const uint i0 = get_global_id(0) * ${rows}u;
-    if (i0 >= n_pixels)
-        return;
-% for r in range(rows):
-    __global const ${R} *row${r} = spectra + (size_t)min(i0 + ${r}u, n_pixels - 1u) * ${n_wavelengths}u;
-% endfor
+<%def name="band_sums(row, whole)">
+<%doc> Every band's sums for this work-item's rows; row(r) renders row r's pointer; whole: all rows exist, so
+       stores need no guard. </%doc>
 % for k, b in enumerate(bands):
 <%
     nvec = b["length"] // vw
@@ -87,11 +82,11 @@ __kernel void resample_bands(
             const ${vtype} lp = vload${vw}(j, path_radiance + ${s0}), g = vload${vw}(j, ground_term + ${s0});
             const ${vtype} s = vload${vw}(j, spherical_albedo + ${s0});
     % for r in range(rows):
-            acc${r} += w * s2_toa${vw}(vload${vw}(j, row${r} + ${s0}), lp, g, s);
+            acc${r} += w * s2_toa${vw}(vload${vw}(j, ${row(r)} + ${s0}), lp, g, s);
     % endfor
   % else:
     % for r in range(rows):
-            acc${r} += w * vload${vw}(j, row${r} + ${s0});
+            acc${r} += w * vload${vw}(j, ${row(r)} + ${s0});
     % endfor
   % endif
         }
@@ -119,32 +114,32 @@ __kernel void resample_bands(
     % for t in range(nvec * vw, b["length"]):
       % for r in range(rows):
         % if atmosphere:
-        sums.s${lanes[r]} += weights[${w0 + t}] * s2_toa(row${r}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+        sums.s${lanes[r]} += weights[${w0 + t}] * s2_toa(${row(r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
         % else:
-        sums.s${lanes[r]} += weights[${w0 + t}] * row${r}[${s0 + t}];
+        sums.s${lanes[r]} += weights[${w0 + t}] * ${row(r)}[${s0 + t}];
         % endif
       % endfor
     % endfor
-        if (i0 + ${rows}u <= n_pixels) {
-            vstore${vw}(sums, 0, out + ${k}u * n_pixels + i0);
-        } else {
-    % for r in range(rows):
-            if (i0 + ${r}u < n_pixels)
-                out[${k}u * n_pixels + i0 + ${r}u] = sums.s${lanes[r]};
-    % endfor
-        }
+    % if whole:
+        vstore${vw}(sums, 0, out + ${k}u * n_pixels + i0);
+    % else:
+      % for r in range(rows):
+        if (i0 + ${r}u < n_pixels)
+            out[${k}u * n_pixels + i0 + ${r}u] = sums.s${lanes[r]};
+      % endfor
+    % endif
   % else:
   % for r in range(rows):
         ${R} sum${r} = s2_hsum(acc${r});
     % for t in range(nvec * vw, b["length"]):
       % if atmosphere:
-        sum${r} += weights[${w0 + t}] * s2_toa(row${r}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+        sum${r} += weights[${w0 + t}] * s2_toa(${row(r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
       % else:
-        sum${r} += weights[${w0 + t}] * row${r}[${s0 + t}];
+        sum${r} += weights[${w0 + t}] * ${row(r)}[${s0 + t}];
       % endif
     % endfor
-    % if r == 0:
-        out[${k}u * n_pixels + i0] = sum0;
+    % if whole or r == 0:
+        out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
     % else:
         if (i0 + ${r}u < n_pixels)
             out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
@@ -153,4 +148,30 @@ __kernel void resample_bands(
   % endif
     }
 % endfor
+</%def>
+
+__kernel void resample_bands(
+    ${signature(args, T)})
+{
+    /* ${rows} rows per work-item: their loads interleave, so ${rows} streams are in flight at once */
+    const uint i0 = get_global_id(0) * ${rows}u;
+    if (i0 >= n_pixels)
+        return;
+% if rows > 1:
+    if (i0 + ${rows}u <= n_pixels) {
+% endif
+        /* all rows exist: they sit at constant offsets from one pointer, so the compiler keeps one base register
+           and folds the offsets into the loads (a pointer per row spilled to the stack and cost 5-19 %,
+           python -m bench.bench_resample) */
+        __global const ${R} *base = spectra + (size_t)i0 * ${n_wavelengths}u;
+${band_sums(lambda r: f"(base + {r * n_wavelengths}u)", True)}
+% if rows > 1:
+    } else {
+        /* the last work-item: rows past the end re-read the last row and are not stored */
+  % for r in range(rows):
+        __global const ${R} *row${r} = spectra + (size_t)min(i0 + ${r}u, n_pixels - 1u) * ${n_wavelengths}u;
+  % endfor
+${band_sums(lambda r: f"row{r}", False)}
+    }
+% endif
 }

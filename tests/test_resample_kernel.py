@@ -162,3 +162,16 @@ def test_supports_padded_to_whole_vectors_keep_the_weights(multiple: int) -> Non
         dense[k, b["start"]:b["start"] + b["length"]] = weights[b["offset"]:b["offset"] + b["length"]]
     assert np.array_equal(dense, plan.dense())
     assert sum(b["length"] for b in exact) == sum(w.weights.size for w in plan.weights)
+
+
+def test_results_stay_valid_after_later_calls(rt) -> None:
+    """One launch writes its result in place on host-memory devices: a later call must not reuse that memory."""
+    plan = _plan()
+    r = Resampler(rt, plan)
+    a, b = _spectra(40, seed=8), _spectra(40, seed=9)
+    first = r(a)
+    kept = first.copy()
+    second = r(b)
+    assert np.array_equal(first, kept)
+    assert not np.array_equal(first, second)
+    assert np.array_equal(r(a), kept)

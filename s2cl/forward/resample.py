@@ -145,6 +145,13 @@ class Resampler:
         spectra = np.asarray(spectra)
         n = spectra.shape[0]
         chunk = chunk_pixels or self.default_chunk()
+        if 0 < n <= chunk:  # one launch: the kernel writes the result in place where the device reads host memory
+            out, out_dev = self.rt.output((self.plan.n_bands, n), self.dtype)
+            spectra_dev = self.rt.to_device(np.ascontiguousarray(spectra, dtype=self.dtype), zero_copy=True)
+            self.enqueue(out_dev, spectra_dev, n, local_size)
+            out = self.rt.result(out_dev, out)  # blocking: spectra_dev is referenced until here
+            del spectra_dev
+            return out
         out = np.empty((self.plan.n_bands, n), dtype=self.dtype)
         for lo in range(0, n, chunk):
             hi = min(n, lo + chunk)
