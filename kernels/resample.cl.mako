@@ -90,17 +90,18 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
     % endfor
   % endif
         }
-  % if rows == vw:
-        /* the ${rows} rows' sums at once: halve, pairing rows, until lane r holds row r's sum (faster than one
-           scalar reduction per row; python -m bench.bench_resample measures the kernel) */
+  % if rows % vw == 0:
+    % for g in range(rows // vw):
+        /* rows ${g * vw}..${g * vw + vw - 1}: their sums at once: halve, pairing rows, until lane r holds row r's sum
+           (faster than one scalar reduction per row; python -m bench.bench_resample measures the kernel) */
 <%
-    level = [f"acc{r}" for r in range(rows)]
+    level = [f"acc{r}" for r in range(g * vw, (g + 1) * vw)]
     depth = 0
 %>
     % while len(level) > 1:
 <%
     pairs = list(zip(level[0::2], level[1::2]))
-    names = [f"h{depth}_{i}" for i in range(len(pairs))]
+    names = [f"h{g}_{depth}_{i}" for i in range(len(pairs))]
 %>
       % for name, (x, y) in zip(names, pairs):
         const ${vtype} ${name} = (${vtype})(${x}.even, ${y}.even) + (${vtype})(${x}.odd, ${y}.odd);
@@ -110,24 +111,25 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
     depth += 1
 %>
     % endwhile
-        ${vtype} sums = ${level[0]};
-    % for t in range(nvec * vw, b["length"]):
-      % for r in range(rows):
-        % if atmosphere:
-        sums.s${lanes[r]} += weights[${w0 + t}] * s2_toa(${row(r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
-        % else:
-        sums.s${lanes[r]} += weights[${w0 + t}] * ${row(r)}[${s0 + t}];
-        % endif
+        ${vtype} sums${g} = ${level[0]};
+      % for t in range(nvec * vw, b["length"]):
+        % for r in range(vw):
+          % if atmosphere:
+        sums${g}.s${lanes[r]} += weights[${w0 + t}] * s2_toa(${row(g * vw + r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+          % else:
+        sums${g}.s${lanes[r]} += weights[${w0 + t}] * ${row(g * vw + r)}[${s0 + t}];
+          % endif
+        % endfor
       % endfor
+      % if whole:
+        vstore${vw}(sums${g}, 0, out + ${k}u * n_pixels + i0 + ${g * vw}u);
+      % else:
+        % for r in range(vw):
+        if (i0 + ${g * vw + r}u < n_pixels)
+            out[${k}u * n_pixels + i0 + ${g * vw + r}u] = sums${g}.s${lanes[r]};
+        % endfor
+      % endif
     % endfor
-    % if whole:
-        vstore${vw}(sums, 0, out + ${k}u * n_pixels + i0);
-    % else:
-      % for r in range(rows):
-        if (i0 + ${r}u < n_pixels)
-            out[${k}u * n_pixels + i0 + ${r}u] = sums.s${lanes[r]};
-      % endfor
-    % endif
   % else:
   % for r in range(rows):
         ${R} sum${r} = s2_hsum(acc${r});

@@ -68,6 +68,17 @@ def test_rows_per_work_item_give_identical_bits(rt, rows: int) -> None:
         Resampler(rt, plan, rows_per_item=3)
 
 
+@pytest.mark.parametrize("rows", [4, 8, 16])
+def test_rows_in_several_vector_groups_give_identical_bits(rt, rows: int) -> None:
+    """With 4-wide loads, 8 or 16 rows are reduced as 2 or 4 groups of 4 (the transposed tree per group): the
+    same bits as one row per work-item, with tails that cut through a group."""
+    plan = _plan()
+    spectra = _spectra(23, seed=5)
+    one = Resampler(rt, plan, vector_width=4, rows_per_item=1)(spectra)
+    for n in (3, 6, 23):
+        assert np.array_equal(Resampler(rt, plan, vector_width=4, rows_per_item=rows)(spectra[:n]), one[:, :n])
+
+
 @pytest.mark.parametrize("n", [1, 7, 301, 10007])
 def test_resample_matches_oracle(rt, real_t: str, n: int) -> None:
     plan = _plan()
