@@ -163,8 +163,8 @@ __kernel void resample_bands(
     if (i0 + ${rows}u <= n_pixels) {
 % endif
         /* all rows exist: they sit at constant offsets from one pointer, so the compiler keeps one base register
-           and folds the offsets into the loads (a pointer per row spilled to the stack and cost 5-19 %,
-           python -m bench.bench_resample) */
+           and folds the offsets into the loads (with a pointer per row, PoCL kept a pointer per row and band on
+           the stack and reloaded them band after band) */
         __global const ${R} *base = spectra + (size_t)i0 * ${n_wavelengths}u;
 ${band_sums(lambda r: f"(base + {r * n_wavelengths}u)", True)}
 % if rows > 1:
