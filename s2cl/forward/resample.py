@@ -145,23 +145,20 @@ class Resampler:
         spectra = np.asarray(spectra)
         n = spectra.shape[0]
         chunk = chunk_pixels or self.default_chunk()
-        if 0 < n <= chunk:  # one launch: the kernel writes the result in place where the device reads host memory
-            out, out_dev = self.rt.output((self.plan.n_bands, n), self.dtype)
-            spectra_dev = self.rt.to_device(np.ascontiguousarray(spectra, dtype=self.dtype), zero_copy=True)
-            self.enqueue(out_dev, spectra_dev, n, local_size)
-            out = self.rt.result(out_dev, out)  # blocking: spectra_dev is referenced until here
-            del spectra_dev
-            return out
+        if 0 < n <= chunk:  # one launch: its result is the answer, no copy
+            return self._launch(spectra, local_size)
         out = np.empty((self.plan.n_bands, n), dtype=self.dtype)
         for lo in range(0, n, chunk):
-            hi = min(n, lo + chunk)
-            block = np.ascontiguousarray(spectra[lo:hi], dtype=self.dtype)
-            spectra_dev = self.rt.to_device(block, zero_copy=True)  # referenced until the blocking fetch
-            out_dev = self.rt.empty(self.plan.n_bands * (hi - lo) * self.dtype().itemsize)
-            self.enqueue(out_dev, spectra_dev, hi - lo, local_size)
-            out[:, lo:hi] = self.rt.fetch(out_dev, (self.plan.n_bands, hi - lo), self.dtype)
-            del spectra_dev
+            out[:, lo:min(n, lo + chunk)] = self._launch(spectra[lo:lo + chunk], local_size)
         return out
+
+    def _launch(self, block: np.ndarray, local_size: int | None) -> np.ndarray:
+        """Band radiance of one chunk ``(n_bands, len(block))``: the device reads ``block`` and, where it works in
+        host memory, writes the result in place (:meth:`Runtime.output`)."""
+        out, out_dev = self.rt.output((self.plan.n_bands, block.shape[0]), self.dtype)
+        spectra_dev = self.rt.to_device(np.ascontiguousarray(block, dtype=self.dtype), zero_copy=True)
+        self.enqueue(out_dev, spectra_dev, block.shape[0], local_size)
+        return self.rt.result(out_dev, out)  # blocking: spectra_dev stays referenced until the kernel is done
 
     def default_chunk(self) -> int:
         """Pixels per chunk: input at most a quarter of the device's largest allocation, and 256 MiB
