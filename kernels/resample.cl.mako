@@ -34,9 +34,11 @@ we do not rely on PoCL's implicit work-group vectorisation (shared/notes/pocl-pe
     R = T.R
     vtype = f"{R}{vw}"
     lanes = "0123456789abcdef"[:vw]
+    # rows reduced together: groups of min(rows, vw) (both powers of two); 1 row: one s2_hsum per band
+    group = min(rows, vw)
 %>
-/* Sum of the lanes as a pairwise tree ((a0 + a1) + (a2 + a3)) + ...: the order the rows == vw path's
-   transposed reduction takes, so every rows-per-work-item setting gives the same bits. */
+/* Sum of the lanes as a pairwise tree ((a0 + a1) + (a2 + a3)) + ...: the order the grouped reduction of several
+   rows takes (below), so every rows-per-work-item setting gives the same bits. */
 static inline ${R} s2_hsum(${vtype} a)
 {
 <%
@@ -90,43 +92,58 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
     % endfor
   % endif
         }
-  % if rows % vw == 0:
-    % for g in range(rows // vw):
-        /* rows ${g * vw}..${g * vw + vw - 1}: their sums at once: halve, pairing rows, until lane r holds row r's sum
-           (faster than one scalar reduction per row; python -m bench.bench_resample measures the kernel) */
+  % if group > 1:
+    % for g in range(rows // group):
+        /* rows ${g * group}..${g * group + group - 1}: their sums at once (faster than one scalar reduction per row;
+           python -m bench.bench_resample measures the kernel). Each accumulator is first halved, lanes paired as
+           s2_hsum pairs them, to ${group} lanes; then the rows are paired, halving, until lane r holds row r's sum. */
 <%
-    level = [f"acc{r}" for r in range(g * vw, (g + 1) * vw)]
-    depth = 0
+    gtype = f"{R}{group}"
+    level = [f"acc{r}" for r in range(g * group, (g + 1) * group)]
+    depth, width = 0, vw
 %>
-    % while len(level) > 1:
+      % while width > group:
 <%
-    pairs = list(zip(level[0::2], level[1::2]))
-    names = [f"h{g}_{depth}_{i}" for i in range(len(pairs))]
+    names = [f"p{g}_{depth}_{i}" for i in range(len(level))]
+    width //= 2
 %>
-      % for name, (x, y) in zip(names, pairs):
-        const ${vtype} ${name} = (${vtype})(${x}.even, ${y}.even) + (${vtype})(${x}.odd, ${y}.odd);
-      % endfor
+        % for name, x in zip(names, level):
+        const ${R}${width} ${name} = ${x}.even + ${x}.odd;
+        % endfor
 <%
     level = names
     depth += 1
 %>
-    % endwhile
-        ${vtype} sums${g} = ${level[0]};
+      % endwhile
+      % while len(level) > 1:
+<%
+    pairs = list(zip(level[0::2], level[1::2]))
+    names = [f"h{g}_{depth}_{i}" for i in range(len(pairs))]
+%>
+        % for name, (x, y) in zip(names, pairs):
+        const ${gtype} ${name} = (${gtype})(${x}.even, ${y}.even) + (${gtype})(${x}.odd, ${y}.odd);
+        % endfor
+<%
+    level = names
+    depth += 1
+%>
+      % endwhile
+        ${gtype} sums${g} = ${level[0]};
       % for t in range(nvec * vw, b["length"]):
-        % for r in range(vw):
+        % for r in range(group):
           % if atmosphere:
-        sums${g}.s${lanes[r]} += weights[${w0 + t}] * s2_toa(${row(g * vw + r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+        sums${g}.s${lanes[r]} += weights[${w0 + t}] * s2_toa(${row(g * group + r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
           % else:
-        sums${g}.s${lanes[r]} += weights[${w0 + t}] * ${row(g * vw + r)}[${s0 + t}];
+        sums${g}.s${lanes[r]} += weights[${w0 + t}] * ${row(g * group + r)}[${s0 + t}];
           % endif
         % endfor
       % endfor
       % if whole:
-        vstore${vw}(sums${g}, 0, out + ${k}u * n_pixels + i0 + ${g * vw}u);
+        vstore${group}(sums${g}, 0, out + ${k}u * n_pixels + i0 + ${g * group}u);
       % else:
-        % for r in range(vw):
-        if (i0 + ${g * vw + r}u < n_pixels)
-            out[${k}u * n_pixels + i0 + ${g * vw + r}u] = sums${g}.s${lanes[r]};
+        % for r in range(group):
+        if (i0 + ${g * group + r}u < n_pixels)
+            out[${k}u * n_pixels + i0 + ${g * group + r}u] = sums${g}.s${lanes[r]};
         % endfor
       % endif
     % endfor

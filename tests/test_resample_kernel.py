@@ -68,15 +68,20 @@ def test_rows_per_work_item_give_identical_bits(rt, rows: int) -> None:
         Resampler(rt, plan, rows_per_item=3)
 
 
-@pytest.mark.parametrize("rows", [4, 8, 16])
-def test_rows_in_several_vector_groups_give_identical_bits(rt, rows: int) -> None:
-    """With 4-wide loads, 8 or 16 rows are reduced as 2 or 4 groups of 4 (the transposed tree per group): the
-    same bits as one row per work-item, with tails that cut through a group."""
-    plan = _plan()
-    spectra = _spectra(23, seed=5)
-    one = Resampler(rt, plan, vector_width=4, rows_per_item=1)(spectra)
-    for n in (3, 6, 23):
-        assert np.array_equal(Resampler(rt, plan, vector_width=4, rows_per_item=rows)(spectra[:n]), one[:, :n])
+@pytest.mark.parametrize("width", [4, 8, 16])
+def test_rows_reduced_in_groups_give_identical_bits(rt, width: int) -> None:
+    """Rows are reduced in groups of min(rows, width) lanes (the transposed tree per group, each accumulator first
+    halved to the group's width): at every width and rows setting, the same bits as one row per work-item, with
+    tails that cut through a group; also on a 14-sample grid, where capped supports keep scalar tails."""
+    short = SpectralGrid(2000, 2390, 30)  # 14 samples: B12's support, capped there, keeps 8- and 16-wide scalar tails
+    b12 = Sensor.sentinel2().bands[-1].weights(short)
+    for grid, plan in ((DEFAULT_GRID, _plan()), (short, _plan(short, bands=[b12, b12]))):
+        spectra = _spectra(23, grid, seed=5)
+        one = Resampler(rt, plan, vector_width=width, rows_per_item=1)(spectra)
+        for rows in (2, 4, 8, 16):
+            many = Resampler(rt, plan, vector_width=width, rows_per_item=rows)
+            for n in (3, 6, 23):
+                assert np.array_equal(many(spectra[:n]), one[:, :n]), (rows, n)
 
 
 @pytest.mark.parametrize("n", [1, 7, 301, 10007])

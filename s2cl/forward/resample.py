@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 TEMPLATE = "resample.cl.mako"
 
 #: Wavelengths per vector load unless asked otherwise, capped at the device's native width and at
-#: least 4 (there is no vload1): 16-wide loads were 13-15 % slower than 8-wide on an AVX-512 CPU
+#: least 4 (there is no vload1): 8-wide loads ran 1.08-1.13x as fast as 16-wide on an AVX-512 CPU
 #: (``python -m bench.bench_lanes``, bench/results/lanes-*.json); on AVX2 8 is the native width.
 DEFAULT_VECTOR_WIDTH = 8
 #: Spectra per work-item on CPUs, read interleaved so that that many memory streams are in flight at
