@@ -120,3 +120,16 @@ def test_sweep_validation_fails_on_a_wrong_kernel(bench_main: Callable[[list[str
 
     with pytest.raises(BenchValidationError, match="disagrees"):
         validate_sweep(job, wrong)
+
+
+@pytest.mark.skipif(not any(__import__("shutil").which(c) for c in ("cc", "gcc")), reason="needs a C compiler")
+def test_native_resampling_reference_agrees_with_the_oracle(bench_path: None) -> None:
+    """``python -m bench.resample_native``'s compiled C loop (the kernel's access pattern, for the profile) is checked
+    against the float64 oracle before it is timed, on a pixel count with a partial last block of rows."""
+    from bench.resample_native import measure
+
+    result = measure(1003, 1)
+    assert set(result["median_rate_per_s"]) == {*result["kernel_over_this_median_paired"],
+                                                "s2cl OpenCL kernel (data on the device)"}
+    assert all(r > 0 for r in result["median_rate_per_s"].values())
+    assert max(result["validation_max_rel_vs_float64"].values()) < 2e-6
