@@ -33,10 +33,8 @@ import numpy as np
 from bench.bench_resample import TOLERANCE, per_band_slices, random_spectra, validated_resampler
 from bench.common import check, load_average, load_note, machine_info, max_rel_error, write_result
 
-ROWS = 8  # spectra per loop iteration, as the kernel's default (s2cl.forward.resample.DEFAULT_ROWS_PER_ITEM)
 
-
-def native_source(bands: list[dict], n_wavelengths: int, vw: int, rows: int = ROWS) -> str:
+def native_source(bands: list[dict], n_wavelengths: int, vw: int, rows: int) -> str:
     """C source of ``resample(out, spectra, weights, n)``: the band supports of ``bands`` (as
     :meth:`ResamplePlan.packed` gives them for ``vw``-wide loads) read band after band for ``rows`` spectra at a
     time (``rows`` = 1 for the last, partial block), spectra split across OpenMP threads."""
@@ -125,7 +123,7 @@ def measure(pixels: int, rounds: int) -> dict[str, Any]:
     threads = os.cpu_count() or 1
     os.environ.setdefault("OMP_NUM_THREADS", str(threads))
     with tempfile.TemporaryDirectory() as tmp:  # the loaded library stays mapped once its file is gone
-        native = compile_native(native_source(bands, res.plan.n_wavelengths, res.vw), Path(tmp))
+        native = compile_native(native_source(bands, res.plan.n_wavelengths, res.vw, res.rows), Path(tmp))
     out_c = np.empty((res.plan.n_bands, n), dtype=np.float32)
 
     def run_c(block: np.ndarray = data, out: np.ndarray = out_c) -> np.ndarray:
@@ -153,7 +151,7 @@ def measure(pixels: int, rounds: int) -> dict[str, Any]:
     ratio = {name: statistics.median(a / b for a, b in zip(t, times[kernel], strict=True))
              for name, t in times.items() if name != kernel}
     return {"title": "SRF resampling, 2101 λ → 13 bands, float32: OpenCL kernel against compiled C", "n": n,
-            "rounds": rounds, "vector_width": res.vw, "rows": ROWS, "threads": threads,
+            "rounds": rounds, "vector_width": res.vw, "rows": res.rows, "threads": threads,
             "compiler_flags": "-O3 -march=native -fopenmp",
             "validation_max_rel_vs_float64": {kernel: err, c_loop: err_c},
             "median_rate_per_s": rates, "kernel_over_this_median_paired": ratio,
