@@ -21,9 +21,7 @@ import random
 import shutil
 import statistics
 import subprocess
-import sys
 import tempfile
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -31,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from bench.bench_resample import TOLERANCE, per_band_slices, random_spectra, validated_resampler
-from bench.common import check, load_average, load_note, machine_info, max_rel_error, write_result
+from bench.common import check, load_average, load_note, machine_info, max_rel_error, time_repeats, write_result
 
 
 def native_source(bands: list[dict], n_wavelengths: int, vw: int, rows: int) -> str:
@@ -103,12 +101,7 @@ def paired_rounds(runs: dict[str, Callable[[], Any]], rounds: int) -> dict[str, 
     for k in range(rounds):
         random.Random(k).shuffle(names)
         for name in names:
-            spent = []
-            for _ in range(CALLS):
-                t0 = time.perf_counter()
-                runs[name]()
-                spent.append(time.perf_counter() - t0)
-            times[name].append(min(spent[1:]))
+            times[name].append(min(time_repeats(runs[name], CALLS - 1, warmup=1)))
     return times
 
 
@@ -175,4 +168,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -148,22 +148,16 @@ static inline ${R} s2_toa(${R} rho, ${R} lp, ${R} g, ${R} s)
       % endif
     % endfor
   % else:
-  % for r in range(rows):
-        ${R} sum${r} = s2_hsum(acc${r});
+        /* one row per work-item (group == 1): s2_hsum's tree, then any scalar tail */
+        ${R} sum0 = s2_hsum(acc0);
     % for t in range(nvec * vw, b["length"]):
       % if atmosphere:
-        sum${r} += weights[${w0 + t}] * s2_toa(${row(r)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
+        sum0 += weights[${w0 + t}] * s2_toa(${row(0)}[${s0 + t}], path_radiance[${s0 + t}], ground_term[${s0 + t}], spherical_albedo[${s0 + t}]);
       % else:
-        sum${r} += weights[${w0 + t}] * ${row(r)}[${s0 + t}];
+        sum0 += weights[${w0 + t}] * ${row(0)}[${s0 + t}];
       % endif
     % endfor
-    % if whole or r == 0:
-        out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
-    % else:
-        if (i0 + ${r}u < n_pixels)
-            out[${k}u * n_pixels + i0 + ${r}u] = sum${r};
-    % endif
-  % endfor
+        out[${k}u * n_pixels + i0] = sum0;
   % endif
     }
 % endfor
