@@ -195,7 +195,9 @@ def machine_info(rt: Any | None = None) -> dict[str, Any]:
     if rt is not None:
         info["opencl_device"] = rt.name
         info["lanes"] = {r: rt.lanes(r) for r in ("float32", "float64")}
-        info["native_vector_width"] = {r: rt.native_lanes(r) for r in ("float32", "float64")}
+        info["native_vector_width"] = {r: rt.reported_lanes(r) for r in ("float32", "float64")}  # as reported
+        info["clean_vector_width"] = {r: rt.native_lanes(r) for r in ("float32", "float64")}  # as built
+        info["opencl_driver"] = str(rt.device.driver_version).strip()
         info["cpu_flags"] = cpu_vector_flags()
     return info
 

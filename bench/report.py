@@ -28,7 +28,7 @@ def table(columns: tuple[Column, ...], result: Result, rows: list[Row]) -> str:
 def family_md(f: Family, result: Result) -> str:
     """A family's caption and table (skipped rows as notes below it), or the error it failed with."""
     if "error" in result:
-        return f"**{f.title}**: failed: {result['error']}"
+        return f"**{f.title}**: {'' if result.get('skipped') else 'failed: '}{result['error']}"
     rows = result.get(f.rows, [])
     kept = [r for r in rows if not r.get("skipped")]
     skipped = "".join(f"\n\n*{f.columns[0].value(r)}*" for r in rows if r.get("skipped"))

@@ -25,7 +25,7 @@ Each work-item takes `rows` pixels and reads their rows with `vw`-wide vector lo
 contiguous, so the hardware prefetcher streams them) and accumulates in vectors. A work-item whose rows
 all exist addresses them from one pointer; only the last work-item clamps its row pointers and guards
 its stores (the same sums, so the bits do not depend on where a pixel falls). Loops over vectors are fine here:
-we do not rely on PoCL's implicit work-group vectorisation (shared/notes/pocl-performance.md).
+we do not rely on PoCL's implicit work-group vectorisation (it skips kernels with loops or builtin calls).
 </%doc>
 % if T.double:
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable

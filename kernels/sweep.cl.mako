@@ -37,7 +37,7 @@ Arguments (s2cl.sweep.kernel.ARGS)
 Global size: (pitch / T.lanes, n_configs).
 IGRM: the bands of a configuration are sorted by centre before the fit (a stable sorting network on
 the scalar centres), as the direct API (s2cl.retrieve.igrm.IgrmFitter) requires increasing wavelengths.
-No builtin math in the hot path (shared/notes/pocl-performance.md).
+No builtin math in the hot path (PoCL does not inline it: kernels/common/vecmath.mako).
 </%doc>
 <%namespace name="vm" file="common/vecmath.mako"/>
 <%namespace name="lm" file="common/igrm_lm.mako"/>

@@ -69,6 +69,38 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
         assert {Status.OK, Status.UNCLASSIFIED} <= set(np.unique(direct.status).tolist())  # both verdicts occur
 
 
+#: bands moved off their reference shape: narrower, wider and shifted (the noise rescales with the width)
+MOVED = {"igrm": {"B5": (712.0, 10.0), "B6": (748.0, 25.0)}, "gvmi": {"B11": (1610.0, 50.0)},
+         "sam": {"B12": (2200.0, 60.0)}}
+
+
+@pytest.mark.parametrize("kind", list(CASES))
+def test_moved_bands_give_each_pixel_one_verdict(rt, kind: str) -> None:
+    """A sweep's one configuration that moves bands off the sensor's shapes, against ``simulate`` of a sensor
+    whose bands are those shapes (``Band.with_shape``): same noise, so the same value and status per pixel.
+    The sweep's tables (radiance and noise σ per variant) are thus checked against the direct path at widths
+    other than the reference: σ of the base band instead of the variant's lowers it 25 % at a 50 nm B11."""
+    if not rt.has_fp64:
+        pytest.skip("device has no cl_khr_fp64")
+    from dataclasses import replace
+
+    from s2cl.sensor.sensor import Sensor
+
+    bands = {b: MOVED[kind].get(b, ESA[b]) for b in CASES[kind][1]}
+    swept_scene = _scene(kind, bands)  # the sensor's own (ESA) bands; the sweep moves them
+    esa = swept_scene.sensor
+    moved = Sensor(esa.name, tuple(b.with_shape(*bands[b.name]) for b in esa.bands), bits=esa.bits, source=esa.source)
+    assert any(b.noise_coefficients() != e.noise_coefficients() for b, e in zip(moved.bands, esa.bands, strict=True))
+    direct_scene = replace(swept_scene, sensor=moved)
+    direct = pixel_results(rt, direct_scene, simulate(direct_scene))
+    job = plan_sweep(swept_scene)
+    assert job.n_configs == 1
+    swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
+    np.testing.assert_array_equal(swept.status[0], direct.status)
+    tol = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0}[kind]
+    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=tol)
+
+
 def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tmp_path) -> None:
     """A sensor whose B5 and B6 share a centre (a user sensor table): `simulate`'s analysis and the
     sweep of that fixed design refuse it before any work, with the same explained message; the

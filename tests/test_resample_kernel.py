@@ -150,6 +150,25 @@ def test_atmosphere_effect_matches_oracle(rt, real_t: str, width: int | None) ->
     _check(out, ref.resample(toa, plan.weights), real_t)
 
 
+@pytest.mark.parametrize("rows", [1, 4])
+@pytest.mark.parametrize("width", [4, 8, 16])
+def test_scalar_tail_applies_the_atmosphere(rt, real_t: str, width: int, rows: int) -> None:
+    """A band whose support, padded to whole vectors, would be wider than the grid keeps a scalar tail; it turns
+    reflectance into radiance as the vector part does, with one row per work-item (the GPU default) or several."""
+    grid = SpectralGrid(400, 460, 5)  # 13 samples: the support of a 30 nm wide band at 430 nm covers them all
+    plan = _plan(grid, [band_weights(grid, name="wide", centre_nm=430.0, fwhm_nm=30.0)])
+    bands, _ = plan.packed(width)
+    assert bands[0]["length"] % width, "no scalar tail: the test would not reach it"
+    rng = np.random.default_rng(11)
+    terms = _Terms(grid.size, rng)
+    rho = rng.uniform(0.0, 0.9, (37, grid.size))
+    r = Resampler(rt, plan, real_t, atmosphere=terms, vector_width=width, rows_per_item=rows)
+    if r.vw != width:
+        pytest.skip(f"{width} lanes do not build cleanly on this device")
+    toa = ref.toa_radiance(rho, terms.path_radiance, terms.ground_term, terms.spherical_albedo)
+    _check(r(rho), ref.resample(toa, plan.weights), real_t)
+
+
 def test_launches_name_their_work_group(rt) -> None:
     """Launches name the work-group size the device prefers, never the driver's divisor of the global
     size; any other size gives the same bits (above)."""

@@ -76,29 +76,30 @@ def test_program_cache_keys_on_source_and_options(rt: Runtime) -> None:
 
 
 @pytest.mark.parametrize(
-    ("native", "kind", "requested", "lanes", "replaced"),
+    ("clean", "kind", "requested", "lanes", "replaced"),
     [(16, "ALL | CPU", None, 16, False),   # PoCL, AVX-512, float32
      (8, "ALL | CPU", None, 8, False),     # PoCL, AVX2 (or AVX-512 float64)
      (4, "CPU", None, 4, False),           # AVX2 float64
      (8, "ALL | CPU", 16, 8, True),        # float16 on AVX2 warns "changes the ABI": capped
      (8, "ALL | CPU", 4, 4, False),        # narrower than native: as asked
-     (1, "ALL | GPU", None, 1, False),     # GPUs vectorise across work-items
-     (1, "GPU", 16, 16, False),            # ... and take any width on request
+     (16, "ALL | GPU", None, 1, False),    # GPUs vectorise across work-items
+     (16, "GPU", 16, 16, False),           # ... and take any clean width on request
+     (4, "GPU", 16, 4, True),              # ... but not one their compiler warns on
      (4, "ACCELERATOR", None, 1, False)],
 )
-def test_lane_choice_from_device_attributes(native, kind, requested, lanes, replaced) -> None:
-    got, why = choose_lanes(native=native, device_type=kind, requested=requested)
+def test_lane_choice_from_device_attributes(clean, kind, requested, lanes, replaced) -> None:
+    got, why = choose_lanes(clean=clean, device_type=kind, requested=requested)
     assert got == lanes
     assert (why is not None) == replaced
 
 
 def test_lane_choice_refuses_widths_opencl_lacks() -> None:
     with pytest.raises(InputError, match="lanes: must be one of"):
-        choose_lanes(native=8, device_type="CPU", requested=3)
+        choose_lanes(clean=8, device_type="CPU", requested=3)
 
 
 def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) -> None:
-    """An AVX2 device (native 8 floats, 4 doubles), whatever this machine is: forced 16 lanes fall back,
+    """An AVX2 device (8 floats, 4 doubles build clean), whatever this machine is: forced 16 lanes fall back,
     with a DEBUG record and no failure; the kernels then build at that width."""
     if "CPU" not in rt.info.kind:
         pytest.skip("CPU-device rule")
@@ -106,7 +107,8 @@ def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) 
     caplog.set_level(logging.DEBUG, logger="s2cl")
     assert rt.lanes("float32") == 8 and rt.lanes("float64") == 4
     assert rt.lanes("float32", 16) == 8
-    assert any("exceed this CPU device's native vector width (8)" in r.message for r in caplog.records)
+    said = "16 lanes do not build cleanly on this device (widest clean width 8)"
+    assert any(said in r.message for r in caplog.records)
     from s2cl.retrieve.igrm import IgrmFitter
 
     assert IgrmFitter(rt, 4, lanes=16).types.lanes == 8
@@ -153,15 +155,15 @@ def test_strict_builds_refuse_warnings(rt: Runtime, tmp_path, monkeypatch) -> No
 
 
 def test_default_device_compiles(rt: Runtime) -> None:
-    """The default device is one that builds kernels (a PoCL that cannot is skipped, see below)."""
-    assert devices._builds(rt.info) is None
+    """The device under test builds kernels (a PoCL that cannot is skipped, see below)."""
+    assert devices.builds_at_all(rt.info) is None
 
 
 def test_default_skips_a_device_that_cannot_compile(monkeypatch) -> None:
     infos = list_devices()
     broken = infos[0]
-    real = devices._builds
-    monkeypatch.setattr(devices, "_builds", lambda info: "error: unknown target CPU 'generic'"
+    real = devices.builds_at_all
+    monkeypatch.setattr(devices, "builds_at_all", lambda info: "error: unknown target CPU 'generic'"
                         if info == broken else real(info))
     if any(real(i) is None for i in infos[1:]):  # another device that really compiles is chosen instead
         assert devices._first_working(infos) != broken

@@ -53,6 +53,22 @@ def test_threshold_leaves_far_pixels_unclassified(rt):
     assert np.all(out.status[near] == SamStatus.CLASSIFIED) and np.all(out.label[near] >= 0)
 
 
+def test_an_angle_equal_to_the_threshold_is_classified(rt, real_t, lanes):
+    """The documented rule is angle <= threshold, ties included. With threshold 0 (cos 1, exact) a pixel
+    along a reference has angle exactly 0 and the test's two sides are equal in every precision (axis-aligned
+    spectra: |p|^2 and p.r are exact), so ``>=`` against ``>`` decides it; a pixel off the axes is not.
+    The numpy twin says the same."""
+    refs = np.eye(4)[:2]
+    pix = np.array([[2.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0], [0.0, 3.0, 0.0, 0.0], [1.0, 0.1, 0.0, 0.0]]).T
+    pix = np.tile(pix, 4)  # 16 pixels: whole vectors at every lane width
+    out = SamClassifier(rt, refs, threshold_rad=0.0, real_t=real_t, lanes=lanes).classify(pix)
+    expected = np.tile([SamStatus.CLASSIFIED] * 3 + [SamStatus.UNCLASSIFIED], 4)
+    np.testing.assert_array_equal(out.status, expected)
+    np.testing.assert_array_equal(out.label[expected == SamStatus.CLASSIFIED], np.tile([0, 0, 1], 4))
+    _, _, status = ref.sam_classify(pix, refs, threshold_rad=0.0)
+    np.testing.assert_array_equal(status, expected)
+
+
 def test_hard_cases_zero_nan_and_neighbours(rt):
     refs, _, pix = _scene(16, seed=2)
     clean = SamClassifier(rt, refs).classify(pix)

@@ -42,7 +42,8 @@ def test_run_config_is_read_once_and_frozen() -> None:
     scene = Scene.from_dict({**copy.deepcopy(BASE), "compute": {"precision": "float64", "lanes": 4, "device": "pocl"},
                              "effects": {"seed": 7, "frame": 2}, "surface": {"library": "a.csv", "copies": 3}})
     r = scene.run
-    assert (r.precision, r.lanes, r.device, r.seed, r.frame, r.copies, r.bits) == ("float64", 4, "pocl", 7, 2, 3, 12)
+    assert (r.precision, r.lanes, r.device, r.seed, r.frame, r.copies) == ("float64", 4, "pocl", 7, 2, 3)
+    assert not hasattr(r, "bits")  # the sensor holds the radiometric resolution: scene.sensor.bits
     assert r.effects == scene.effects
     with pytest.raises(dataclasses.FrozenInstanceError):
         r.seed = 1  # type: ignore[misc]

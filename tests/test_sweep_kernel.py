@@ -20,10 +20,13 @@ def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:
     ref = evaluate(job.tables, job.analysis, 0, job.n_configs)
     got = SweepKernel(job.tables, job.analysis, rt, precision=real_t, lanes=lanes)(0, job.n_configs)
     assert np.array_equal(got.status, ref.status)
-    # float32: a DN may round the other way near .5 (one DN ≈ 0.02 % of B11's range)
+    # float32: a DN may round the other way near .5 (one DN ≈ 0.02 % of B11's range), which moves the index
+    # by up to 2e-3; that is rare, and every other pixel agrees to float32 rounding (measured: 0.01 % of
+    # pixels off by more than 1e-5), so a calibration slope one count off (every pixel 2.4e-4 relative) fails
     # (float64: not bit-equal, as OpenCL contracts a*b+c into FMA; numpy does not)
-    tol = 1e-12 if real_t == "float64" else 2e-3
-    assert np.max(np.abs(got.index - ref.index)) < tol
+    err = np.abs(got.index - ref.index)
+    assert err.max() < (1e-12 if real_t == "float64" else 2e-3)
+    assert np.mean(err > 1e-5) < 1e-3
 
 
 def test_chunks_are_independent(rt) -> None:

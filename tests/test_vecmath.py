@@ -58,9 +58,25 @@ def test_low_degree_is_measurably_worse(rt):
     assert np.max(np.abs(out / np.exp(a.astype(np.float64)) - 1.0)) > 10 * EXP_REL_TOL["float32"]
 
 
-def test_exp_coefficients_deterministic():
-    assert exp_poly_coefficients(5) == exp_poly_coefficients(5)
-    assert exp_poly_coefficients(12)[3] == pytest.approx(1.0 / 6.0, rel=0, abs=0)
+@pytest.mark.parametrize(("degree", "bound"), [(5, 1.1e-7), (12, 4e-16)])
+def test_exp_coefficients_approximate_exp_on_the_reduced_range(degree: int, bound: float):
+    """Degree 5 (Chebyshev nodes): h^6 e^h / (6! 2^5) = 1.06e-7 relative on [-ln2/2, ln2/2]; degree 12
+    (Taylor): h^13 / 13! = 1.6e-16, below float64 rounding."""
+    h = np.log(2.0) / 2.0
+    f = np.linspace(-h, h, 20001)
+    poly = np.polynomial.polynomial.polyval(f, exp_poly_coefficients(degree))
+    assert np.max(np.abs(poly / np.exp(f) - 1.0)) <= bound
+    assert exp_poly_coefficients(12)[3] == 1.0 / 6.0
+
+
+def test_exp_coefficients_are_the_same_text_in_another_process():
+    """The kernel source, hence PoCL's cached binary, must not change between processes."""
+    import subprocess
+    import sys
+
+    code = "from s2cl.cl.vecmath import exp_poly_coefficients as c; print(repr([c(d) for d in range(3, 17)]))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.strip() == repr([exp_poly_coefficients(d) for d in range(3, 17)])
 
 
 def test_rsqrt_accuracy(rt, real_t):

@@ -2,7 +2,7 @@
 common/vecmath.mako: Mako defs that emit `static inline` math helpers for explicit-lane code.
 
 Why: PoCL 3.0 does not inline builtin math (exp, sqrt, fma, fmin, fmax); one call in a hot loop
-costs ~10-20x (shared/notes/pocl-performance.md). These helpers use only + - * /, comparisons,
+costs ~10-20x (`python -m bench.bench_igrm`: the "builtin exp" row). These helpers use only + - * /, comparisons,
 the ternary operator and as_* bit casts, which compile to inline vector instructions.
 
 Every def takes T, an s2cl.cl.vectypes.VecTypes (T.V real lanes, T.M comparison mask, T.IB integer

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from s2cl.cl.builds import pyopencl, quiet_build
+from s2cl.cl.builds import pyopencl
+from s2cl.cl.probe import ABORT_ENV, REPORTED_ENV, Widths, measure
 from s2cl.cl.vectypes import VALID_LANES
 from s2cl.errors import DeviceError, InputError, token
 
@@ -129,8 +130,7 @@ def select(spec: str | None) -> tuple[Any, DeviceInfo]:
             origin = " ($PYOPENCL_CTX)" if spec == env_spec() else ""
             raise DeviceError(f"no OpenCL device matches {token(spec, 40)}{origin}; available: {listing} "
                               "(give PLATFORM:DEVICE indices or part of a name)")
-    device = _platforms()[chosen.platform_index].get_devices()[chosen.device_index]
-    return device, chosen
+    return device_of(chosen), chosen
 
 
 NEWER_POCL_HINT = (
@@ -139,33 +139,54 @@ NEWER_POCL_HINT = (
     "`apt-get install pocl-opencl-icd` (Debian/Ubuntu; `bash tools/setup.sh` does it), then run again"
 )
 
-_PROBE = "__kernel void s2cl_probe(__global float *a) { a[get_global_id(0)] *= 2.0f; }"
+def device_of(info: DeviceInfo) -> Any:
+    """The pyopencl device ``info`` lists."""
+    return _platforms()[info.platform_index].get_devices()[info.device_index]
 
 
-def _builds(info: DeviceInfo) -> str | None:
-    """None when ``info``'s device compiles a trivial kernel, else the build log."""
-    cl = pyopencl()
-    device = _platforms()[info.platform_index].get_devices()[info.device_index]
-    _, log, err = quiet_build(lambda: cl.Program(cl.Context([device]), _PROBE).build(), device)
-    return None if err is None else log
+_WIDTHS: dict[tuple[DeviceInfo, str, str], Widths] = {}
+
+
+def widths_of(info: DeviceInfo) -> Widths:
+    """``info``'s vector widths, reported and clean (:func:`s2cl.cl.probe.measure`; once per process)."""
+    key = (info, os.environ.get(REPORTED_ENV, ""), os.environ.get(ABORT_ENV, ""))
+    if key not in _WIDTHS:
+        _WIDTHS[key] = measure(device_of(info), info.platform_index, info.device_index)
+    return _WIDTHS[key]
+
+
+def builds_at_all(info: DeviceInfo) -> str | None:
+    """None when ``info``'s device builds the float32 probe cleanly at some width, else what its compiler said."""
+    widths = widths_of(info)
+    if widths.clean["float32"]:
+        return None
+    said = [c.detail for c in widths.checks if c.real_t == "float32" and c.detail]
+    return said[-1] if said else "no width builds"
 
 
 def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
-    """The default device: the first PoCL CPU device that compiles (else any device that does).
+    """The default device: of the PoCL CPU devices, the one whose clean float32 width is widest (ties: the
+    order listed), else the first other device that builds.
 
-    Some machines carry two PoCL platforms (the wheel's and the distribution's); the wheel's cannot
-    compile on CPUs that its LLVM does not know, so each candidate is probed with a trivial build
-    (cached by PoCL after the first time, ~0.05 s).
+    Some machines carry two PoCL platforms (the wheel's and the distribution's). The wheel's cannot
+    compile at all on CPUs its LLVM does not know (AMD Zen 5), and on some it knows only in part (AMD
+    Zen 4: an AVX2 target) it builds narrower vectors than the distribution's: each candidate's widths
+    are probed (:mod:`s2cl.cl.probe`; cached in the user cache after the first time).
     """
     pocl = [i for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind]
-    logs = []
+    logs, working = [], []
     for info in pocl + [i for i in infos if i not in pocl]:
-        log = _builds(info)
-        if log is None:
-            return info
-        _log.debug("skipping OpenCL device %s: it cannot compile a probe kernel: %s", info, log)
-        errors = [line.strip() for line in log.splitlines() if "error" in line.lower()]
-        logs.append(f"{info}: {errors[0] if errors else log.strip()[:200]}")
+        said = builds_at_all(info)
+        if said is None:
+            working.append(info)
+            continue
+        _log.debug("skipping OpenCL device %s: it cannot compile a probe kernel: %s", info, said)
+        logs.append(f"{info}: {said}")
+    cpus = [i for i in working if i in pocl]
+    if cpus:
+        return max(cpus, key=lambda i: (widths_of(i).clean["float32"], -cpus.index(i)))
+    if working:
+        return working[0]
     text = " ".join(logs)
     hint = NEWER_POCL_HINT if "unknown target CPU" in text else INSTALL_HINT
     raise DeviceError("no OpenCL device could compile a kernel (" + "; ".join(logs) + "): " + hint)
@@ -193,33 +214,32 @@ def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
 LANES_ENV = "S2CL_LANES"
 
 
-def choose_lanes(*, native: int, device_type: str, requested: int | None = None) -> tuple[int, str | None]:
+def choose_lanes(*, clean: int, device_type: str, requested: int | None = None) -> tuple[int, str | None]:
     """Pixels per work-item (explicit ``floatN`` lanes) of a vectorised kernel, and why it differs
     from ``requested`` (``None`` when it does not).
 
-    :param native: the device's native vector width for the precision
-        (``native_vector_width_float`` or ``_double``: PoCL reports 16 floats with AVX-512, 8 with AVX2).
+    :param clean: the widest width that builds without a warning for the precision on this device
+        (:mod:`s2cl.cl.probe`: on CPUs the reported native width or one of its halves; not the report itself,
+        which can name a width the code target lacks).
     :param device_type: the device's type string (``"CPU"``, ``"ALL | GPU"``...).
     :param requested: an explicit lane count (``lanes=`` or ``$S2CL_LANES``); ``None``: the default.
 
-    PoCL on CPUs does not vectorise across work-items when a kernel holds a loop or a builtin call
-    (``shared/notes/pocl-performance.md``), so each work-item takes one native vector of pixels.
-    A vector wider than the native one is not faster (bench/results/lanes-*.json) and, on an x86 CPU
-    without AVX-512, every helper that takes or returns it draws clang's warning "AVX vector argument
-    ... changes the ABI": on CPUs the runtime caps lanes at the native width. GPUs vectorise across
-    work-items in hardware: one pixel per work-item by default, any width on request.
+    PoCL on CPUs does not vectorise across work-items when a kernel holds a loop or a builtin call, so each
+    work-item takes one native vector of pixels: the clean width. A wider vector is not faster
+    (``python -m bench.bench_lanes``) and, where the target lacks it, draws clang's warning "AVX vector
+    argument ... changes the ABI" or crashes LLVM: a request above the clean width steps down to it.
+    GPUs vectorise across work-items in hardware: one pixel per work-item by default, any clean width on request.
     """
-    native = max(1, int(native))
-    cpu = "CPU" in device_type.upper()
-    default = native if cpu else 1
+    clean = max(1, int(clean))
+    default = clean if "CPU" in device_type.upper() else 1
     if requested is None:
         return default, None
     requested = int(requested)
     if requested not in VALID_LANES:
         raise InputError(f"must be one of {VALID_LANES}, got {requested}", key="lanes")
-    if cpu and requested > native:
-        return native, (f"{requested} lanes exceed this CPU device's native vector width ({native}): "
-                        f"using {native}")
+    if requested > clean:
+        return clean, (f"{requested} lanes do not build cleanly on this device (widest clean width {clean}): "
+                       f"using {clean}")
     return requested, None
 
 

@@ -13,12 +13,12 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.builds import STRICT_ENV, pyopencl, quiet_build, save_source
-from s2cl.cl.devices import LANES_ENV, choose_lanes, env_spec, pyopencl_cache_problem, select
+from s2cl.cl.devices import LANES_ENV, builds_at_all, choose_lanes, env_spec, pyopencl_cache_problem, select, widths_of
+from s2cl.cl.probe import Widths
 from s2cl.cl.vectypes import VALID_LANES, VecTypes
 from s2cl.errors import BuildError, DeviceError, InputError
 
 _log = logging.getLogger(__name__)
-_PROBE_SOURCE = "__kernel void probe(__global float *x) { x[get_global_id(0)] = 1.0f; }\n"
 
 
 class Runtime:
@@ -33,15 +33,23 @@ class Runtime:
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self._programs: dict[tuple[str, tuple[str, ...]], Any] = {}
-        self._probed = False
-        _log.debug("OpenCL device %s (%s); native vector width float %d, double %d; lanes float32 %d, float64 %d",
-                   self.info.spec, self.name, self.native_lanes("float32"), self.native_lanes("float64"),
-                   self.lanes("float32"), self.lanes("float64"))
+        said = builds_at_all(self.info)  # before any work: a device that builds nothing is refused here
+        if said is not None:
+            raise DeviceError(f"OpenCL device {self.info} cannot compile s2cl's kernels ({said}); choose another "
+                              "(s2cl devices)")
+        _log.debug("OpenCL device %s (%s); lanes float32 %d (%s), float64 %d (%s)", self.info.spec, self.name,
+                   self.lanes("float32"), self.widths.why("float32"), self.lanes("float64"), self.widths.why("float64"))
+
+    @cached_property
+    def widths(self) -> Widths:
+        """The device's vector widths per precision, as reported and as they build (:mod:`s2cl.cl.probe`)."""
+        return widths_of(self.info)
 
     @cached_property
     def has_fp64(self) -> bool:
-        """Whether the device supports double precision."""
-        return "cl_khr_fp64" in self.device.extensions
+        """Whether the device computes in double precision: it reports ``cl_khr_fp64`` and a double probe builds
+        cleanly."""
+        return "cl_khr_fp64" in self.device.extensions and self.widths.clean.get("float64", 0) > 0
 
     def types(self, real_t: str = "float32", lanes: int | None = None, *, vector: bool = True) -> VecTypes:
         """The kernel types for ``real_t`` on this device: the one place that refuses float64 on a device
@@ -55,10 +63,14 @@ class Runtime:
         return VecTypes(real_t, self.lanes(real_t, lanes) if vector else 1)
 
     def native_lanes(self, real_t: str = "float32") -> int:
-        """The device's native vector width for ``real_t`` (elements)."""
-        if real_t == "float64":
-            return int(self.device.native_vector_width_double)
-        return int(self.device.native_vector_width_float)
+        """The widest vector of ``real_t`` this device builds cleanly (elements; at least 1): on CPUs its reported
+        native width or, where its code target lacks that, a half of it (:mod:`s2cl.cl.probe`)."""
+        return max(1, self.widths.clean.get(real_t, 0))
+
+    def reported_lanes(self, real_t: str = "float32") -> int:
+        """The device's native vector width for ``real_t`` as its driver reports it (a claim: see
+        :meth:`native_lanes`)."""
+        return self.widths.reported[real_t]
 
     def lanes(self, real_t: str = "float32", requested: int | None = None) -> int:
         """Pixels per work-item for the vectorised kernels in ``real_t``: ``requested``, else
@@ -70,7 +82,7 @@ class Runtime:
                 if not env.isdigit() or int(env) not in VALID_LANES:
                     raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
                 requested = int(env)
-        lanes, why = choose_lanes(native=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
+        lanes, why = choose_lanes(clean=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
         if why:
             _log.debug("%s, %s: %s", self.name, real_t, why)
         return lanes
@@ -119,13 +131,6 @@ class Runtime:
                 raise fail(None, log, f"compiler warnings (${STRICT_ENV}=error)")
         self._programs[key] = program
         return program
-
-    def check_builds(self) -> None:
-        """Build a minimal kernel (once per runtime): :class:`BuildError` now, before a run creates anything,
-        when the device is listed but cannot compile (a driver without a backend for this CPU)."""
-        if not self._probed:
-            self.build(_PROBE_SOURCE, template="probe.cl")
-            self._probed = True
 
     def kernel(self, program: Any, name: str) -> Any:
         """A kernel object from ``program`` (create once, reuse)."""

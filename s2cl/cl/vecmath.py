@@ -1,7 +1,7 @@
 """Host side of ``kernels/common/vecmath.mako``: coefficients and numpy twins of the device math.
 
 PoCL 3.0 never inlines builtin math (``exp``, ``sqrt``, ``fma``, ``fmin``), and a builtin call
-in a hot loop costs ~10-20x (``shared/notes/pocl-performance.md``). The vectorised kernels
+in a hot loop costs ~10-20x (``python -m bench.bench_igrm``: the "builtin exp" row). The vectorised kernels
 therefore use their own ``exp`` for non-positive arguments: Cody-Waite range reduction
 ``a = n ln2 + f`` with ``|f| <= ln2/2``, a polynomial for ``exp(f)`` and ``2^n`` from the
 exponent bits. The polynomial degree is an accuracy/time knob; :func:`exp_neg_model` is the

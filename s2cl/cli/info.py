@@ -39,27 +39,59 @@ def libraries(quiet: bool) -> None:
 
 @click.command()
 @quiet_option
-def devices(quiet: bool) -> None:
-    """List the OpenCL devices (use with --device or $PYOPENCL_CTX; -q: PLATFORM:DEVICE of the default).
+@click.option("--json", "as_json", is_flag=True, help="print the devices and their widths as JSON (for scripts)")
+def devices(quiet: bool, as_json: bool) -> None:
+    """List the OpenCL devices with the vector width each builds per precision, and why (use with --device or
+    $PYOPENCL_CTX; -q: PLATFORM:DEVICE of the default).
 
-    Works whatever $PYOPENCL_CTX holds: a value that matches no device is reported, and the default
-    without it is marked.
+    Widths are decided by building (a reported width the compiler cannot build cleanly steps down); works
+    whatever $PYOPENCL_CTX holds: a value that matches no device is reported, and the default without it is marked.
     """
-    from s2cl.cl.devices import list_devices
+    import json
+
+    from s2cl.cl.devices import builds_at_all, device_of, list_devices, widths_of
+    from s2cl.cl.probe import describe, target
     from s2cl.cl.runtime import get_runtime
+    from s2cl.errors import DeviceError
 
     infos = list_devices()
     if not infos:
         get_runtime()  # raises the error with the install hint
-    default = _default_runtime()
+    try:
+        default = _default_runtime()
+    except DeviceError as err:  # no device builds: list them all with their compilers' words, then say so
+        default, failure = None, err
     if quiet:
+        if default is None:
+            raise failure
         click.echo(default.info.spec)
         return
+    rows = []
     for info in infos:
-        mark = "*" if info == default.info else " "
-        click.echo(f"{mark} {info}")
-    click.echo(f"* = default; pixels per work-item there: {default.lanes('float32')} (float32), "
-               f"{default.lanes('float64')} (float64); set $S2CL_LANES to change")
+        device, chosen = device_of(info), default is not None and info == default.info
+        said, widths = builds_at_all(info), widths_of(info)
+        rows.append({"spec": info.spec, "name": info.name, "platform": info.platform, "kind": info.kind,
+                     "default": chosen, "driver": describe(device)["driver"], "target": target(device),
+                     "builds": said is None, "why_not": said, **widths.to_json(),
+                     "lanes": {r: default.lanes(r) for r in ("float32", "float64")} if chosen else None})
+    if as_json:
+        click.echo(json.dumps(rows, indent=1))
+    else:
+        for row, info in zip(rows, infos, strict=True):
+            compiler = f"driver {row['driver']}" + (f", code target {row['target']}" if row["target"] else "")
+            click.echo(f"{'*' if row['default'] else ' '} {info} — {compiler}")
+            if not row["builds"]:
+                click.echo(f"    cannot compile: {row['why_not']}")
+                continue
+            widths = widths_of(info)
+            for real_t in ("float32", "float64"):
+                lanes = widths.clean.get(real_t, 0)
+                click.echo(f"    {real_t}: {f'{lanes} lanes' if lanes else 'no'} ({widths.why(real_t)})")
+    if default is None:
+        raise failure
+    if not as_json:
+        click.echo(f"* = default; pixels per work-item there: {default.lanes('float32')} (float32), "
+                   f"{default.lanes('float64')} (float64); set $S2CL_LANES to change")
 
 
 def _default_runtime() -> Any:

@@ -32,12 +32,10 @@ def output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
 
 def runtime(device: str | None) -> Any:
     """The OpenCL runtime of ``device``; a device that does not exist, or cannot compile a kernel, is refused
-    here, before any work."""
+    here, before any work (:class:`s2cl.cl.runtime.Runtime`)."""
     from s2cl.cl.runtime import get_runtime
 
-    rt = get_runtime(device)
-    rt.check_builds()
-    return rt
+    return get_runtime(device)
 
 
 #: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address

@@ -22,7 +22,6 @@ class RunConfig:
 
     :param effects: the stages of the chain.
     :param seed, frame: the noise stream (Philox key and counter word).
-    :param bits: radiometric resolution of the sensor (DN = 0 … 2^bits − 1).
     :param support: SRF support, ± this many FWHM around each band centre.
     :param precision: ``"float32"`` or ``"float64"``, the working precision of every kernel.
     :param lanes: pixels per work-item of the vectorised kernels (None: the device's choice).
@@ -35,7 +34,6 @@ class RunConfig:
     effects: EffectSet
     seed: int
     frame: int
-    bits: int
     support: float
     precision: str
     lanes: int | None
@@ -45,7 +43,7 @@ class RunConfig:
     layout: str
 
 
-def resolve_run(spec: SceneSpec, effects: EffectSet, bits: int, source: str) -> RunConfig:
+def resolve_run(spec: SceneSpec, effects: EffectSet, source: str) -> RunConfig:
     """The :class:`RunConfig` of a validated scene. ``output.precision`` still works (it moved to
     ``compute.precision``, which is where it changes the computation) and says so at WARNING level."""
     precision = spec.compute.precision
@@ -59,7 +57,7 @@ def resolve_run(spec: SceneSpec, effects: EffectSet, bits: int, source: str) -> 
     if spec.compute.lanes is not None and spec.compute.lanes not in VALID_LANES:
         raise InputError(f"must be one of {VALID_LANES}, got {spec.compute.lanes}", source=source,
                          key="compute.lanes")
-    return RunConfig(effects=effects, seed=spec.effects.seed, frame=spec.effects.frame, bits=bits,
+    return RunConfig(effects=effects, seed=spec.effects.seed, frame=spec.effects.frame,
                      support=spec.sensor.support, precision=precision, lanes=spec.compute.lanes,
                      device=spec.compute.device, calibration_gain=spec.correction.calibration_gain,
                      copies=spec.surface.copies, layout=spec.surface.layout)

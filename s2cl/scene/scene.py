@@ -96,7 +96,7 @@ class Scene:
         if effects.resample:
             for band in sensor.bands:
                 band.weights(grid, spec.sensor.support, source)
-        run = resolve_run(spec, effects, sensor.bits, source)
+        run = resolve_run(spec, effects, source)
         return cls(spec=spec, path=path, grid=grid, sensor=sensor, effects=effects, run=run, base_dir=base)
 
 

@@ -19,7 +19,6 @@ from s2cl.io.output import write_json
 from s2cl.io.plots import pyplot, save_png
 from s2cl.sweep.digest import Digest, bands_of, metric_of
 
-LOWER_IS_BETTER = {"rms": True, "robust_rms": True, "omission_error_pct": True}
 __all__ = ["Digest", "bands_of", "metric_of"]
 
 

@@ -1,6 +1,6 @@
 """What a sweep computes once: per (band variant, library spectrum) tables.
 
-The sweep is separable (``shared/ARCHITECTURE.md``): resampling is linear and each band depends
+The sweep is separable: resampling is linear and each band depends
 only on its own (centre, width). So the spectral integral runs once per band variant and
 spectrum, here, in float64; every configuration is then a gather from these tables:
 
@@ -17,7 +17,7 @@ spectrum, here, in float64; every configuration is then a gather from these tabl
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -58,7 +58,6 @@ class SweepTables:
     references: tuple[np.ndarray, ...] = ()
     noise: bool = True
     quantise: bool = True
-    extra: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_slots(self) -> int:

@@ -1,0 +1,189 @@
+"""Vector widths decided by building (s2cl.cl.probe): a reported width the code target cannot build steps down,
+a probe the compiler kills is restarted past that width, verdicts are cached per driver, and the default device
+is the one whose clean width is widest.
+
+The AVX2 target is real where valgrind is installed: valgrind hides AVX-512 from CPUID, so PoCL compiles for
+``haswell`` while ``$S2CL_REPORTED_WIDTH=16`` makes the device report 16 float lanes, as the wheel's PoCL does
+on AMD Zen 4.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from s2cl.cl import devices, probe
+from s2cl.cl.probe import ABORT_ENV, REPORTED_ENV, WidthCheck, Widths, first_diagnostic, measure
+from s2cl.errors import InputError
+
+REPO = Path(__file__).resolve().parent.parent
+AVX2_ONLY = ("haswell", "znver1", "znver2", "znver3", "skylake", "broadwell", "alderlake")
+
+
+@pytest.fixture
+def fresh_cache(tmp_path, monkeypatch) -> Path:
+    """An empty user cache, so every verdict is probed anew."""
+    monkeypatch.setenv("S2CL_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def _measure(rt) -> Widths:
+    return measure(rt.device, rt.info.platform_index, rt.info.device_index)
+
+
+def _has_avx512(rt) -> bool:
+    return "avx512" in probe.target(rt.device) or probe.target(rt.device).startswith(("znver4", "znver5"))
+
+
+def test_each_verdict_is_what_the_build_says(rt) -> None:
+    """Every probed width's verdict is what a build in this process says; the default lanes are the widest
+    clean width on CPUs; nothing wider than the clean width was clean."""
+    w = rt.widths
+    assert w.checks, "no width was probed"
+    for c in w.checks:
+        if c.verdict != "aborted":
+            assert probe.build_verdict(rt.device, c.real_t, c.width)[0] == c.verdict, c
+    for real_t in w.clean:
+        clean = [c.width for c in w.checks if c.real_t == real_t and c.verdict == "clean"]
+        assert clean == ([w.clean[real_t]] if w.clean[real_t] else [])
+        assert all(c.width > w.clean[real_t] for c in w.checks if c.real_t == real_t and c.verdict != "clean")
+    if "CPU" in rt.info.kind:
+        assert rt.lanes("float32") == w.clean["float32"]
+
+
+def test_a_reported_width_the_target_lacks_steps_down(rt, fresh_cache, monkeypatch) -> None:
+    """The device reports 16 float lanes: on an AVX-512 target they build clean; on an AVX2 target 16 warns
+    "changes the ABI" and 8 is chosen (the wheel's PoCL on Zen 4)."""
+    if "CPU" not in rt.info.kind or "portable computing language" not in rt.info.platform.lower():
+        pytest.skip("PoCL CPU rule")
+    monkeypatch.setenv(REPORTED_ENV, "16")
+    w = _measure(rt)
+    assert w.reported == {"float32": 16, "float64": 8}
+    first = w.checks[0]
+    assert (first.real_t, first.width) == ("float32", 16)
+    if _has_avx512(rt):
+        assert first.verdict == "clean" and w.clean["float32"] == 16
+    elif probe.target(rt.device) in AVX2_ONLY:
+        assert first.verdict == "warns" and "changes the ABI" in first.detail
+        assert w.clean["float32"] == 8
+        assert 'reported 16; 16 warns "AVX vector argument of type \'float16\'' in w.why("float32")
+
+
+def test_a_probe_the_compiler_kills_is_restarted_past_that_width(rt, fresh_cache, monkeypatch) -> None:
+    """LLVM aborting on a width kills the probe's child, never this process; the next child goes on with the
+    narrower widths."""
+    if "CPU" not in rt.info.kind:
+        pytest.skip("CPU plan (reported width and its halves)")
+    monkeypatch.setenv(REPORTED_ENV, "16")
+    monkeypatch.setenv(ABORT_ENV, "16")
+    w = _measure(rt)
+    assert w.where == "child"
+    assert w.checks[0] == WidthCheck("float32", 16, "aborted", "the compiler killed the probe (signal 6)")
+    assert w.checks[1].real_t == "float32" and w.checks[1].width == 8
+    assert w.clean["float32"] == 8
+    assert "16 aborted" in w.why("float32")
+
+
+def test_verdicts_are_cached_per_driver_and_report(rt, fresh_cache, monkeypatch) -> None:
+    first = _measure(rt)
+    assert len(list((fresh_cache / "devices").glob("widths-*.json"))) == 1
+
+    def no_child(*args, **kwargs):
+        raise AssertionError("probed again")
+
+    monkeypatch.setattr(probe.subprocess, "run", no_child)
+    assert _measure(rt) == first  # a later process pays nothing
+    monkeypatch.setenv(REPORTED_ENV, "4")  # another report is another key
+    with pytest.raises(AssertionError, match="probed again"):
+        _measure(rt)
+
+
+def test_the_probe_runs_in_process_where_no_child_can(rt, fresh_cache, monkeypatch) -> None:
+    child = _measure(rt)
+    (fresh_cache / "devices").rename(fresh_cache / "old")
+
+    def cannot_start(*args, **kwargs):
+        raise OSError("no fork here")
+
+    monkeypatch.setattr(probe.subprocess, "run", cannot_start)
+    here = _measure(rt)
+    assert here.where == "in process"
+    assert here.clean == child.clean and here.reported == child.reported
+
+
+@pytest.mark.parametrize("text", ["12", "float32=16,float128=2", "sixteen"])
+def test_reported_width_setting_is_checked(rt, monkeypatch, text: str) -> None:
+    monkeypatch.setenv(REPORTED_ENV, text)
+    with pytest.raises(InputError, match=REPORTED_ENV):
+        probe.reported_widths(rt.device)
+
+
+def test_first_diagnostic_is_the_compilers_words_without_positions() -> None:
+    log = ("/tmp/pocl/kernel.cl:1:7: warning: AVX vector argument of type 'float16' (vector of 16 'float' values) "
+           "without 'avx512f' enabled changes the ABI [-Wpsabi]\nfloat16 s2cl_probe_f(float16 a)\n      ^\n"
+           "1 warning generated.\n")
+    assert first_diagnostic(log) == ("AVX vector argument of type 'float16' without 'avx512f' enabled changes "
+                                     "the ABI [-Wpsabi]")
+    assert first_diagnostic("error: unknown target CPU 'generic'") == "error: unknown target CPU 'generic'"
+
+
+def test_the_default_device_builds_the_widest_clean_vectors(monkeypatch) -> None:
+    """Of the PoCL CPU drivers, the one whose clean float32 width is widest (ties: listed order); a driver
+    that builds nothing is passed over."""
+    def info(p: int, name: str) -> devices.DeviceInfo:
+        return devices.DeviceInfo(p, 0, "Portable Computing Language", name, "ALL | CPU")
+
+    wheel, distro, broken = info(0, "wheel"), info(1, "distro"), info(2, "broken")
+
+    def fake(clean: int) -> Widths:
+        checks = (WidthCheck("float32", 16, "warns", "changes the ABI"),) if clean == 8 else ()
+        return Widths({"float32": 16, "float64": 8}, {"float32": clean, "float64": clean // 2}, checks)
+
+    table = {wheel: fake(8), distro: fake(16), broken: fake(0)}
+    monkeypatch.setattr(devices, "widths_of", lambda i: table[i])
+    assert devices._first_working([broken, wheel, distro]) == distro
+    table[distro] = fake(8)
+    assert devices._first_working([broken, wheel, distro]) == wheel
+
+
+def test_devices_command_shows_each_width_and_why(rt) -> None:
+    out = subprocess.run([sys.executable, "-m", "s2cl", "devices"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert f"float32: {rt.widths.clean['float32']} lanes (reported {rt.widths.reported['float32']};" in out.stdout
+    data = json.loads(subprocess.run([sys.executable, "-m", "s2cl", "devices", "--json"], capture_output=True,
+                                     text=True, timeout=300, check=True).stdout)
+    default = [row for row in data if row["default"]]
+    assert len(default) == 1 and default[0]["lanes"]["float32"] == default[0]["clean"]["float32"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind (apt-get install valgrind)")
+def test_on_a_real_avx2_target_a_reported_16_steps_down_and_the_kernels_pass(tmp_path) -> None:
+    """Under valgrind (an AVX2 CPU as PoCL sees it) with the device reporting 16 float lanes: every PoCL driver
+    that builds there chooses 8 because 16 warns, and the vector-math kernel tests, forced to 16 lanes, pass
+    at the width chosen, with builds that must not warn."""
+    env = os.environ | {"S2CL_CACHE": str(tmp_path / "cache"), REPORTED_ENV: "16", "POCL_KERNEL_CACHE": "0",
+                        "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env.pop("PYOPENCL_CTX", None)
+    vg = ["valgrind", "--tool=none", "-q", "--trace-children=yes", sys.executable]
+    out = subprocess.run([*vg, "-m", "s2cl", "devices", "--json"], capture_output=True, text=True, env=env,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    rows = [r for r in json.loads(out.stdout) if r["builds"] and "Portable" in r["platform"]]
+    if not rows or any(r["target"] not in AVX2_ONLY for r in rows):
+        pytest.skip(f"valgrind did not give an AVX2 target: {[r['target'] for r in rows]}")
+    for row in rows:
+        assert row["clean"] == {"float32": 8, "float64": 4}, row
+        verdicts = {(r, w): v for r, w, v, _ in row["checks"]}
+        assert verdicts[("float32", 16)] == "warns" and verdicts[("float64", 8)] == "warns"
+    out = subprocess.run([*vg, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--device", "all",
+                          str(REPO / "tests" / "test_vecmath.py"), "-k", "lanes16 or lanes8"],
+                         capture_output=True, text=True, env=env, timeout=900, cwd=REPO)
+    assert out.returncode == 0, out.stdout[-3000:]
+    assert " passed" in out.stdout
