@@ -55,9 +55,9 @@ def _yellow_scene_dict(library: str) -> dict[str, Any]:
 
 def _own_radiometry(library: str) -> dict[str, dict[str, float]]:
     """B3, B4, B5 at their Table 1 shapes and radiometry in the yellow scene's index (one fixed design each)."""
+    from s2cl.app.plan import plan_sweep
     from s2cl.scene.scene import Scene
     from s2cl.sweep.engine import evaluate_chunk
-    from s2cl.sweep.plan import plan_sweep
 
     out = {}
     for band, (c, w) in S2_VISIBLE.items():

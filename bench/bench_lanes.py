@@ -49,9 +49,9 @@ def _igrm(rt: Runtime, n: int) -> Runs:
 
 def _sweep(rt: Runtime) -> Runs:
     from bench.sweep_check import validate_sweep
+    from s2cl.app.plan import plan_sweep
     from s2cl.scene.scene import Scene
     from s2cl.sweep.kernel import SweepKernel
-    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(Scene.load("default"))
     lo, hi = job.n_configs // 3, job.n_configs // 3 + 48

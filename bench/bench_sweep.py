@@ -42,13 +42,13 @@ import numpy as np
 
 from bench.common import RESULTS, ROOT, load_average, load_note, machine_info, median_and_times, write_json
 from bench.sweep_check import spread, validate_sweep
+from s2cl.app.plan import plan_sweep
 from s2cl.cl.runtime import get_runtime
 from s2cl.reference.sweep import evaluate
 from s2cl.retrieve.metrics import regression_metrics
 from s2cl.scene.scene import Scene
 from s2cl.sweep.engine import SweepJob, evaluate_chunk, run_sweep
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.plan import plan_sweep
 
 OUTPUT = RESULTS / "sweep.json"
 MAIN_SCENE = "table3-lib1-b4567"  # 43,056 configurations × 12,000 pixels

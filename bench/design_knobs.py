@@ -2,7 +2,7 @@
 
 Each knob that can make ``s2cl optimise`` cheaper is moved alone from the default scene (Lib1, 120
 PROSAIL canopies × 100 noisy copies, IGRM chlorophyll, B4 B5 B6 B8 moved over the Table 2 ranges on a 5 nm
-grid: 3,312 configurations), the whole sweep is run through the Python API (:func:`s2cl.sweep.plan.plan_sweep`
+grid: 3,312 configurations), the whole sweep is run through the Python API (:func:`s2cl.app.plan.plan_sweep`
 and :func:`s2cl.sweep.engine.run_sweep`, into a temporary folder), and its ranking of the designs by Cab RMS
 (µg/cm², rankable designs only) is compared with the knob's reference run (:mod:`bench.design_rank`):
 Spearman ρ, whether the winner changes, the reference's rank of the cheap run's winner, the regret and
@@ -171,8 +171,8 @@ class Planner:
         return Scene.from_dict(data, path=self.scene_path)
 
     def job(self, run: Run) -> Any:
-        from s2cl.scene.validate import check_sweep
-        from s2cl.sweep.plan import plan_sweep
+        from s2cl.app.checks import check_sweep
+        from s2cl.app.plan import plan_sweep
 
         scene = self.scene(run)
         checked = check_sweep(scene)
@@ -189,7 +189,7 @@ def write_thin_lut(folder: Path, planner: Planner) -> Path:
     atmosphere among them (:func:`bench.knobs._thin`), as ``folder/lut-thin.npz``."""
     from bench.knobs import _thin
     from s2cl.atmos.atmosphere import default_lut_path
-    from s2cl.atmos.scene_terms import scene_lut, true_state
+    from s2cl.scene.terms import scene_lut, true_state
 
     scene = planner.scene(DEFAULT)
     ax, state = scene_lut(scene).axes, true_state(scene)

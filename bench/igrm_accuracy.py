@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 
 from bench.common import load_average, load_note, machine_info, write_result
+from s2cl.app.plan import plan_sweep
 from s2cl.cl.runtime import get_runtime
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.plan import plan_sweep
 
 SCENES = {"Lib1": "default", "Lib2": "table3-lib2-b4568"}
 TIGHT = {"tol": 1e-10, "max_iter": 1000, "residual_floor": 1e-12}

@@ -113,7 +113,7 @@ def _sweep_scene(ctx: Context, copies: int) -> Any:
 def validated_job(ctx: Context, copies: int, chunk: int | None = None) -> tuple[Any, dict[str, Any]]:
     """The default scene's sweep with ``copies`` copies, its kernel checked by
     :func:`bench.sweep_check.validate_sweep` once per process (and copies)."""
-    from s2cl.sweep.plan import plan_sweep
+    from s2cl.app.plan import plan_sweep
 
     job = plan_sweep(_sweep_scene(ctx, copies), chunk=chunk)
     key = f"sweep-validation-{copies}"
@@ -144,7 +144,7 @@ _MEMORY_PROBE = """
 import json, sys, threading, time
 from bench.chain import Context
 from bench.scaling import _sweep_scene
-from s2cl.sweep.plan import plan_sweep
+from s2cl.app.plan import plan_sweep
 from s2cl.sweep.engine import evaluate_chunk
 
 def rss():

@@ -28,11 +28,11 @@ import numpy as np
 
 from bench.common import RESULTS, ROOT, machine_info, save_figure, write_json
 from bench.paper_sensitivity import scene_variant, subset_rms, variant_entry
+from s2cl.app.plan import plan_sweep
 from s2cl.grid import SpectralGrid
 from s2cl.libraries import earthlib_spectra as el
 from s2cl.libraries.vegetation import DEFAULT_BACKGROUNDS, EARTHLIB_PREFIX, LIB1, LIB2, library_file
 from s2cl.sweep.engine import evaluate_chunk
-from s2cl.sweep.plan import plan_sweep
 
 RESULT = RESULTS / "soil_backgrounds.json"  # k = 3; another k writes soil_backgrounds-k<K>.json
 FIGURE = ROOT / "docs" / "soils" / "table4_soils.png"

@@ -4,15 +4,15 @@ Python API (mirrors the CLI)::
 
     import s2cl
     scene = s2cl.Scene.load("default")          # a built-in scene, or a path to a .toml file
+    best = s2cl.optimise("default")              # the main job: .ranking (DataFrame), .reference, .summary
     result = s2cl.simulate(scene)                # LibrarySimulation
     result.summary()                             # per-band radiance, SNR, clipping
     result.to_dataset().to_netcdf("out.nc")      # xarray Dataset
     s2cl.Sensor.sentinel2().band("B4")           # the paper's Table 1
 """
 
-__version__ = "0.1.0"
-
 import s2cl.logs  # noqa: F401  (the s2cl logger is silent until an application configures it)
+from s2cl.app.optimise import OptimiseResult, optimise
 from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.state import AtmosphereState
 from s2cl.errors import BuildError, DeviceError, InputError, S2CLError
@@ -23,6 +23,7 @@ from s2cl.libraries.registry import available_libraries, load_library
 from s2cl.scene.effects import EffectSet
 from s2cl.scene.scene import Scene
 from s2cl.sensor.sensor import Band, Sensor
+from s2cl.version import __version__
 
 __all__ = [
     "DEFAULT_GRID",
@@ -34,6 +35,7 @@ __all__ = [
     "EffectSet",
     "InputError",
     "LibrarySimulation",
+    "OptimiseResult",
     "S2CLError",
     "Scene",
     "Sensor",
@@ -43,5 +45,6 @@ __all__ = [
     "__version__",
     "available_libraries",
     "load_library",
+    "optimise",
     "simulate",
 ]

@@ -12,14 +12,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from s2cl.app.checks import check_simulate, check_sweep
+from s2cl.app.plan import plan_sweep, reference_row
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
 from s2cl.retrieve.design import design_problem
 from s2cl.retrieve.igrm import IgrmFitter
 from s2cl.scene.scene import Scene
-from s2cl.scene.validate import check_simulate, check_sweep
 from s2cl.sweep.engine import evaluate_chunk
-from s2cl.sweep.plan import plan_sweep, reference_row
 
 MINERALS = {
     "scene": {"name": "add-test"},

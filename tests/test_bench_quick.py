@@ -107,8 +107,8 @@ def test_sweep_validation_fails_on_a_wrong_kernel(bench_main: Callable[[list[str
     from bench.common import BenchValidationError
     from bench.scaling import _sweep_scene
     from bench.sweep_check import SAME_STATUS_MIN, validate_sweep
+    from s2cl.app.plan import plan_sweep
     from s2cl.reference.sweep import evaluate
-    from s2cl.sweep.plan import plan_sweep
 
     job = plan_sweep(_sweep_scene(Context.make(True), 2))
     ok = validate_sweep(job)

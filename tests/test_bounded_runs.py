@@ -117,9 +117,9 @@ def test_the_digest_streams_and_equals_the_in_memory_summary(tmp_path, monkeypat
 
 
 def test_the_sweep_estimate_holds_the_report_and_refuses_what_does_not_fit(tmp_path) -> None:
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.sweep_budget import HEATMAP_BYTES, sweep_resources
     from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_sweep
-    from s2cl.sweep.budget import HEATMAP_BYTES, sweep_resources
 
     fine = scene(tmp_path, **{"B4 = { centres = [665, 675, 685], widths = [20, 30] }":
                               "B4 = { left = 640, right = 700, min_width = 10, max_width = 40 }",

@@ -92,11 +92,11 @@ def assert_clean(err: S2CLError) -> None:
 
 def check_like_sweep_count(data: dict[str, Any], folder: Path) -> None:
     """What ``s2cl sweep count`` runs, minus the printing."""
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.plan import count_table
+    from s2cl.app.sweep_budget import sweep_resources
     from s2cl.io.budget import Budget
     from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_sweep
-    from s2cl.sweep.budget import sweep_resources
-    from s2cl.sweep.plan import count_table
 
     scene = Scene.from_dict(data, path=folder / "fuzz.toml")
     checked = check_sweep(scene)

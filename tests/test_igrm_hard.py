@@ -172,9 +172,9 @@ def test_float32_vs_float64_population(rt):
 def _sparse_canopy_pixels(n_copies: int = 40) -> tuple[np.ndarray, np.ndarray]:
     """Noisy, quantised, atmosphere-corrected B4 B5 B6 B8 reflectance of the sparse-canopy library
     (Lib2, the paper's hard case): the pixels a sweep fits."""
+    from s2cl.app.plan import plan_sweep
     from s2cl.reference.sweep import band_reflectance
     from s2cl.scene.scene import Scene
-    from s2cl.sweep.plan import plan_sweep
 
     scene = Scene.from_dict({
         "scene": {"name": "lib2-hard"}, "surface": {"library": "builtin:lib2", "quantity": "reflectance",

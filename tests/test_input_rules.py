@@ -43,9 +43,9 @@ def test_input_file_refuses_what_is_not_a_regular_file(tmp_path) -> None:
 
 def test_a_fifo_cube_is_refused_before_it_is_opened(tmp_path) -> None:
     """A FIFO blocked `simulate` forever (the NetCDF reader waited for a writer)."""
+    from s2cl.app.checks import check_simulate
     from s2cl.forward.cube import cube_size, load_cube
     from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_simulate
 
     os.mkfifo(tmp_path / "fifo.nc")
     with pytest.raises(InputError, match="FIFO"):

@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.app.plan import plan_sweep
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics
-from s2cl.sweep.plan import plan_sweep
 from s2cl.sweep.raw import RawChunk
 
 TOL = 1e-10

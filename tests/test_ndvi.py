@@ -9,17 +9,17 @@ import copy
 import numpy as np
 import pytest
 
+from s2cl.app.analysis import analysis_design, pixel_results
+from s2cl.app.plan import plan_sweep
 from s2cl.errors import InputError
 from s2cl.forward.simulate import simulate
 from s2cl.reference import stages as ref
 from s2cl.reference.sweep import evaluate
 from s2cl.retrieve.index_kernel import IndexKernel, normalised_difference
-from s2cl.retrieve.scene_analysis import analysis_design, pixel_results
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 from s2cl.sweep.engine import evaluate_chunk
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.plan import plan_sweep
 
 OFFSETS = (0.0, 0.0)
 SCENE = {

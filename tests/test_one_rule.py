@@ -12,14 +12,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.app.analysis import pixel_results
+from s2cl.app.plan import plan_sweep
 from s2cl.errors import InputError
 from s2cl.forward.simulate import simulate
 from s2cl.retrieve.design import design_problem
-from s2cl.retrieve.scene_analysis import pixel_results
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.plan import plan_sweep
 
 ESA = {"B4": (665, 30), "B5": (705, 15), "B6": (740, 15), "B7": (783, 20), "B8a": (865, 20), "B11": (1610, 90),
        "B12": (2190, 180)}
@@ -114,7 +114,7 @@ def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tm
     scene = _scene("igrm", bands, file=str(sensor))
     problem = design_problem("igrm", list(bands), [c for c, _ in bands.values()], [w for _, w in bands.values()])
     assert problem and "B5 and B6 at 730 nm" in problem and "3 distinct centres" in problem
-    from s2cl.retrieve.scene_analysis import analysis_design
+    from s2cl.app.analysis import analysis_design
 
     with pytest.raises(InputError, match="underdetermined") as direct:
         analysis_design(scene)

@@ -151,10 +151,10 @@ def test_full_filesystem_is_refused_before_the_run(tmp_path) -> None:
 
 def test_disk_filling_during_the_write_is_an_output_error(tmp_path) -> None:
     """Another process fills the disk after the check: the streamed write fails in one error, no temp file."""
+    from s2cl.app.checks import check_simulate
+    from s2cl.app.simulate import simulate_to_netcdf
     from s2cl.errors import OutputError
-    from s2cl.forward.stream import simulate_to_netcdf
     from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_simulate
 
     checked = check_simulate(Scene.load(scene(tmp_path, **{"copies = 2": "copies = 200"})))
     with small_filesystem(tmp_path / "small", "3m") as small:
@@ -326,8 +326,8 @@ def test_coarse_grids_are_refused_or_warned(tmp_path) -> None:
 def test_a_sweep_over_tabulated_srfs_says_it_uses_the_model(tmp_path) -> None:
     """A measured SRF describes only its band's own centre and width: a sweep warns that every variant
     (and the reference row) uses the model SRF; simulate, which uses the table, does not."""
+    from s2cl.app.checks import check_simulate, check_sweep
     from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_simulate, check_sweep
 
     path = scene(tmp_path, **{"[effects]": '[sensor]\nsrf = "measured-S2A"\n[effects]'})
     swept = [str(c) for c in check_sweep(Scene.load(path)).caveats]

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from s2cl.app.plan import reference_row
 from s2cl.cli.main import main
 from s2cl.errors import InputError
 from s2cl.resources import scene_dir
@@ -21,7 +22,6 @@ from s2cl.studies.drift import Drifts, drift_configs, drift_space, drift_tables,
 from s2cl.studies.stability import both_sides, evaluate, requirement
 from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.plan import reference_row
 from s2cl.sweep.tables import build_tables
 
 COPIES = 3
@@ -55,8 +55,8 @@ def _fixed(app, shapes) -> SweepSpace:
 
 
 def _sweep_tables(app, space):
-    from s2cl.atmos.scene_terms import correction_terms, scene_terms
     from s2cl.retrieve.analysis import analysis_targets
+    from s2cl.scene.terms import correction_terms, scene_terms
 
     lib, target, classes = analysis_targets(app.scene, app.library, app.analysis)
     return build_tables(app.scene, space, lib, scene_terms(app.scene), correction_terms(app.scene), target=target,

@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from s2cl import __version__
 from s2cl.atmos.lut_axes import LUTAxes
 from s2cl.atmos.lut_format import FIXED_GASES, FORMAT_NAME, FORMAT_VERSION, fixed_gas_key
 from s2cl.atmos.lut_runs import dry_gas_stage, scattering_at, scattering_stage, water_stage
 from s2cl.atmos.sixs import SIXS_VERSION, describe
 from s2cl.errors import InputError
 from s2cl.io.cache import write_npz_atomic
+from s2cl.version import __version__
 
 
 @dataclass

@@ -187,8 +187,8 @@ def sensor(sensor_file: Path | None, quiet: bool) -> None:
 def srf(band: str, platform: str, plot_path: Path | None, quiet: bool) -> None:
     """Plot the model SRF (paper eq. 1) of BAND against the measured Sentinel-2 response (Fig. 2)."""
     from s2cl.io.outdir import check_output_file
-    from s2cl.io.plots import plot_srf
     from s2cl.sensor.sensor import Sensor
+    from s2cl.sensor.srf_plot import plot_srf
 
     band = Sensor.sentinel2().band(band).name  # an unknown band is refused before anything is written
     path = plot_path or Path(f"srf_{band}.png")

@@ -1,11 +1,9 @@
-"""Options and checks that several commands share: help texts, ``-q``, the output folder, the device."""
+"""Options and checks that several commands share: help texts, ``-q``, the Dask scheduler address."""
 
 from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from pathlib import Path
-from typing import Any
 
 import click
 
@@ -19,23 +17,6 @@ MAX_MEMORY_HELP = ("memory the run may use, e.g. 8G, 512M or 16GiB (default: $S2
 def quiet_option(f: Callable) -> Callable:
     """``--quiet/-q`` with the common help text."""
     return click.option("--quiet", "-q", is_flag=True, help=QUIET_HELP)(f)
-
-
-def output_dir(sc: Any, output: Path | None) -> tuple[Path, str]:
-    """The output folder of a scene's run and how it was chosen (for error messages)."""
-    if output is not None:
-        return output, "--output"
-    if sc.spec.output.directory:
-        return sc.output_dir, f"output.directory in {sc.source}"
-    return sc.output_dir, f"scene.name in {sc.source}"
-
-
-def runtime(device: str | None) -> Any:
-    """The OpenCL runtime of ``device``; a device that does not exist, or cannot compile a kernel, is refused
-    here, before any work (:class:`s2cl.cl.runtime.Runtime`)."""
-    from s2cl.cl.runtime import get_runtime
-
-    return get_runtime(device)
 
 
 #: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address

@@ -1,47 +1,19 @@
-"""What a finished sweep prints and writes: the ranking, the paper's table beside s2cl's, summary.json, heatmaps."""
+"""What a finished sweep prints: the ranking and the paper's table beside s2cl's."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import click
 
 from s2cl.cli.console import rich_console
-from s2cl.sensor.names import safe_file_part
 
 
-def report_sweep(digest: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
-    """Paper comparison, summary.json and a heatmap per moving band of ``bands`` into ``folder`` from the
-    results' :class:`~s2cl.sweep.digest.Digest`; print the ranking and the paper-style table; return the
-    files written."""
-    from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
-    from s2cl.sweep.report import heatmap, write_summary
-
-    plots = _paper(digest, summary, folder)
-    record = addition_of(digest.meta)
-    if record is not None and digest.ranked:
-        summary["addition"] = summarise_addition(digest, summary, record)
-        plots += gain_plots(digest, record, folder)
-    written = [write_summary(folder / "summary.json", summary)]
-    moving = [b for b in bands if digest.variants(b) > 1]
-    written += [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
+def print_sweep(summary: dict[str, Any]) -> None:
+    """Print a finished sweep's ranking (the reference row and the best configurations, with notes) and, for the
+    paper's scenes, the paper-style table beside s2cl's (the report itself: :func:`s2cl.app.optimise.write_report`)."""
     _print_sweep(summary)
     _print_paper(summary)
-    return written
-
-
-def _paper(digest: Any, summary: dict[str, Any], folder: Path) -> list[Path]:
-    """Add the paper's values (scenes of Segl et al. 2012, Tables 3-6) to ``summary``; plot grids beside them."""
-    from s2cl.sweep.report import heatmap_vs_paper, paper_comparison
-
-    comparison = paper_comparison(digest, summary)
-    if comparison is None:
-        return []
-    summary["paper"] = comparison
-    if "band" in comparison:
-        return [heatmap_vs_paper(comparison, folder / f"heatmap_{safe_file_part(comparison['band'])}_vs_paper.png")]
-    return []
 
 
 def _print_paper(summary: dict[str, Any]) -> None:

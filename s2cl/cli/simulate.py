@@ -2,20 +2,13 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
 import click
 
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, output_dir, quiet_option, runtime
-
-SIMULATION_JSON = "simulation.json"
-
-#: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
-#: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
-CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, quiet_option
 
 
 @click.command()
@@ -34,78 +27,16 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     model, clipping, calibration error). Its files never replace a sweep's (results.parquet,
     summary.json). Memory stays bounded whatever surface.copies: images are written chunk by chunk.
     """
-    from s2cl.forward.stream import require_netcdf_disk, simulate_memory
-    from s2cl.io.budget import Budget
-    from s2cl.io.outdir import check_output_dir
-    from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_simulate
+    from s2cl.app.simulate_scene import simulate_scene
 
-    budget = Budget.of(max_memory)
-    sc = Scene.load(scene)
-    out, where = output_dir(sc, output)
-    checked = check_simulate(sc, budget=budget)
-    check_output_dir(out, where=where)
-    if sc.spec.surface.cube is not None:
-        _require_cube_memory(sc, budget)
-        _simulate_cube(sc, out, device, quiet)
-        return
-    simulate_memory(checked, budget)
-    require_netcdf_disk(checked, out)
-    runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
-    _simulate_library(sc, checked, out, device, quiet)
-
-
-def _simulate_library(sc: Any, checked: Any, out: Path, device: str | None, quiet: bool) -> None:
-    """Stream the scene's library (spectra × copies) into OUTPUT/simulation.nc and write the summary JSON."""
-    from s2cl.forward.stream import simulate_to_netcdf
-    from s2cl.io.outdir import claim
-    from s2cl.io.output import write_json
-    from s2cl.scene.caveats import report
-
-    warnings = report(checked.caveats)
-    total = checked.library.size * sc.run.copies
-    t0 = time.perf_counter()
-    with claim(out):
-        label = f"{sc.name}: {checked.library.size} spectra × {sc.run.copies}"
-        with progress_bar(total, label, not quiet) as adv:
-            result = simulate_to_netcdf(checked, out / "simulation.nc", device=device, progress=adv)
-        seconds = time.perf_counter() - t0
-        write_json(out / SIMULATION_JSON, {"scene": sc.name, "attrs": result.attrs, "pixels": total,
-                                           "seconds": seconds, "stage_seconds": result.seconds,
-                                           "bands": result.rows, "analysis": result.analysis, "warnings": warnings})
-    if not quiet:
-        _print_summary(result.rows, result.attrs, total, seconds)
-        if result.analysis:
-            _print_analysis(result.analysis)
-    click.echo(f"wrote {out / 'simulation.nc'} and {out / SIMULATION_JSON}")
-
-
-def _require_cube_memory(sc: Any, budget: Any) -> None:
-    """Refuse a cube that would not fit in memory (it is loaded whole), from its metadata."""
-    from s2cl.forward.cube import cube_size
-    from s2cl.io.budget import BASELINE_BYTES
-
-    pixels, wavelengths = cube_size(sc.resolve(sc.spec.surface.cube))
-    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size
-                 + CUBE_BYTES_PER_BAND * sc.sensor.size)
-    budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
-                   "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
-
-
-def _simulate_cube(sc: Any, out: Path, device: str | None, quiet: bool) -> None:
-    """Simulate the scene's image cube (loaded whole, and checked, before the folder is made) into
-    OUTPUT/simulation.nc."""
-    from s2cl.forward.cube import load_scene_cube, simulate_cube
-    from s2cl.io.outdir import claim
-    from s2cl.io.output import write_netcdf
-
-    rt = runtime(device or sc.run.device)
-    cube = load_scene_cube(sc)
-    with claim(out):
-        with progress_bar(1, f"{sc.name}: cube", not quiet) as advance:
-            ds = simulate_cube(rt, sc, cube=cube, progress=lambda n: advance(1))
-        write_netcdf(out / "simulation.nc", ds)
-    click.echo(f"wrote {out / 'simulation.nc'}")
+    with progress_bar(None, "simulate", not quiet) as advance:
+        run = simulate_scene(scene, output, device=device, max_memory=max_memory, progress=advance,
+                             on_start=lambda label, total: advance.start(total, label=label))
+    if not quiet and run.rows:
+        _print_summary(run.rows, run.attrs, run.pixels, run.seconds)
+        if run.analysis:
+            _print_analysis(run.analysis)
+    click.echo("wrote " + " and ".join(str(p) for p in run.written))
 
 
 def _print_summary(rows: list[dict[str, Any]], attrs: dict[str, Any], pixels: int, seconds: float) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -10,8 +9,8 @@ from typing import Any
 import click
 
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, output_dir, quiet_option, runtime
-from s2cl.cli.ranking import report_sweep
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, quiet_option
+from s2cl.cli.ranking import print_sweep
 
 
 @click.group()
@@ -31,56 +30,31 @@ def sweep() -> None:
 def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
     """Print the variants of each band, the number of configurations of SCENE and the memory the sweep
     would take. Checks the scene exactly as `s2cl optimise` does (counts are computed, not enumerated)."""
-    from s2cl.io.budget import Budget, gb
-    from s2cl.io.outdir import check_output_dir
-    from s2cl.scene.caveats import report
-    from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_sweep
-    from s2cl.sweep.budget import sweep_resources
-    from s2cl.sweep.engine import resumable_chunk
+    from s2cl.app.optimise import count_sweep
+    from s2cl.io.budget import gb
 
-    budget = Budget.of(max_memory)
-    sc = Scene.load(scene)
-    checked = check_sweep(sc, budget=budget)
-    out, where = output_dir(sc, None)
-    check_output_dir(out, where=where)  # as optimise would (nothing is created)
-    report(checked.caveats)
-    assert checked.space is not None
+    def print_counts(name: str, variants: list[dict[str, Any]], configurations: int) -> None:
+        if quiet:
+            click.echo(f"{configurations}")
+            return
+        from rich.table import Table
+
+        table = Table(title=f"{name}: band variants")
+        for title in ("band", "variants", "centres nm", "widths nm"):
+            table.add_column(title, justify="right")
+        for r in variants:
+            table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
+        rich_console().print(table)
+        click.echo(f"configurations: {configurations:,}")
+
+    count = count_sweep(scene, max_memory=max_memory, on_counted=print_counts)
     if quiet:
-        click.echo(f"{checked.space.size}")
-    else:
-        _print_variants(sc, checked.space.size)
-    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(out),
-                           host_metrics=not runtime(sc.run.device).has_fp64)  # as optimise would
-    if not quiet:
-        click.echo(f"memory: about {gb(plan.memory_bytes)} in chunks of {plan.chunk:,} configurations")
-    if not quiet and checked.analysis is not None:
-        _print_underdetermined(sc, checked)
-
-
-def _print_variants(sc: Any, configurations: int) -> None:
-    """The band variants of a sweep scene as a table, and the number of configurations."""
-    from rich.table import Table
-
-    from s2cl.sweep.plan import count_table
-
-    table = Table(title=f"{sc.name}: band variants")
-    for title in ("band", "variants", "centres nm", "widths nm"):
-        table.add_column(title, justify="right")
-    for r in count_table(sc):
-        table.add_row(r["band"], f"{r['variants']:,}", r["centres_nm"], r["widths_nm"])
-    rich_console().print(table)
-    click.echo(f"configurations: {configurations:,}")
-
-
-def _print_underdetermined(sc: Any, checked: Any) -> None:
-    """How many configurations the analysis cannot fit, and what the ranking does with them."""
-    from s2cl.sweep.plan import underdetermined_count
-
-    bad = underdetermined_count(checked.space, checked.analysis)
-    fate = "kept, flagged" if sc.spec.sweep.underdetermined == "keep" else "left out of the ranking"
+        return
+    click.echo(f"memory: about {gb(count.memory_bytes)} in chunks of {count.chunk:,} configurations")
+    fate = "kept, flagged" if count.underdetermined_policy == "keep" else "left out of the ranking"
     click.echo("underdetermined (the analysis cannot fit them): "
-               + (f"{bad:,} ({fate})" if bad is not None else "not counted (too many variants)"))
+               + (f"{count.underdetermined:,} ({fate})" if count.underdetermined is not None
+                  else "not counted (too many variants)"))
 
 
 def _sweep_options(f: Callable) -> Callable:
@@ -103,71 +77,26 @@ def _sweep_options(f: Callable) -> Callable:
 
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
                chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
-    """Check everything (scene, output folder, memory, disk, device, scheduler), build the sweep's tables and
-    kernel, and only then run in the claimed folder: a run that fails any of this creates nothing."""
-    from s2cl.io.budget import Budget
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.scene.caveats import report
-    from s2cl.scene.scene import Scene
-    from s2cl.scene.validate import check_sweep
-    from s2cl.sweep.budget import require_sweep_disk, sweep_resources
-    from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk
-    from s2cl.sweep.plan import plan_sweep
+    """Parse, call :func:`s2cl.app.optimise.optimise` (which checks everything before it creates anything), print."""
+    from s2cl.app.optimise import optimise
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
-    budget = Budget.of(max_memory)
     if scheduler:
         scheduler = check_scheduler(scheduler)
-    sc = Scene.load(scene)
-    out, where = output_dir(sc, output)
-    checked = check_sweep(sc, budget=budget)
-    check_output_dir(out, where=where)
-    rt = runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
-    # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
-    host_metrics = bool(workers or scheduler) or not rt.has_fp64
-    plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(out, overwrite),
-                           host_metrics=host_metrics)
-    require_sweep_disk(checked, out)
-    if scheduler:
-        reach_scheduler(scheduler)
-    t0 = time.perf_counter()
-    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics,
-                     device=device)
-    check_folder(job, out, overwrite=overwrite)
-    if not (workers or scheduler):
-        kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
-    warnings = report(checked.caveats)
-    with claim(out):
-        _sweep_into(sc, job, out, dict(workers=workers, scheduler=scheduler, overwrite=overwrite, device=device),
-                    quiet, warnings, t0)
-
-
-def _sweep_into(sc: Any, job: Any, out: Path, run_options: dict[str, Any], quiet: bool, warnings: list[str],
-                t0: float) -> None:
-    """Run the planned sweep into ``out`` (resuming finished chunks), then rank, print and write the report."""
-    from s2cl.sweep.engine import run_sweep
-    from s2cl.sweep.plan import reference_row
-    from s2cl.sweep.report import Digest, open_results, paper_match, summarise
-
-    if not quiet:
-        click.echo(f"{sc.name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
-                   f"({job.tables.n_spectra} spectra × {job.tables.copies} copies), chunks of {job.chunk}")
-    with progress_bar(job.n_configs, "sweep", not quiet, unit="configs", per_item=job.tables.n_pixels) as advance:
-        def on_start(todo: int, done: int) -> None:
+    with progress_bar(None, "sweep", not quiet, unit="configs") as advance:
+        def on_start(job: Any, todo: int, done: int) -> None:
+            if not quiet:
+                click.echo(f"{job.scene_name}: {job.n_configs:,} configurations × {job.tables.n_pixels:,} pixels "
+                           f"({job.tables.n_spectra} spectra × {job.tables.copies} copies), chunks of {job.chunk}")
+            advance.start(todo + done, done, per_item=job.tables.n_pixels)
             if done:
                 click.echo(f"resuming: {done:,} configurations already done, {todo:,} to go")
-                advance(0)
 
-        results = run_sweep(job, out, progress=advance, on_start=on_start, **run_options)
-    path, meta = open_results(results)
-    reference = reference_row(sc, job, run_options["device"])
-    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))
-    summary = summarise(digest, meta, reference)
-    summary["seconds"] = time.perf_counter() - t0
-    summary["warnings"] = warnings
-    plots = report_sweep(digest, summary, out, summary["bands"])
-    click.echo(f"wrote {results}" + "".join(f", {p}" for p in plots))
+        result = optimise(scene, output, workers=workers, scheduler=scheduler, overwrite=overwrite, chunk=chunk,
+                          device=device, max_memory=max_memory, progress=advance, on_start=on_start)
+    print_sweep(result.summary)
+    click.echo("wrote " + ", ".join(str(p) for p in result.written))
 
 
 @sweep.command("run")
@@ -189,35 +118,10 @@ def sweep_run(**kwargs: Any) -> None:
 @click.option("--quiet", "-q", is_flag=True, help="no list of the files written (the ranking still prints)")
 def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.sweep.report import (
-        Digest,
-        bands_of,
-        check_band,
-        open_results,
-        paper_match,
-        read_summary,
-        reference_of,
-        summarise,
-    )
+    from s2cl.app.optimise import report_results
 
-    path, meta = open_results(results)
-    columns = Digest.of_columns(path)
-    folder = results if results.is_dir() else results.parent
-    bands = [check_band(columns, band, results)] if band else bands_of(columns)
-    check_output_dir(folder, writes=(results.name,))
-    previous = folder / "summary.json"
-    # the reference row (the sensor's own bands), run time and warnings come from the run, not the table
-    kept = read_summary(previous) if previous.exists() else {}
-    reference = reference_of(kept)
-    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
-                                                                                 bands_of(columns)))
-    summary = summarise(digest, meta, reference)
-    for key in ("seconds", "warnings"):
-        if key in kept:
-            summary[key] = kept[key]
-    with claim(folder):
-        written = report_sweep(digest, summary, folder, bands)
+    summary, written = report_results(results, band)
+    print_sweep(summary)
     if not quiet:
         for p in written:
             click.echo(f"wrote {p}")

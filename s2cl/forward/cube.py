@@ -17,7 +17,6 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import gaussian_filter
 
-from s2cl import __version__
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
@@ -29,6 +28,7 @@ from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.library import check_finite, resample_to_grid
 from s2cl.scene.scene import Scene
+from s2cl.version import __version__
 
 FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
 

@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from s2cl import __version__
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import InputError, token
@@ -23,6 +22,7 @@ from s2cl.scene.scene import Scene
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import point_weights
 from s2cl.status import PixelFlag
+from s2cl.version import __version__
 
 Progress = Callable[[int], None]
 
@@ -164,7 +164,7 @@ class Simulator:
         ]
         correction = None
         if scene.effects.correct:
-            from s2cl.atmos.scene_terms import correction_terms
+            from s2cl.scene.terms import correction_terms
 
             correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
                 scene.run.calibration_gain)
@@ -295,6 +295,6 @@ def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
     """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
     if not scene.effects.atmosphere:
         return None
-    from s2cl.atmos.scene_terms import scene_terms
+    from s2cl.scene.terms import scene_terms
 
     return scene_terms(scene)

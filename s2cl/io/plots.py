@@ -1,25 +1,48 @@
-"""Plots written to PNG (matplotlib, Agg backend)."""
+"""Plots written to PNG, drawn off screen without touching matplotlib's global backend (a notebook or an
+application that imports s2cl keeps its own)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from s2cl.io.output import atomic_path
-from s2cl.sensor.sensor import Sensor
-from s2cl.sensor.srf import DEFAULT_SUPPORT, measured_sentinel2_srf, super_gaussian
+
+_FIGURE_KEYS = ("figsize", "dpi", "layout", "constrained_layout", "tight_layout", "facecolor")
+
+
+class _Figures:
+    """The part of ``matplotlib.pyplot`` s2cl draws with, on :class:`matplotlib.figure.Figure` objects that no
+    pyplot state holds (``savefig`` renders them with Agg): no screen needed, no backend switched."""
+
+    @staticmethod
+    def subplots(nrows: int = 1, ncols: int = 1, **kwargs: Any) -> tuple[Any, Any]:
+        from matplotlib.figure import Figure
+
+        fig = Figure(**{k: kwargs.pop(k) for k in _FIGURE_KEYS if k in kwargs})
+        return fig, fig.subplots(nrows, ncols, **kwargs)
+
+    @staticmethod
+    def close(fig: Any) -> None:
+        """Nothing to release: no pyplot state holds the figure."""
+
+    @staticmethod
+    def get_cmap(name: str) -> Any:
+        import matplotlib
+
+        return matplotlib.colormaps[name]
+
+    @property
+    def Rectangle(self) -> Any:
+        from matplotlib.patches import Rectangle
+
+        return Rectangle
 
 
 def pyplot() -> Any:
-    """``matplotlib.pyplot`` on the Agg backend (no screen needed); imported on first use."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    """What s2cl draws with (``subplots``, ``close``, ``get_cmap``, ``Rectangle``, as in ``matplotlib.pyplot``),
+    without pyplot's global figures or backend."""
+    return _Figures()
 
 
 def save_png(fig: Any, path: str | Path, dpi: float | None = None) -> Path:
@@ -28,27 +51,3 @@ def save_png(fig: Any, path: str | Path, dpi: float | None = None) -> Path:
         fig.savefig(tmp, format="png", dpi=dpi)
     pyplot().close(fig)
     return Path(path)
-
-
-def plot_srf(band_name: str, platform: str | None, path: Path, sensor: Sensor | None = None) -> Path:
-    """Model SRF (eq. 1, peak-normalised) of a band against the measured Sentinel-2 response."""
-    plt = pyplot()
-    band = (sensor or Sensor.sentinel2()).band(band_name)
-    c, w = band.centre_nm, band.fwhm_nm
-    wl = np.arange(c - 2 * w, c + 2 * w + 0.01, 0.1)
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    if platform:
-        m = measured_sentinel2_srf(platform, band.name)
-        ax.plot(m.wavelengths_nm, m.response / m.response.max(), "-", color="k", label=f"{platform} MSI measured")
-    model = super_gaussian(wl, c, w)
-    ax.plot(wl, model / model.max(), "--", color="tab:red", label="model, eq. (1)")
-    for edge in (c - DEFAULT_SUPPORT * w, c + DEFAULT_SUPPORT * w):
-        ax.axvline(edge, color="0.6", lw=0.8, ls=":")
-    ax.set_xlim(c - 2 * w, c + 2 * w)
-    ax.set_xlabel("wavelength (nm)")
-    ax.set_ylabel("relative response")
-    ax.set_title(f"Sentinel-2 {band.name}: centre {c:g} nm, FWHM {w:g} nm (dotted: support ±{DEFAULT_SUPPORT:g} FWHM)",
-                 fontsize=9)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return save_png(fig, path)

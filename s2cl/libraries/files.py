@@ -196,7 +196,7 @@ def load_csv_library(
 
 #: bytes per spectrum and grid wavelength of a library read for a run: the float64 spectra on the grid (the
 #: finiteness checks and the interpolation work row by row) and, right after, their TOA radiance, as
-#: ``s2cl simulate`` and the sweeps count them (:mod:`s2cl.forward.stream`, :mod:`s2cl.sweep.budget`)
+#: ``s2cl simulate`` and the sweeps count them (:mod:`s2cl.app.simulate`, :mod:`s2cl.app.sweep_budget`)
 LIBRARY_BYTES_PER_GRID_VALUE = 24
 
 

@@ -63,8 +63,8 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
     """
-    from s2cl import __version__
     from s2cl.io.outdir import check_output_dir, claim
+    from s2cl.version import __version__
 
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)

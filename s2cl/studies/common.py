@@ -14,7 +14,6 @@ import numpy as np
 
 from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.correction import BandAtmosphere, correct
-from s2cl.atmos.scene_terms import assumed_state, scene_lut, state_terms, true_state
 from s2cl.atmos.state import AtmosphereState
 from s2cl.atmos.terms import AtmosphericTerms
 from s2cl.errors import InputError
@@ -24,6 +23,7 @@ from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.registry import load_library
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import StudySpec
+from s2cl.scene.terms import assumed_state, scene_lut, state_terms, true_state
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights
 from s2cl.sensor.variants import SweepSpace
@@ -76,7 +76,7 @@ class StudySetup:
 
     @property
     def lut(self) -> AtmosphereLUT:
-        """The scene's LUT (:func:`s2cl.atmos.scene_terms.scene_lut`: path relative to the scene, cached)."""
+        """The scene's LUT (:func:`s2cl.scene.terms.scene_lut`: path relative to the scene, cached)."""
         return scene_lut(self.scene)
 
     def truth(self, **changes: Any) -> AtmosphereState:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from s2cl.atmos.scene_terms import correction_terms, scene_terms
+from s2cl.app.checks import check_sweep
 from s2cl.errors import InputError, key_token
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
@@ -34,7 +34,7 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.retrieve.quantify import fit_polynomial
 from s2cl.scene.scene import Scene, builtin_scenes
-from s2cl.scene.validate import check_sweep
+from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandList, SweepSpace
 from s2cl.sweep.raw import ChunkEvaluator
 from s2cl.sweep.tables import SweepTables, build_tables
@@ -70,7 +70,7 @@ class Application:
 
 def load_application(study: Scene, label: str, ref: str, copies: int) -> Application:
     """The scene ``ref`` of [study] ``applications.LABEL`` (a built-in name, or a .toml file relative to the
-    study scene), checked as a sweep would check it (:func:`s2cl.scene.validate.check_sweep`), with ``copies``
+    study scene), checked as a sweep would check it (:func:`s2cl.app.checks.check_sweep`), with ``copies``
     noisy copies per spectrum."""
     key = f"study.applications.{key_token(label)}"
     if ref.endswith(".toml") or "/" in ref or "\\" in ref:

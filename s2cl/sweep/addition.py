@@ -4,7 +4,7 @@ scored by its gain over the base set alone, on the same pixels and noise.
 - The base set is scored by the same analysis on the base bands alone (:func:`check_base`: a base the analysis
   cannot run, e.g. an IGRM on fewer than four bands, is refused before any work, in one line; so are the
   two-band indices, which either leave the added band out or the base set without an index).
-- The base score is a fixed-band sweep of the base bands (:func:`s2cl.sweep.plan.fixed_row`): the same library,
+- The base score is a fixed-band sweep of the base bands (:func:`s2cl.app.plan.fixed_row`): the same library,
   atmosphere, and noise deviates, because the base bands keep their noise streams and the added band draws its
   own (:func:`s2cl.sweep.space.addition_scene`).
 - ``gain = base score − candidate score``: RMS for regressions, mean omission error (percentage points) for SAM;

@@ -25,7 +25,7 @@ TOP = 10
 #: most centre rows and width columns a heatmap draws; beyond them consecutive values are grouped
 HEATMAP_CENTRES, HEATMAP_WIDTHS = 60, 40
 #: bytes the digest holds per band variant (sorted pairs, their best value, merge transients) and per
-#: batch (the Arrow batch, its DataFrame and the sorted pool): :mod:`s2cl.sweep.budget` counts them
+#: batch (the Arrow batch, its DataFrame and the sorted pool): :mod:`s2cl.app.sweep_budget` counts them
 BYTES_PER_VARIANT = 96
 BATCH_BYTES_PER_COLUMN = 4 * 8 * BATCH_ROWS
 

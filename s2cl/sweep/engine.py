@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from s2cl import __version__
 from s2cl.errors import DependencyError, InputError, ResourceError, token
 from s2cl.io.budget import available_memory, require_disk
 from s2cl.io.output import write_json
@@ -41,6 +40,7 @@ from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_c
 from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
 from s2cl.sweep.tables import SweepTables
+from s2cl.version import __version__
 
 REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
 MANIFEST = "manifest.json"

@@ -77,7 +77,7 @@ def band_range(scene: Scene, name: str, r: RangeSpec, key: str) -> BandRange | B
 
 def _check_on_grid(scene: Scene, space: SweepSpace) -> None:
     """Every variant's model SRF (centre ± sensor.support × width) inside the scene's grid: the one check that
-    ``sweep count``, ``simulate`` and ``optimise`` share (:func:`s2cl.scene.validate.check_sweep`), before any
+    ``sweep count``, ``simulate`` and ``optimise`` share (:func:`s2cl.app.checks.check_sweep`), before any
     table is built."""
     grid, support = scene.grid, scene.run.support
     add = scene.spec.sweep.add if scene.spec.sweep is not None else None

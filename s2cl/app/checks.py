@@ -46,7 +46,7 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
     if scene.spec.analysis is not None and scene.spec.surface.cube is None:
-        from s2cl.retrieve.scene_analysis import analysis_bands
+        from s2cl.app.analysis import analysis_bands
 
         bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
         analysis = _analysis(scene, bands, library)
@@ -151,7 +151,7 @@ def igrm_settings(scene: Scene) -> Any:
 
 def _atmosphere(scene: Scene) -> None:
     """Both atmosphere states inside the LUT's ranges (the terms are computed: cheap, and cached)."""
-    from s2cl.atmos.scene_terms import correction_terms, scene_terms
+    from s2cl.scene.terms import correction_terms, scene_terms
 
     if scene.effects.atmosphere or scene.spec.sweep is not None:
         scene_terms(scene)

@@ -20,10 +20,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from s2cl import __version__
+from s2cl.version import __version__
 
 if TYPE_CHECKING:
     from s2cl.cl.runtime import Runtime
+from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
 from s2cl.io.budget import (
@@ -37,7 +38,6 @@ from s2cl.io.budget import (
     require_disk,
 )
 from s2cl.io.output import atomic_path, hdf5_errors
-from s2cl.scene.validate import Checked
 
 Progress = Callable[[int], None]
 
@@ -257,7 +257,7 @@ class _AnalysisBands:
             self.data[:, first_pixel : first_pixel + reflectance.shape[1]] = reflectance[self.rows]
 
     def analyse(self, band_radiance: np.ndarray, rt: Runtime) -> dict[str, Any]:
-        from s2cl.retrieve.scene_analysis import analyse
+        from s2cl.app.analysis import analyse
 
         scene, lib = self.checked.scene, self.checked.library
         assert self.data is not None and lib is not None

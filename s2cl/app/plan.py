@@ -7,16 +7,16 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.atmos.scene_terms import correction_terms, scene_terms
+from s2cl.app.checks import Checked, check_sweep
+from s2cl.app.sweep_budget import Budget, sweep_resources
 from s2cl.forward.simulate import scene_library
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import count_underdetermined
 from s2cl.scene.scene import Scene
-from s2cl.scene.validate import Checked, check_sweep
+from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
-from s2cl.sweep.budget import Budget, sweep_resources
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
 from s2cl.sweep.space import addition_scene
 from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
@@ -31,9 +31,9 @@ def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
 
 def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | None = None,
                budget: Budget | None = None, host_metrics: bool = True, device: str | None = None) -> SweepJob:
-    """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.scene.validate`),
+    """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.app.checks`),
     its memory estimated against ``budget`` before the tables are built (``host_metrics``: see
-    :func:`s2cl.sweep.budget.sweep_resources`), the chunk chosen to fit. A band-addition sweep's base set is
+    :func:`s2cl.app.sweep_budget.sweep_resources`), the chunk chosen to fit. A band-addition sweep's base set is
     scored here, on ``device`` (:func:`fixed_row`), and the job carries it (each row's ``gain``)."""
     checked = checked or check_sweep(scene)
     plan = sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics)

@@ -29,9 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from s2cl.app.checks import Checked
 from s2cl.io.budget import BASELINE_BYTES, Budget, gb, largest_fitting, require_disk
 from s2cl.scene.scene import Scene
-from s2cl.scene.validate import Checked
 from s2cl.sensor.variants import BandGrid, BandRange
 from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BYTES_PER_VARIANT
 from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION, results_disk_bytes

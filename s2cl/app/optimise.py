@@ -1,0 +1,229 @@
+"""The main job: a scene's sweep, checked before it starts, run (resumably, locally or on Dask), ranked against the
+sensor's own bands and reported — :func:`optimise` returns what ``s2cl optimise`` prints, as data."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from s2cl.scene.scene import Scene
+from s2cl.sensor.names import safe_file_part
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+
+@dataclass(frozen=True)
+class OptimiseResult:
+    """A finished sweep: ``summary`` is ``summary.json``'s content (ranking, reference row, fit accounting, the
+    paper's values where the scene is one of its tables), ``folder`` the output folder, ``written`` the files
+    written there (``results.parquet`` first)."""
+
+    summary: dict[str, Any]
+    folder: Path
+    written: tuple[Path, ...] = field(default=())
+
+    @property
+    def reference(self) -> dict[str, Any] | None:
+        """The sensor's own band set's row (a band-addition sweep: the base set's), or None."""
+        return self.summary.get("reference")
+
+    @property
+    def best(self) -> dict[str, Any]:
+        """The best configuration's row."""
+        return self.summary["top"][0]
+
+    @property
+    def ranking(self) -> pd.DataFrame:
+        """The best configurations, best first: rank, each band's ``<band>_centre_nm`` and ``<band>_width_nm``,
+        then the metrics (as the ranking the CLI prints; every configuration: :meth:`table`)."""
+        import pandas as pd
+
+        rows = []
+        for rank, entry in enumerate(self.summary["top"], start=1):
+            row: dict[str, Any] = {"rank": rank}
+            for band, (centre, width) in entry["bands"].items():
+                row[f"{band}_centre_nm"], row[f"{band}_width_nm"] = centre, width
+            row.update({k: v for k, v in entry.items() if k != "bands"})
+            rows.append(row)
+        return pd.DataFrame(rows)
+
+    def table(self) -> pd.DataFrame:
+        """Every configuration, one row each (``results.parquet``)."""
+        import pandas as pd
+
+        return pd.read_parquet(self.folder / "results.parquet")
+
+
+def optimise(scene: str | Path | Scene = "default", out: str | Path | None = None, *, workers: int | None = None,
+             scheduler: str | None = None, overwrite: bool = False, chunk: int | None = None,
+             device: str | None = None, max_memory: str | None = None,
+             progress: Callable[[int], None] | None = None,
+             on_start: Callable[[Any, int, int], None] | None = None) -> OptimiseResult:
+    """Run the sweep of ``scene`` (a built-in name, a ``.toml`` path or a :class:`Scene`) into ``out`` (default: the
+    scene's ``output.directory``, else ``s2cl-out/<name>``), rank it and write ``summary.json`` and the heatmaps.
+
+    Everything (scene, output folder, memory, disk, device, scheduler) is checked and the sweep's tables and kernel
+    are built before the folder is claimed: a run refused here creates nothing. Finished chunks are kept, so the
+    same call resumes an interrupted sweep. ``progress(n)`` is called with configurations done, ``on_start(job,
+    todo, done)`` once before the first chunk (``job``: the planned :class:`~s2cl.sweep.engine.SweepJob`).
+    """
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.plan import plan_sweep, reference_row
+    from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.errors import InputError
+    from s2cl.io.budget import Budget
+    from s2cl.io.outdir import check_output_dir, claim
+    from s2cl.scene.caveats import report
+    from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk, run_sweep
+    from s2cl.sweep.report import Digest, open_results, paper_match, summarise
+
+    if workers and scheduler:
+        raise InputError("give workers or a scheduler, not both", key="--scheduler")
+    budget = Budget.of(max_memory)
+    sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
+    folder, where = output_folder(sc, out)
+    checked = check_sweep(sc, budget=budget)
+    check_output_dir(folder, where=where)
+    rt = get_runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
+    # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
+    host_metrics = bool(workers or scheduler) or not rt.has_fp64
+    plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(folder, overwrite),
+                           host_metrics=host_metrics)
+    require_sweep_disk(checked, folder)
+    if scheduler:
+        reach_scheduler(scheduler)
+    t0 = time.perf_counter()
+    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics, device=device)
+    check_folder(job, folder, overwrite=overwrite)
+    if not (workers or scheduler):
+        kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
+    warnings = report(checked.caveats)
+    with claim(folder):
+        started = (lambda todo, done: on_start(job, todo, done)) if on_start else None
+        results = run_sweep(job, folder, progress=progress, on_start=started, workers=workers, scheduler=scheduler,
+                            overwrite=overwrite, device=device)
+        path, meta = open_results(results)
+        reference = reference_row(sc, job, device)
+        digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))
+        summary = summarise(digest, meta, reference)
+        summary["seconds"] = time.perf_counter() - t0
+        summary["warnings"] = warnings
+        written = write_report(digest, summary, folder, summary["bands"])
+    return OptimiseResult(summary, folder, (Path(results), *written))
+
+
+@dataclass(frozen=True)
+class SweepCount:
+    """What ``s2cl sweep count`` prints: the variants per band (:func:`s2cl.app.plan.count_table` rows), the
+    configurations, the memory and chunk the sweep would take, and how many configurations the analysis cannot fit
+    (None: too many variants to count)."""
+
+    scene: str
+    variants: list[dict[str, Any]]
+    configurations: int
+    memory_bytes: float
+    chunk: int
+    underdetermined: int | None
+    underdetermined_policy: str
+
+
+def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None = None,
+                on_counted: Callable[[str, list[dict[str, Any]], int], None] | None = None) -> SweepCount:
+    """Check ``scene`` exactly as :func:`optimise` does (nothing is created) and count its sweep without
+    enumerating it. ``on_counted(scene name, variants, configurations)`` is called as soon as they are counted,
+    before the memory is sized (which may refuse a sweep too large to run: the count is still worth showing)."""
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.plan import count_table, underdetermined_count
+    from s2cl.app.sweep_budget import sweep_resources
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.io.budget import Budget
+    from s2cl.io.outdir import check_output_dir
+    from s2cl.scene.caveats import report
+    from s2cl.sweep.engine import resumable_chunk
+
+    budget = Budget.of(max_memory)
+    sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
+    checked = check_sweep(sc, budget=budget)
+    folder, where = output_folder(sc, None)
+    check_output_dir(folder, where=where)
+    report(checked.caveats)
+    assert checked.space is not None
+    variants = count_table(sc)
+    if on_counted:
+        on_counted(sc.name, variants, checked.space.size)
+    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder),
+                           host_metrics=not get_runtime(sc.run.device).has_fp64)
+    bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
+    return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
+                      sc.spec.sweep.underdetermined)
+
+
+def output_folder(sc: Scene, out: str | Path | None) -> tuple[Path, str]:
+    """The output folder of a scene's run and how it was chosen (for error messages)."""
+    if out is not None:
+        return Path(out), "--output"
+    if sc.spec.output.directory:
+        return sc.output_dir, f"output.directory in {sc.source}"
+    return sc.output_dir, f"scene.name in {sc.source}"
+
+
+def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
+    """The paper's values (into ``summary``), ``summary.json`` and a heatmap per moving band of ``bands`` into
+    ``folder`` from the results' :class:`~s2cl.sweep.digest.Digest`; the files written."""
+    from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
+    from s2cl.sweep.report import heatmap, heatmap_vs_paper, paper_comparison, write_summary
+
+    plots = []
+    comparison = paper_comparison(digest, summary)
+    if comparison is not None:
+        summary["paper"] = comparison
+        if "band" in comparison:
+            band = safe_file_part(comparison["band"])
+            plots.append(heatmap_vs_paper(comparison, folder / f"heatmap_{band}_vs_paper.png"))
+    record = addition_of(digest.meta)
+    if record is not None and digest.ranked:
+        summary["addition"] = summarise_addition(digest, summary, record)
+        plots += gain_plots(digest, record, folder)
+    written = [write_summary(folder / "summary.json", summary)]
+    moving = [b for b in bands if digest.variants(b) > 1]
+    return written + [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
+
+
+def report_results(results: str | Path, band: str | None = None) -> tuple[dict[str, Any], list[Path]]:
+    """Rank a finished sweep again (a results folder or ``.parquet`` file) and rewrite its report; the summary and
+    the files written. The reference row, run time and warnings come from the run's ``summary.json``."""
+    from s2cl.io.outdir import check_output_dir, claim
+    from s2cl.sweep.report import (
+        Digest,
+        bands_of,
+        check_band,
+        open_results,
+        paper_match,
+        read_summary,
+        reference_of,
+        summarise,
+    )
+
+    results = Path(results)
+    path, meta = open_results(results)
+    columns = Digest.of_columns(path)
+    folder = results if results.is_dir() else results.parent
+    bands = [check_band(columns, band, results)] if band else bands_of(columns)
+    check_output_dir(folder, writes=(results.name,))
+    previous = folder / "summary.json"
+    kept = read_summary(previous) if previous.exists() else {}
+    reference = reference_of(kept)
+    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
+                                                                                 bands_of(columns)))
+    summary = summarise(digest, meta, reference)
+    for key in ("seconds", "warnings"):
+        if key in kept:
+            summary[key] = kept[key]
+    with claim(folder):
+        written = write_report(digest, summary, folder, bands)
+    return summary, written
