@@ -1,4 +1,4 @@
-"""Regenerate docs/band-addition.md's numbers and figures (issue 16: the bands Sect. 5 of the paper recommends).
+"""Regenerate docs/band-addition.md's numbers and figures (the bands Sect. 5 of the paper recommends).
 
 1. ``python -m s2cl optimise add-2300-mgoh -q -o OUT/add-2300-mgoh``: the band-addition sweep of a 2.28-2.35 um
    band added to B11 1610/90 + B12 2190/180 (SAM Al-OH vs Mg-OH/C-O); its gain curve and heatmap are copied to

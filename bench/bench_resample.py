@@ -263,7 +263,7 @@ def rounds_summary(rounds: list[dict[str, Any]]) -> dict[str, Any]:
         "s2cl kernel alone": [k / b for k, b in zip(kernel, bound, strict=True)],
         "numpy per-band slices": [n / b for n, b in zip(baseline, bound, strict=True)],
     }
-    # issue 15's goal, 2x the slices, as a share of the bound: above 100 % no kernel that reads those bytes can meet it
+    # the goal of 2x the slices, as a share of the bound: above 100 % no kernel that reads those bytes can meet it
     median["goal_2x_share_of_bound"] = [2 * n / b for n, b in zip(baseline, bound, strict=True)]
     # the same, against what this machine does reading those bytes with no arithmetic (same round, same statistic)
     reads = [max(x[UNION_READ], x[BANDS_READ]) for x in rates]

@@ -1,4 +1,4 @@
-"""Band-addition sweeps (issue 16 item 1, s2cl.sweep.addition): a fixed base set plus one added band, each
+"""Band-addition sweeps (s2cl.sweep.addition): a fixed base set plus one added band, each
 candidate scored by its gain over the base alone on the same pixels and noise; the scene section [sweep.add]
 checked once, before any work."""
 

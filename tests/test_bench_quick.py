@@ -136,7 +136,7 @@ def test_native_resampling_reference_agrees_with_the_oracle(bench_path: None) ->
 
 
 def test_resample_rounds_summary_states_the_goal_against_the_bound_and_the_read(bench_path: None) -> None:
-    """``bench_resample``'s summary (the figures the README quotes for issue 15's 2× goal): the bound is the best
+    """``bench_resample``'s summary (the figures docs/performance.md quotes for the 2× goal): the bound is the best
     read bandwidth of all rounds, and each round's kernel and 2× baseline are set against the faster of that
     round's two no-arithmetic reads."""
     from bench.bench_resample import BANDS_READ, UNION_READ, rounds_summary

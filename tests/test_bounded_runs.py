@@ -1,4 +1,4 @@
-"""Issue 13 red team, resources and crash safety: memory estimated before every large step (heatmaps and
+"""Resources and crash safety: memory estimated before every large step (heatmaps and
 reports stream the results; libraries and LUTs are sized from their headers), nothing created by a run
 that fails, a killed sweep resumed by the same command whatever the budget, no stale or leftover files.
 """

@@ -1,4 +1,4 @@
-"""The 2.1 µm cellulose study (`s2cl study cellulose`, issue 16 item 2): mixtures, CAI and NDTI against
+"""The 2.1 µm cellulose study (`s2cl study cellulose`): mixtures, CAI and NDTI against
 plain float64 numpy, the regression, the scene's errors, and the 6S CO₂ absorption that the chain carries."""
 
 from __future__ import annotations

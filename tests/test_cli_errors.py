@@ -1,4 +1,4 @@
-"""The command line's own errors (red-team report, issue 13: V4, V10, V12): usage errors, Ctrl-C, a console that
+"""The command line's own errors: usage errors, Ctrl-C, a console that
 cannot show every character, a removed working folder, the environment (S2CL_LANES, PoCL's cache folder),
 --scheduler and --plot: one line on stderr, exit code 2 (130 for Ctrl-C), no traceback, nothing created."""
 

@@ -1,4 +1,4 @@
-"""The rules every input passes, once, wherever it is read (red-team report, issue 13: V1, V3, V4, V9, V10):
+"""The rules every input passes, once, wherever it is read:
 regular files only, strict numbers, safe band names, JSON without NaN, cubes of real numbers, ENVI headers
 whose keys are named when they lie, scene paths resolved once, output folders that are s2cl's own."""
 

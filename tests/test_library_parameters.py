@@ -1,4 +1,4 @@
-"""Per-spectrum parameters in user libraries (issue 16): CSV ``param:NAME`` rows, ENVI ``s2cl parameter NAME``
+"""Per-spectrum parameters in user libraries: CSV ``param:NAME`` rows, ENVI ``s2cl parameter NAME``
 header fields and s2cl ``.npz`` files carry Lib1's Cab into ``s2cl optimise``, ``simulate`` and ``sweep count``
 exactly as the builtin library does; hostile parameter rows, header fields and archives are one-line errors
 naming the file and the key (exit code 2 through the command line)."""

@@ -1,5 +1,5 @@
 """One design, one verdict: ``s2cl simulate`` and a one-configuration sweep of the same bands give every
-pixel the same status and the same index (issue 12: the two paths used to judge pixels differently).
+pixel the same status and the same index.
 
 Both paths run the same stage functions (kernels/common/stages.mako, common/igrm_lm.mako) on the same
 noise (Philox keyed by pixel and the band's index in the sensor); they differ only in how the noise-free

@@ -1,4 +1,4 @@
-"""Issue 13: every bad input a one-line error, every fault survived, no run can exhaust the machine.
+"""Every bad input a one-line error, every fault survived, no run can exhaust the machine.
 
 Each test runs the real command line in a subprocess (as a user would) and checks the exit code, that
 stderr is one ``error: FILE: KEY: ...`` line without a traceback, and what was (not) written.

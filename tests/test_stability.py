@@ -1,4 +1,4 @@
-"""The spectral-stability study (`s2cl study stability`, issue 16): a drifted band's data processed as the
+"""The spectral-stability study (`s2cl study stability`): a drifted band's data processed as the
 nominal band's. Small copies (3 noisy copies per spectrum) keep every test fast."""
 
 from __future__ import annotations

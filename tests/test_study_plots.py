@@ -1,4 +1,4 @@
-"""The studies' figures are drawn from the JSON ``data`` alone (issue 14: studies compute, plots apart):
+"""The studies' figures are drawn from the JSON ``data`` alone (studies compute, plots apart):
 each plot function on a small synthetic data dict, :func:`s2cl.studies.replot` from a saved JSON, and no
 computation module importing matplotlib."""
 

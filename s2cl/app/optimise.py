@@ -98,7 +98,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     if scheduler:
         reach_scheduler(scheduler)
     t0 = time.perf_counter()
-    job = plan_sweep(sc, chunk=plan.chunk, checked=checked, budget=budget, host_metrics=host_metrics, device=device)
+    job = plan_sweep(sc, checked=checked, device=device, resources=plan)
     check_folder(job, folder, overwrite=overwrite)
     if not (workers or scheduler):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made

@@ -146,7 +146,7 @@ class Runtime:
         preferred work-group size multiple as the device reports it (8 on PoCL CPUs), four of them on other
         devices, never above the kernel's limit. Left to itself, PoCL picks a divisor of the global size,
         which can be poor for awkward sizes: the resampling API ran 3.9 M spectra/s with PoCL's choice
-        against 7.5 with named groups (``python -m bench.bench_resample``, issue 15); single-item groups cost
+        against 7.5 with named groups (``python -m bench.bench_resample``); single-item groups cost
         scheduling per item on small launches instead (``python -m bench.bench_atmosphere``, 2·10⁴ spectra:
         4.5 against 6.6 M/s in runs minutes apart)."""
         cl = pyopencl()

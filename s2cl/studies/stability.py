@@ -1,4 +1,4 @@
-"""Spectral stability requirement per band (issue 16; the paper names "spectral stability requirements"
+"""Spectral stability requirement per band (the paper names "spectral stability requirements"
 without numbers): how far may a band's centre (or width) drift before an application's error grows by
 [study] ``growth`` (10 %) over the nominal?
 
