@@ -31,7 +31,7 @@ SCENE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
 class SceneMeta(Section):
     name: str = Field(min_length=1, description="short name, used for the output folder")
-    description: str = ""
+    description: str = Field("", description="one line about the scene (listed by `s2cl scenes`)")
 
     @field_validator("name")
     @classmethod
@@ -73,45 +73,51 @@ class SensorSpec(Section):
 
 
 class GridSpec(Section):
-    start_nm: float = Field(400.0, ge=200, le=3000)
-    stop_nm: float = Field(2500.0, ge=200, le=3000)
-    step_nm: float = Field(1.0, gt=0, le=50)
+    start_nm: float = Field(400.0, ge=200, le=3000, description="first wavelength of the simulation grid, nm")
+    stop_nm: float = Field(2500.0, ge=200, le=3000, description="last wavelength of the simulation grid, nm")
+    step_nm: float = Field(1.0, gt=0, le=50, description="grid spacing, nm (at most half the narrowest band's FWHM; "
+                           "warned above a fifth)")
 
 
 class EffectsSpec(Section):
-    atmosphere: bool = False
-    resample: bool = True
-    noise: bool = True
-    seed: int = Field(0, ge=0, le=UINT32_MAX)
-    frame: int = Field(0, ge=0, le=UINT32_MAX)
-    quantise: bool = True
+    atmosphere: bool = Field(False, description="surface reflectance to TOA radiance at each wavelength (6S LUT)")
+    resample: bool = Field(True, description="integrate the spectra over each band's SRF (false: ideal monochromatic "
+                           "bands at the centres)")
+    noise: bool = Field(True, description="add the sensor's noise (SNR model of each band)")
+    seed: int = Field(0, ge=0, le=UINT32_MAX, description="noise generator seed (Philox key): same seed, same noise")
+    frame: int = Field(0, ge=0, le=UINT32_MAX, description="noise frame (Philox counter word): another frame draws "
+                       "independent noise for the same pixels")
+    quantise: bool = Field(True, description="quantise radiance to digital numbers between Lmin and Lmax")
     bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
-    calibrate: bool = True
-    correct: bool = False
+    calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)")
+    correct: bool = Field(False, description="band-effective atmospheric correction of band radiance back to "
+                          "surface reflectance (the state of [correction])")
 
 
 class AtmosphereSpec(Section):
     """Atmospheric state (ranges are checked against the LUT's axes when it is read)."""
 
-    profile: Literal["midlatitude_summer", "midlatitude_winter"] = "midlatitude_summer"
+    profile: Literal["midlatitude_summer", "midlatitude_winter"] = Field(
+        "midlatitude_summer", description="atmospheric profile (temperature, pressure, gases) of the LUT")
     water_vapour: float = Field(1.5, gt=0, description="water vapour column, g/cm2")
     aot550: float | None = Field(None, ge=0, description="aerosol optical thickness at 550 nm (or visibility_km)")
     visibility_km: float | None = Field(None, gt=0, description="horizontal visibility (default 23 km if no aot550)")
     ozone: float = Field(330.0, gt=0, description="ozone column, DU")
     solar_zenith: float = Field(40.0, ge=0, lt=90, description="degrees")
     lut: str | None = Field(None, description="LUT file (default: the one shipped with s2cl)")
-    interpolation: Literal["linear", "nearest"] = "linear"
+    interpolation: Literal["linear", "nearest"] = Field("linear", description="interpolation in the LUT's axes")
 
 
 class CorrectionSpec(Section):
     """The state the atmospheric correction assumes; keys not given are taken from [atmosphere]."""
 
-    profile: Literal["midlatitude_summer", "midlatitude_winter"] | None = None
-    water_vapour: float | None = Field(None, gt=0)
-    aot550: float | None = Field(None, ge=0)
-    visibility_km: float | None = Field(None, gt=0)
-    ozone: float | None = Field(None, gt=0)
-    solar_zenith: float | None = Field(None, ge=0, lt=90)
+    profile: Literal["midlatitude_summer", "midlatitude_winter"] | None = Field(
+        None, description="assumed atmospheric profile (default: [atmosphere]'s)")
+    water_vapour: float | None = Field(None, gt=0, description="assumed water vapour column, g/cm2")
+    aot550: float | None = Field(None, ge=0, description="assumed aerosol optical thickness at 550 nm")
+    visibility_km: float | None = Field(None, gt=0, description="assumed horizontal visibility, km")
+    ozone: float | None = Field(None, gt=0, description="assumed ozone column, DU")
+    solar_zenith: float | None = Field(None, ge=0, lt=90, description="assumed solar zenith angle, degrees")
     calibration_gain: float = Field(1.0, gt=0, le=10, description="factor applied to calibrated radiance "
                                                                   "(1.05: a +5 % calibration error)")
 
@@ -121,14 +127,14 @@ class RangeSpec(Section):
     max_width: the paper's Table 2); a grid of centres × widths (centres, widths: lists, or
     [first, last, step] with grid_step); or a fixed band (centre, width)."""
 
-    left: float | None = None
-    right: float | None = None
-    min_width: float | None = Field(None, gt=0)
-    max_width: float | None = Field(None, gt=0)
-    centres: list[float] | None = Field(None, min_length=1)
-    widths: list[float] | None = Field(None, min_length=1)
-    centre: float | None = None
-    width: float | None = Field(None, gt=0)
+    left: float | None = Field(None, description="window: lowest wavelength a band edge may reach, nm")
+    right: float | None = Field(None, description="window: highest wavelength a band edge may reach, nm")
+    min_width: float | None = Field(None, gt=0, description="window: narrowest band width (FWHM), nm")
+    max_width: float | None = Field(None, gt=0, description="window: widest band width (FWHM), nm")
+    centres: list[float] | None = Field(None, min_length=1, description="grid: band centres, nm")
+    widths: list[float] | None = Field(None, min_length=1, description="grid: band widths (FWHM), nm")
+    centre: float | None = Field(None, description="fixed band: centre, nm")
+    width: float | None = Field(None, gt=0, description="fixed band: width (FWHM), nm")
 
 
 class AddSpec(RangeSpec):
@@ -146,8 +152,9 @@ class SweepSpec(Section):
     bands: list[str] = Field(min_length=1, description="swept bands, in fit order (with [sweep.add]: the fixed base "
                              "set; the added band is analysed after them)")
     preset: Literal["none", "table2"] = Field("none", description="take unlisted ranges from the paper's Table 2")
-    step_nm: float = Field(5.0, gt=0, le=100)
-    ranges: dict[str, RangeSpec] = Field(default_factory=dict)
+    step_nm: float = Field(5.0, gt=0, le=100, description="step of centres and widths in a window range, nm")
+    ranges: dict[str, RangeSpec] = Field(default_factory=dict, description="where each swept band moves, one "
+                                         "table per band (ranges.B4 = {...}): a window, a grid or a fixed band")
     chunk: int | None = Field(None, ge=1, le=1_000_000, description="configurations per chunk (default: auto)")
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
@@ -161,7 +168,8 @@ ANALYSIS_KINDS = ("igrm", *INDICES, "sam")
 
 
 class AnalysisSpec(Section):
-    kind: Literal[ANALYSIS_KINDS]  # type: ignore[valid-type]
+    kind: Literal[ANALYSIS_KINDS] = Field(  # type: ignore[valid-type]
+        description="the retrieval: the IGRM fit, a normalised-difference index, or SAM classification")
     bands: list[str] | None = Field(None, min_length=2, description="bands analysed by `s2cl simulate` (default: the "
                                     "swept bands, else B4 B5 B6 B7 for igrm, an index's role bands, all for sam)")
     parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
@@ -186,7 +194,8 @@ class AnalysisSpec(Section):
 
 
 class SpatialSpec(Section):
-    psf: Literal["none", "gaussian"] = "none"
+    psf: Literal["none", "gaussian"] = Field("none", description="point spread function applied to an image cube "
+                                             "before it is averaged to each band's GSD")
     psf_fwhm: float = Field(1.0, gt=0, le=10, description="Gaussian PSF FWHM in units of the band's GSD")
 
 
@@ -203,25 +212,27 @@ class ComputeSpec(Section):
         "float32", description="working precision of every kernel (float64 for reference runs)")
     lanes: int | None = Field(None, description="pixels per work-item of the per-pixel fits and the sweep "
                               "(1, 2, 4, 8 or 16; "
-                              "default: the device's native vector width)")
+                              "default: the widest width the device builds cleanly on CPUs, 1 on GPUs)")
     device: str | None = Field(None, description="OpenCL device (PLATFORM:DEVICE or part of its name; the CLI's "
-                               "--device wins; default: $PYOPENCL_CTX, else the first PoCL CPU device)")
+                               "--device wins; default: $PYOPENCL_CTX, else the PoCL CPU device that builds "
+                               "the widest vectors)")
 
 
 class SceneSpec(Section):
-    scene: SceneMeta
-    surface: SurfaceSpec
-    sensor: SensorSpec = SensorSpec()
-    grid: GridSpec = GridSpec()
-    atmosphere: AtmosphereSpec = AtmosphereSpec()
-    correction: CorrectionSpec = CorrectionSpec()
-    effects: EffectsSpec = EffectsSpec()
-    spatial: SpatialSpec = SpatialSpec()
-    analysis: AnalysisSpec | None = None
-    sweep: SweepSpec | None = None
-    study: StudySpec | None = None
-    compute: ComputeSpec = ComputeSpec()
-    output: OutputSpec = OutputSpec()
+    scene: SceneMeta = Field(description="the scene's name and description")
+    surface: SurfaceSpec = Field(description="what is seen: a spectral library (with noisy copies) or an image cube")
+    sensor: SensorSpec = Field(SensorSpec(), description="the sensor: bands, radiometry and SRFs")
+    grid: GridSpec = Field(GridSpec(), description="the spectral grid everything is simulated on")
+    atmosphere: AtmosphereSpec = Field(AtmosphereSpec(), description="the true atmospheric state (6S LUT)")
+    correction: CorrectionSpec = Field(CorrectionSpec(), description="the state the atmospheric correction assumes")
+    effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run")
+    spatial: SpatialSpec = Field(SpatialSpec(), description="spatial effects on image cubes (PSF)")
+    analysis: AnalysisSpec | None = Field(None, description="the retrieval scored on the simulated bands")
+    sweep: SweepSpec | None = Field(None, description="which bands move, and where (s2cl optimise)")
+    study: StudySpec | None = Field(None, description="an atmospheric-band, stability or cellulose study "
+                                    "(s2cl study)")
+    compute: ComputeSpec = Field(ComputeSpec(), description="precision, vector width and device")
+    output: OutputSpec = Field(OutputSpec(), description="where the outputs are written")
 
 
 def input_error(err: ValidationError, source: str) -> InputError:

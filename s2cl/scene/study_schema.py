@@ -63,7 +63,7 @@ class StudySpec(Section):
     ``stability`` drifts the bands of each scene in ``applications``."""
 
     kind: Literal["cirrus", "water-vapour", "water-vapour-1020", "aerosol", "ozone", "methane", "stability",
-                  "cellulose"]
+                  "cellulose"] = Field(description="which study runs")
     reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
     targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
     spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
