@@ -27,15 +27,18 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_strict_build(site: Path) -> None:
-    for page in ("index.html", "scenes.html", "changelog.html", "guide.html", "api/s2cl.html"):
+    for page in ("index.html", "scenes.html", "changelog.html", "guide.html", "api/s2cl.html", "api/app.html",
+                 "examples/choose-red-edge-bands.html"):
         assert (site / page).is_file(), page
 
 
 @pytest.mark.parametrize(("page", "objects"), [
-    ("api/s2cl.html", ["s2cl.Scene", "s2cl.simulate", "s2cl.Sensor"]),
+    ("api/s2cl.html", ["s2cl.optimise", "s2cl.Scene", "s2cl.simulate", "s2cl.Sensor"]),
+    ("api/app.html", ["s2cl.app.optimise.optimise", "s2cl.app.optimise.OptimiseResult",
+                      "s2cl.app.simulate_scene.simulate_scene", "s2cl.app.plan.plan_sweep"]),
     ("api/retrieve.html", ["s2cl.retrieve.igrm.IgrmFitter", "s2cl.retrieve.index_kernel.IndexKernel",
-                           "s2cl.retrieve.sam.SamClassifier"]),
-    ("api/sweep.html", ["s2cl.sweep.plan.plan_sweep", "s2cl.sweep.engine.run_sweep"]),
+                           "s2cl.retrieve.sam.SamClassifier", "s2cl.retrieve.formula.Formula"]),
+    ("api/sweep.html", ["s2cl.sweep.engine.run_sweep"]),
     ("api/cl.html", ["s2cl.cl.runtime.get_runtime", "s2cl.cl.devices", "s2cl.cl.probe"]),
 ])
 def test_api_pages_document(site: Path, page: str, objects: list[str]) -> None:
