@@ -3,7 +3,7 @@ sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end 
   gather noise-free band radiance and sigma of the configuration's variants (tables of
   s2cl/sweep/tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
   -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
-  a normalised-difference index such as GVMI; SAM class) -> one index, one status and one bounds/condition byte per pixel.
+  a normalised-difference index such as GVMI; a formula; SAM class) -> one index, one status and one bounds/condition byte per pixel.
 Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
 gets the same verdict on both paths (tests/test_one_rule.py). The spectral integral is not here: it
 ran once per (variant, spectrum) on the host.
@@ -18,8 +18,9 @@ Template variables
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
   lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
   noise, quantise            bools
-  kind       "igrm" | "sam" | an index of s2cl.retrieve.indices;  nd (that index: offsets),
-             slot_a, slot_b (its bands' slots); n_classes, cos_min (sam; below -1:
+  kind       "igrm" | "sam" | "formula" | an index of s2cl.retrieve.indices;  nd (that index: offsets),
+             slot_a, slot_b (its bands' slots); formula_source, formula_slots (formula: its device function,
+             s2cl.retrieve.formula, and the slot of each band it names, in its argument order); n_classes, cos_min (sam; below -1:
              no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
   max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
 Arguments (s2cl.sweep.kernel.ARGS)
@@ -81,6 +82,8 @@ ${st.calibrate(T)}
 ${st.correct(T)}
 % if nd is not None:
 ${st.normalised_difference(T, nd, max_abs)}
+% elif formula_source is not None:
+${formula_source}
 % elif kind == "sam":
 ${st.sam(T, n_slots, n_classes, max_abs)}
 % endif
@@ -121,9 +124,13 @@ __kernel void sweep_configs(
     }
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
-% if nd is not None:
+% if nd is not None or formula_source is not None:
     ${T.M} st;
+  % if nd is not None:
     ${vstore(f"s2_{nd.kind}_{T.suffix}(rho[{slot_a}], rho[{slot_b}], &st)", "(index + at)")}
+  % else:
+    ${vstore(f"s2_formula_{T.suffix}(" + ", ".join(f"rho[{k}]" for k in formula_slots) + ", &st)", "(index + at)")}
+  % endif
   % for l in range(L):
     status[at + ${l}] = (uchar)${lane("st", l)};
     bounds[at + ${l}] = 0;

@@ -30,7 +30,12 @@ CASES = {
              {"kind": "gvmi", "parameter": "ewt", "nir": "B8a", "swir": "B11"}),
     "sam": ({"library": "builtin:minerals-swir", "copies": 10}, ["B11", "B12"],
             {"kind": "sam", "angle_threshold_deg": 4.0}),
+    "formula": ({"library": "builtin:lib1", "copies": 12}, ["B4", "B5", "B6", "B7"],
+                {"kind": "formula", "expression": "705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)", "parameter": "cab"}),
 }
+#: how close the two paths' values are: IGRM λp (nm), GVMI, SAM class, S2REP (nm; measured identical, but its B6 - B5
+#: denominator would amplify any rounding difference of the two paths' band sums)
+TOL = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0, "formula": 1e-9}
 GRID = {"sam": {"start_nm": 1500, "stop_nm": 2500}}
 
 
@@ -59,8 +64,7 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
     assert job.n_configs == 1
     swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
     np.testing.assert_array_equal(swept.status[0], direct.status)
-    tol = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0}[kind]  # nm / index / class
-    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=tol)
+    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=TOL[kind])
     if kind == "igrm":
         np.testing.assert_array_equal(swept.bounds[0], direct.bounds)
         assert np.max(np.abs(swept.condition[0].astype(int) - direct.condition.astype(int))) <= 1
@@ -71,7 +75,7 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
 
 #: bands moved off their reference shape: narrower, wider and shifted (the noise rescales with the width)
 MOVED = {"igrm": {"B5": (712.0, 10.0), "B6": (748.0, 25.0)}, "gvmi": {"B11": (1610.0, 50.0)},
-         "sam": {"B12": (2200.0, 60.0)}}
+         "sam": {"B12": (2200.0, 60.0)}, "formula": {"B5": (712.0, 10.0), "B6": (748.0, 25.0)}}
 
 
 @pytest.mark.parametrize("kind", list(CASES))
@@ -97,8 +101,7 @@ def test_moved_bands_give_each_pixel_one_verdict(rt, kind: str) -> None:
     assert job.n_configs == 1
     swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
     np.testing.assert_array_equal(swept.status[0], direct.status)
-    tol = {"igrm": 1e-6, "gvmi": 1e-12, "sam": 0.0}[kind]
-    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=tol)
+    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=TOL[kind])
 
 
 def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tmp_path) -> None:

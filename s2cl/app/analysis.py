@@ -1,5 +1,5 @@
 """The scene's analysis on a simulation with the sensor's own bands (``s2cl simulate``): IGRM, a
-normalised-difference index (GVMI, ...) or SAM on the corrected band reflectances, scored with the same
+normalised-difference index (GVMI, ...), a formula or SAM on the corrected band reflectances, scored with the same
 metrics as a sweep row."""
 
 from __future__ import annotations
@@ -31,6 +31,13 @@ def analysis_bands(scene: Scene) -> list[str]:
         return RED_EDGE
     if a.kind in INDICES:
         return index_bands(a.kind, a.roles)
+    if a.kind == "formula" and a.expression is not None:
+        from s2cl.retrieve.formula import Formula
+
+        try:
+            return list(Formula.parse(a.expression, scene.sensor.band_names).bands)
+        except InputError as err:
+            raise InputError(err.detail, source=scene.source, key="analysis.expression") from None
     return list(scene.sensor.band_names)
 
 
@@ -41,7 +48,7 @@ def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
     settings = AnalysisSettings.from_scene(scene, bands)
     shapes = [scene.sensor.band(b) for b in bands]
     check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                 source=scene.source, key="analysis.bands", slots=settings.slots)
+                 source=scene.source, key="analysis.bands", slots=settings.slots, pairs=settings.pairs)
     return bands, settings
 
 
@@ -99,6 +106,11 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
         r = fit.fit(refl[order], centres[order])
         return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
                             everything)
+    if settings.kind == "formula":
+        from s2cl.retrieve.formula_kernel import FormulaKernel
+
+        g = FormulaKernel(rt, settings.formula(bands), real_t=real_t, lanes=lanes)(refl, rows=list(settings.slots))
+        return PixelResults(settings, bands, g.value, g.status, np.zeros_like(g.status), None, target, everything)
     from s2cl.retrieve.index_kernel import IndexKernel
 
     g = IndexKernel(rt, settings.kind, real_t=real_t, lanes=lanes)(refl, *settings.slots)

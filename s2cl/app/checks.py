@@ -52,7 +52,7 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
         analysis = _analysis(scene, bands, library)
         shapes = [scene.sensor.band(b) for b in bands]
         check_design(analysis.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                     source=scene.source, key="analysis.bands", slots=analysis.slots)
+                     source=scene.source, key="analysis.bands", slots=analysis.slots, pairs=analysis.pairs)
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
@@ -82,11 +82,11 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
     """Refuse a sweep in which no configuration can be fitted (:mod:`s2cl.retrieve.design`; e.g. a fixed design
     with two IGRM bands on one centre), in one line naming the bands."""
-    bad = count_underdetermined(analysis.kind, space, slots=analysis.slots)
+    bad = count_underdetermined(analysis.kind, space, slots=analysis.slots, pairs=analysis.pairs)
     if bad is not None and bad == space.size:
         first = space.shapes(0, 1)[0]
         check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
-                     slots=analysis.slots)
+                     slots=analysis.slots, pairs=analysis.pairs)
 
 
 def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:

@@ -48,6 +48,9 @@ def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawC
     condition = np.zeros(shape, np.uint8)
     if a.kind in INDICES:
         index, status = stages.normalised_difference(rhos[a.slots[0]], rhos[a.slots[1]], INDICES[a.kind].offsets)
+    elif a.kind == "formula":
+        formula = a.formula(t.bands)
+        index, status = formula.evaluate({b: rhos[s] for b, s in zip(formula.bands, a.slots, strict=True)})
     elif a.kind == "sam":
         idx = variant_indices(t, start, stop)
         refs = np.stack([t.references[k][idx[:, k]] for k in range(t.n_slots)], axis=-1)  # (n_cfg, n_cls, n_slots)

@@ -7,8 +7,9 @@ which designs can be analysed at all is :mod:`s2cl.retrieve.design`'s rule.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from s2cl.errors import InputError, token
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.indices import INDICES
 from s2cl.status import REGRESS_NAMES, Status
+
+if TYPE_CHECKING:
+    from s2cl.retrieve.formula import Formula
 
 
 @dataclass(frozen=True)
@@ -25,22 +29,35 @@ class AnalysisSettings:
     :param kind: ``"igrm"`` (index: inflection wavelength λp in nm), a key of
         :data:`s2cl.retrieve.indices.INDICES` (index: e.g. GVMI) or ``"sam"`` (class of each pixel).
     :param parameter: library parameter regressed on the index (``cab``, ``ewt``); igrm and indices.
-    :param slots: indices: band slots of band a and band b (GVMI: NIR, SWIR).
+    :param slots: indices: band slots of band a and band b (GVMI: NIR, SWIR); formula: the slot of each band the
+        expression names, in the order it names them.
     :param angle_threshold_deg: sam: pixels whose smallest angle exceeds it are unclassified.
     :param igrm: IGRM fit settings (keys of ``s2cl.retrieve.igrm.IgrmSettings``).
     :param regress: IGRM statuses (:class:`s2cl.status.Status` values) whose index enters the regression.
+    :param expression: formula: the expression (:class:`s2cl.retrieve.formula.Formula`).
+    :param pairs: formula: slot pairs the design rule requires to differ, the bands of each difference the
+        expression takes (:func:`s2cl.retrieve.design.design_problem`).
     """
 
     kind: str
     parameter: str | None = None
-    slots: tuple[int, int] = (0, 1)
+    slots: tuple[int, ...] = (0, 1)
     angle_threshold_deg: float | None = None
     igrm: tuple[tuple[str, Any], ...] = field(default_factory=tuple)
     regress: tuple[int, ...] = (Status.OK, Status.STALLED, Status.ITERATION_LIMIT)
+    expression: str | None = None
+    pairs: tuple[tuple[int, int], ...] = ()
 
     @property
     def regression(self) -> bool:
-        return self.kind == "igrm" or self.kind in INDICES
+        return self.kind in ("igrm", "formula") or self.kind in INDICES
+
+    def formula(self, bands: Sequence[str]) -> Formula:
+        """The formula of a ``formula`` analysis whose slots hold ``bands``."""
+        from s2cl.retrieve.formula import Formula
+
+        assert self.expression is not None
+        return Formula.parse(self.expression, bands)
 
     @classmethod
     def from_scene(cls, scene: Any, bands: list[str]) -> AnalysisSettings:
@@ -56,7 +73,7 @@ class AnalysisSettings:
                                  key=f"analysis.{key}")
             return lower.index(name.lower())
 
-        if (a.kind == "igrm" or a.kind in INDICES) and not a.parameter:
+        if (a.kind in ("igrm", "formula") or a.kind in INDICES) and not a.parameter:
             example = INDICES[a.kind].parameter if a.kind in INDICES else "cab"
             raise InputError(f"{a.kind} needs the library parameter to regress (e.g. {example!r})",
                              source=scene.source, key="analysis.parameter")
@@ -67,6 +84,20 @@ class AnalysisSettings:
         if stray:
             raise InputError(f"not a band role of {a.kind}" + (f" (its roles: {', '.join(own)})" if own else ""),
                              source=scene.source, key=f"analysis.{stray[0]}")
+        if (a.kind == "formula") != (a.expression is not None):
+            raise InputError("an expression is the formula kind's, and it needs one" if a.kind == "formula" else
+                             f"only kind = 'formula' takes an expression, not {a.kind}", source=scene.source,
+                             key="analysis.expression")
+        if a.kind == "formula":
+            from s2cl.retrieve.formula import Formula
+
+            try:
+                formula = Formula.parse(a.expression, bands)
+            except InputError as err:
+                raise InputError(err.detail, source=scene.source, key="analysis.expression") from None
+            slots = {b: slot(b, "expression") for b in formula.bands}
+            return cls("formula", a.parameter, slots=tuple(slots.values()), expression=a.expression,
+                       pairs=tuple((slots[x], slots[y]) for x, y in formula.subtracted_pairs()))
         if a.kind in INDICES:
             return cls(a.kind, a.parameter, slots=index_slots(a.kind, a.roles, slot))
         if a.kind == "sam":

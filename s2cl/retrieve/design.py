@@ -12,6 +12,8 @@ a sweep never ranks a design that the direct API refuses.
   differ (one band in both roles gives a constant index).
 - **SAM** needs at least two distinct bands (with one direction every pixel has the same angle
   to every class).
+- **A formula** (:mod:`s2cl.retrieve.formula`) needs the two bands of each difference it takes (``B6 - B5``) to
+  differ: one band in both places makes the difference vanish (S2REP's denominator).
 
 Band order is not part of validity: the IGRM kernels sort a design's bands by centre.
 """
@@ -40,8 +42,9 @@ def same_band(c1: Any, w1: Any, c2: Any, w2: Any) -> Any:
 
 
 def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], widths: Sequence[float], *,
-                   slots: tuple[int, int] = (0, 1)) -> str | None:
-    """Why the retrieval ``kind`` cannot fit the design ``names`` (centres and widths in nm), or None."""
+                   slots: tuple[int, ...] = (0, 1), pairs: tuple[tuple[int, int], ...] = ()) -> str | None:
+    """Why the retrieval ``kind`` cannot fit the design ``names`` (centres and widths in nm), or None. ``pairs``:
+    a formula's slot pairs that must differ (:meth:`s2cl.retrieve.analysis.AnalysisSettings.pairs`)."""
     c = np.asarray(centres, dtype=np.float64)
     w = np.asarray(widths, dtype=np.float64)
     if kind == "igrm":
@@ -62,19 +65,26 @@ def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], wi
         if bool(np.all(same_band(c, w, c[0], w[0]))):
             return "underdetermined: SAM needs at least two distinct bands; every band here is the same"
         return None
+    if kind == "formula":
+        for x, y in pairs:
+            if same_band(c[x], w[x], c[y], w[y]):
+                return (f"underdetermined: the formula takes {names[x]} - {names[y]}, and they are the same band "
+                        f"({c[x]:g}/{w[x]:g} nm)")
+        return None
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
 
 
 def check_design(kind: str, names: Sequence[str], centres: Sequence[float], widths: Sequence[float], *,
-                 source: str | None = None, key: str = "analysis.bands", slots: tuple[int, int] = (0, 1)) -> None:
+                 source: str | None = None, key: str = "analysis.bands", slots: tuple[int, ...] = (0, 1),
+                 pairs: tuple[tuple[int, int], ...] = ()) -> None:
     """:class:`InputError` (one line, naming file and key) when :func:`design_problem` finds one."""
-    problem = design_problem(kind, names, centres, widths, slots=slots)
+    problem = design_problem(kind, names, centres, widths, slots=slots, pairs=pairs)
     if problem:
         raise InputError(problem, source=source, key=key)
 
 
 def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *,
-                    slots: tuple[int, int] = (0, 1)) -> np.ndarray:
+                    slots: tuple[int, ...] = (0, 1), pairs: tuple[tuple[int, int], ...] = ()) -> np.ndarray:
     """:func:`design_problem` for many configurations at once: ``centres``, ``widths`` ``(n_configs,
     n_slots)`` in nm; True where the design cannot be fitted."""
     c = np.asarray(centres, dtype=np.float64)
@@ -89,6 +99,11 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *,
     if kind == "sam":
         same = same_band(c, w, c[:, :1], w[:, :1])
         return same.all(axis=1)
+    if kind == "formula":
+        bad = np.zeros(c.shape[0], dtype=bool)
+        for x, y in pairs:
+            bad |= same_band(c[:, x], w[:, x], c[:, y], w[:, y])
+        return bad
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
 
 
@@ -96,8 +111,8 @@ def underdetermined(kind: str, centres: np.ndarray, widths: np.ndarray, *,
 MAX_LISTED_VARIANTS = 1_000_000
 
 
-def count_underdetermined(kind: str, space: SweepSpace, *, slots: tuple[int, int] = (0, 1),
-                          limit: int = 10_000_000) -> int | None:
+def count_underdetermined(kind: str, space: SweepSpace, *, slots: tuple[int, ...] = (0, 1),
+                          pairs: tuple[tuple[int, int], ...] = (), limit: int = 10_000_000) -> int | None:
     """How many configurations of ``space`` cannot be fitted, without enumerating the configurations;
     None when a band has more than :data:`MAX_LISTED_VARIANTS` variants (its counts are computed, so
     nothing is listed) or the distinct values that decide it exceed ``limit``.
@@ -117,7 +132,7 @@ def count_underdetermined(kind: str, space: SweepSpace, *, slots: tuple[int, int
     for start in range(0, combos, block):
         idx = np.unravel_index(np.arange(start, min(start + block, combos)), [len(g) for g in grids])
         values = np.stack([grids[k][i] for k, i in enumerate(idx)], axis=1)  # (n, n_slots, 2)
-        bad = underdetermined(kind, values[..., 0], values[..., 1], slots=slots)
+        bad = underdetermined(kind, values[..., 0], values[..., 1], slots=slots, pairs=pairs)
         mult = np.prod(np.stack([weights[k][i] for k, i in enumerate(idx)], axis=1), axis=1)
         total += int(mult[bad].sum())
     return total

@@ -163,16 +163,22 @@ class SweepSpec(Section):
                                 "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
 
 
-#: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), SAM
-ANALYSIS_KINDS = ("igrm", *INDICES, "sam")
+#: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), a user's formula
+#: (s2cl.retrieve.formula), SAM
+ANALYSIS_KINDS = ("igrm", *INDICES, "formula", "sam")
 
 
 class AnalysisSpec(Section):
     kind: Literal[ANALYSIS_KINDS] = Field(  # type: ignore[valid-type]
-        description="the retrieval: the IGRM fit, a normalised-difference index, or SAM classification")
+        description="the retrieval: the IGRM fit, a normalised-difference index, your own formula, or SAM "
+        "classification")
     bands: list[str] | None = Field(None, min_length=2, description="bands analysed by `s2cl simulate` (default: the "
                                     "swept bands, else B4 B5 B6 B7 for igrm, an index's role bands, all for sam)")
     parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
+    expression: str | None = Field(None, max_length=500, description="formula: the index as an expression of band "
+                                   "reflectances, e.g. S2REP '705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)': band "
+                                   "names, numbers, + - * /, parentheses, sqrt log exp abs min max; a pixel whose "
+                                   "denominator is zero or whose value is not finite is INVALID")
     roles: dict[str, str] = Field(default_factory=dict, description="an index's band of each role, written as keys of "
                                   "[analysis] (gvmi: nir = 'B8', swir = 'B11'; s2cl.retrieve.indices)")
     classes: list[str] | None = Field(None, description="sam: library groups to tell apart (default: all)")

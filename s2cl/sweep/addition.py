@@ -64,17 +64,18 @@ def check_base(scene: Scene, space: SweepSpace, library: SpectralLibrary | None)
     base = SweepSpace(space.ranges[:-1])
     names = base.bands
     kind = scene.spec.analysis.kind if scene.spec.analysis is not None else None
-    if kind in INDICES:
-        # a two-band index either leaves the added band out (every candidate scores the base: no gain to
-        # measure) or gives it a role (then the base set alone has no index): neither measures a gain
-        raise InputError(f"a band addition needs an analysis that uses every band (igrm or sam); the {kind} index "
-                         "reads two named bands, so the added band would either not enter it or leave the base "
+    if kind in INDICES or kind == "formula":
+        # an index (a formula) reads the bands it names: it either leaves the added band out (every candidate
+        # scores the base: no gain to measure) or names it (then the base set alone has no index): no gain either way
+        what = "index" if kind in INDICES else "formula"
+        raise InputError(f"a band addition needs an analysis that uses every band (igrm or sam); the {kind} {what} "
+                         "reads the bands it names, so the added band would either not enter it or leave the base "
                          "set without one", source=scene.source, key=ADD_KEY)
     what = f"the base set {', '.join(names)} alone cannot be scored by {kind}, so no gain"
     try:
         analysis = AnalysisSettings.from_scene(scene, names)
         shape = base.shapes(0, 1)[0]
-        check_design(analysis.kind, names, shape[:, 0], shape[:, 1], slots=analysis.slots)
+        check_design(analysis.kind, names, shape[:, 0], shape[:, 1], slots=analysis.slots, pairs=analysis.pairs)
         if library is not None:
             analysis_targets(scene, library, analysis)
     except InputError as err:

@@ -43,7 +43,8 @@ class SweepKernel:
                          row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
                          noise=t.noise, quantise=t.quantise, kind=analysis.kind, nd=INDICES.get(analysis.kind),
-                         slot_a=analysis.slots[0], slot_b=analysis.slots[1], n_classes=len(t.class_names),
+                         slot_a=analysis.slots[0], slot_b=analysis.slots[-1], n_classes=len(t.class_names),
+                         formula_source=self._formula_source(), formula_slots=analysis.slots,
                          cos_min=self._cos_min(),
                          max_abs=MAX_ABS_REFLECTANCE, args=ARGS, signature=signature)
         variables.update(self._igrm_variables(precision))
@@ -51,6 +52,12 @@ class SweepKernel:
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
         self._metrics = None  # the metrics kernel, built on first use
+
+    def _formula_source(self) -> str | None:
+        """The device function of a formula analysis (:meth:`s2cl.retrieve.formula.Formula.device_source`)."""
+        if self.analysis.kind != "formula":
+            return None
+        return self.analysis.formula(self.tables.bands).device_source(self.T, MAX_ABS_REFLECTANCE)
 
     def _cos_min(self) -> float:
         """cos of the SAM angle threshold; -2 (below -1) for none."""
