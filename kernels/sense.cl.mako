@@ -41,6 +41,7 @@ Units: radiance W m-2 sr-1 um-1 throughout.
 % endif
 % if noise:
 ${rn.random(T)}
+${st.noise(T)}
 % endif
 % if quantise:
 ${st.quantise(T)}
@@ -69,7 +70,8 @@ __kernel void sense_bands(
         const size_t at = (size_t)${k}u * n_pixels + i;
         ${R} L = radiance[at];
   % if noise:
-        L += sqrt(noise_a[${k}] + noise_b[${k}] * fmax(L, ${T.lit(0.0)})) * z${band_ids[k] >> 2}.s${band_ids[k] & 3};
+        L = s2_add_noise_${T.suffix}(L, s2_noise_sigma_${T.suffix}(L, noise_a[${k}], noise_b[${k}]),
+                                      z${band_ids[k] >> 2}.s${band_ids[k] & 3});
         noisy[at] = L;
   % endif
   % if quantise:

@@ -75,6 +75,9 @@ ${vm.ldl4_solve(T, c.pivot_rel)}
 ${(vp if c.solver == "varpro" else lm).igrm_fit(T, c, "sweep", T1)}
 % endif
 
+% if noise:
+${st.noise(T)}
+% endif
 % if quantise:
 ${st.quantise(T)}
 ${st.calibrate(T)}
@@ -109,7 +112,7 @@ __kernel void sweep_configs(
         const uint var = ${var0[k]}u + v;
         ${V} L = ${gather("radiance", "row")};
   % if noise:
-        L = L + ${gather("sigma", "row")} * ${vload(f"(z + {k}u * {pitch}u + p0)")};
+        L = s2_add_noise_${T.suffix}(L, ${gather("sigma", "row")}, ${vload(f"(z + {k}u * {pitch}u + p0)")});
   % endif
   % if quantise:
         {

@@ -10,6 +10,9 @@ Every def takes T (s2cl.cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 
 and emits functions named with T.suffix, each guarded so that a kernel may splice a def twice.
 No builtin math in the per-pixel path (PoCL does not inline it; `python -m bench.bench_igrm` times the fit with builtin exp against ours).
 
+  noise(T)      V s2_noise_sigma_<sfx>(V L, R a, R b): sqrt(a + b max(L, 0)), the sensor's noise sigma at
+                radiance L (s2cl.sensor.noise_model; the one builtin here: once per pixel and band, not in a loop);
+                V s2_add_noise_<sfx>(V L, V sigma, V z): L + sigma z for a standard normal deviate z.
   quantise(T)   V s2_quantise_<sfx>(V L, R lmin, R lmax, R scale, R maxdn, M *flags)
                 DN as a real: x = (L - lmin) scale; DN = floor(x) + (x - floor(x) >= 0.5) (ties up),
                 clipped into [0, maxdn]. flags: S2_FLAG_NODATA (L NaN), else S2_FLAG_LOW (L < lmin),
@@ -35,6 +38,20 @@ No builtin math in the per-pixel path (PoCL does not inline it; `python -m bench
 
 <%def name="_magic(T)">${T.lit(6755399441055744.0 if T.double else 12582912.0)}</%def>
 <%def name="_m(T, v)">((${T.M})(${v}))</%def>
+
+<%def name="noise(T)">
+#ifndef S2_NOISE_${T.suffix.upper()}
+#define S2_NOISE_${T.suffix.upper()}
+static inline ${T.V} s2_noise_sigma_${T.suffix}(const ${T.V} L, const ${T.R} a, const ${T.R} b)
+{
+    return sqrt(a + b * fmax(L, (${T.V})(${T.lit(0.0)})));
+}
+static inline ${T.V} s2_add_noise_${T.suffix}(const ${T.V} L, const ${T.V} sigma, const ${T.V} z)
+{
+    return L + sigma * z;
+}
+#endif
+</%def>
 
 <%def name="quantise(T)">
 #include "common/s2_status.clh"
