@@ -59,12 +59,7 @@ def test_simulate_and_sweep_give_each_pixel_one_verdict(rt, kind: str) -> None:
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     scene = _scene(kind)
-    direct = pixel_results(rt, scene, simulate(scene))
-    job = plan_sweep(scene)
-    assert job.n_configs == 1
-    swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
-    np.testing.assert_array_equal(swept.status[0], direct.status)
-    np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=TOL[kind])
+    swept, direct = _one_verdict(rt, kind, scene, scene)
     if kind == "igrm":
         np.testing.assert_array_equal(swept.bounds[0], direct.bounds)
         assert np.max(np.abs(swept.condition[0].astype(int) - direct.condition.astype(int))) <= 1
@@ -95,13 +90,19 @@ def test_moved_bands_give_each_pixel_one_verdict(rt, kind: str) -> None:
     esa = swept_scene.sensor
     moved = Sensor(esa.name, tuple(b.with_shape(*bands[b.name]) for b in esa.bands), bits=esa.bits, source=esa.source)
     assert any(b.noise_coefficients() != e.noise_coefficients() for b, e in zip(moved.bands, esa.bands, strict=True))
-    direct_scene = replace(swept_scene, sensor=moved)
+    _one_verdict(rt, kind, replace(swept_scene, sensor=moved), swept_scene)
+
+
+def _one_verdict(rt, kind: str, direct_scene: Scene, swept_scene: Scene):
+    """``simulate``'s analysis of ``direct_scene`` and the one-configuration sweep of ``swept_scene`` in float64:
+    the same status per pixel and the same value within :data:`TOL`; both results, for more checks."""
     direct = pixel_results(rt, direct_scene, simulate(direct_scene))
     job = plan_sweep(swept_scene)
     assert job.n_configs == 1
     swept = SweepKernel(job.tables, job.analysis, rt, precision="float64")(0, 1)
     np.testing.assert_array_equal(swept.status[0], direct.status)
     np.testing.assert_allclose(swept.index[0], direct.index, rtol=0, atol=TOL[kind])
+    return swept, direct
 
 
 def test_coincident_igrm_centres_get_the_same_one_line_verdict_everywhere(rt, tmp_path) -> None:
