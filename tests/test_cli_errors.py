@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from s2cl.app.optimise import check_scheduler
 from s2cl.cli.main import main
-from s2cl.cli.options import check_scheduler
 from s2cl.errors import InputError
 
 ROOT = Path(__file__).resolve().parent.parent

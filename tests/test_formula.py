@@ -22,6 +22,7 @@ from s2cl.retrieve.formula_syntax import (
     FUNCTIONS,
     MAX_DEPTH,
     MAX_LENGTH,
+    MAX_TREE_DEPTH,
     Band,
     Binary,
     Call,
@@ -223,16 +224,22 @@ def test_python_is_never_evaluated(text: str) -> None:
 
 
 def test_length_and_nesting_limits() -> None:
-    long = "B4" + " + B4" * ((MAX_LENGTH - 2) // 5)
-    assert len(parse(long).bands) == 1
+    long = "B4" + " " * (MAX_LENGTH - 2)
+    assert parse(long).bands == ("B4",)
     with pytest.raises(InputError, match=f"column {MAX_LENGTH + 1}: .* longer than {MAX_LENGTH} characters"):
         parse(long + " + B4")
+    flat = "B4" + " + B4" * (MAX_TREE_DEPTH + 1)  # a chain of + is a tree as deep as it is long
+    with pytest.raises(InputError, match=f"nests {MAX_TREE_DEPTH + 1} operations in one another"):
+        parse(flat)
+    assert len(parse("B4" + " + B4" * MAX_TREE_DEPTH).bands) == 1
     deep = "(" * MAX_DEPTH + "B4" + ")" * MAX_DEPTH
     assert parse(deep).root == Band("B4")
     with pytest.raises(InputError, match=f"column {MAX_DEPTH + 1}: parentheses nested deeper than {MAX_DEPTH}"):
         parse("(" + deep + ")")
     assert parse("sqrt(" * 16 + "B4" + ")" * 16).bands == ("B4",)
-    assert parse("-" * 400 + "B4").evaluate({"B4": np.array(0.5)})[0] == 0.5  # unary minus is not nesting
+    assert parse("-" * MAX_TREE_DEPTH + "B4").evaluate({"B4": np.array(0.5)})[0] == 0.5  # an even count of signs
+    with pytest.raises(InputError, match="nests"):
+        parse("-" * 400 + "B4")  # nor is a tower of signs: each is an operation (and would recurse)
     with pytest.raises(InputError, match="must be a string"):
         Formula.parse(42, S2)  # type: ignore[arg-type]
 

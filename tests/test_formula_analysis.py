@@ -121,3 +121,11 @@ def test_the_shipped_formula_scenes_rank_their_designs(tmp_path, scene: str) -> 
     assert out.returncode == 0, out.stderr
     assert "reference" in out.stdout and "#1" in out.stdout and "configurations do better" in out.stdout
     assert (tmp_path / "out" / "results.parquet").is_file()
+
+
+@pytest.mark.parametrize("text", ["-" * 498 + "B4", " + ".join(["B4"] * 100)])
+def test_deeply_nested_expressions_are_one_line_errors_not_recursion(text: str) -> None:
+    from s2cl.retrieve.formula import Formula
+
+    with pytest.raises(InputError, match=r"nests \d+ operations in one another; at most 64"):
+        Formula.parse(text, ["B4", "B5"])

@@ -38,3 +38,12 @@ def test_optimise_refuses_before_creating_anything(tmp_path) -> None:
     with pytest.raises(s2cl.InputError, match="workers or a scheduler"):
         s2cl.optimise("default", tmp_path / "out", workers=2, scheduler="tcp://127.0.0.1:1")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("options", "said"), [({"chunk": 0}, "--chunk: must be at least 1"),
+                                               ({"workers": 0}, "--workers: must be 1 to 1024"),
+                                               ({"scheduler": "tcp://host"}, "--scheduler: ")])
+def test_the_api_checks_what_the_command_line_checks(tmp_path, options: dict, said: str) -> None:
+    with pytest.raises(s2cl.InputError, match=said):
+        s2cl.optimise("default", tmp_path / "out", **options)
+    assert not (tmp_path / "out").exists()

@@ -103,7 +103,10 @@ def test_runtime_caps_lanes_on_a_narrower_cpu(rt: Runtime, monkeypatch, caplog) 
     with a DEBUG record and no failure; the kernels then build at that width."""
     if "CPU" not in rt.info.kind:
         pytest.skip("CPU-device rule")
-    monkeypatch.setattr(Runtime, "native_lanes", lambda self, real_t="float32": 8 if real_t == "float32" else 4)
+    from s2cl.cl.probe import Widths
+
+    avx2 = Widths({"float32": 16, "float64": 8}, {"float32": 8, "float64": 4})
+    monkeypatch.setattr(Runtime, "widths", property(lambda self: avx2))
     caplog.set_level(logging.DEBUG, logger="s2cl")
     assert rt.lanes("float32") == 8 and rt.lanes("float64") == 4
     assert rt.lanes("float32", 16) == 8

@@ -90,6 +90,20 @@ def test_a_probe_the_compiler_kills_is_restarted_past_that_width(rt, fresh_cache
     assert "16 aborted" in w.why("float32")
 
 
+def test_a_probe_the_compiler_hangs_is_stopped_and_passed(rt, fresh_cache, monkeypatch) -> None:
+    """A compiler that never returns costs the probe's time limit, never the user's command: the width counts as
+    aborted and the next child goes on below it."""
+    if "CPU" not in rt.info.kind:
+        pytest.skip("CPU plan (reported width and its halves)")
+    monkeypatch.setenv(REPORTED_ENV, "16")
+    monkeypatch.setenv(probe.HANG_ENV, "16")
+    monkeypatch.setenv(probe.TIMEOUT_ENV, "5")
+    w = _measure(rt)
+    assert w.where == "child"
+    assert w.checks[0] == WidthCheck("float32", 16, "aborted", "the compiler gave no verdict in 5 s")
+    assert w.clean["float32"] == 8
+
+
 def test_verdicts_are_cached_per_driver_and_report(rt, fresh_cache, monkeypatch) -> None:
     first = _measure(rt)
     assert len(list((fresh_cache / "devices").glob("widths-*.json"))) == 1

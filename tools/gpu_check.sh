@@ -9,8 +9,8 @@
 # It installs the wheels s2cl lacks there (into OUTDIR/site, nothing system-wide), points the OpenCL ICD
 # loader at NVIDIA's OpenCL library (a vendors folder of its own, $OCL_ICD_VENDORS), lists the devices
 # with their widths, and says in one line if no GPU device appears; else it runs the kernel tests on the
-# GPU (`pytest -m kernel --device GPU`) and `python -m bench --quick` on the GPU and on the CPU (PoCL).
-# Logs, JSON and summary.txt go under OUTDIR.
+# GPU (`pytest -m kernel --device GPU`) and `python -m bench --quick` on the GPU and on the CPU (PoCL), each
+# with a time limit so that the whole ends within about 560 s. Logs, JSON and summary.txt go under OUTDIR.
 #
 # Environment: S2CL_WHEELS (wheel folder, default .whl); S2CL_GPU=SPEC treats that device as the GPU (a
 # rehearsal on a machine without one: S2CL_GPU=0:0 lets PoCL stand in); PYTHON (default python3).
@@ -70,7 +70,7 @@ if [ -n "$missing" ]; then
   say "installed $(echo "$missing" | wc -l) wheels into $site: $(echo "$missing" | xargs -n1 basename | cut -d- -f1 | tr '\n' ' ')"
 fi
 export PYTHONPATH="$site:$PWD${PYTHONPATH:+:$PYTHONPATH}"
-export S2CL_CACHE="$out/cache" S2CL_BUILD_WARNINGS=error
+export S2CL_CACHE="$out/cache"
 unset PYOPENCL_CTX S2CL_TEST_DEVICES S2CL_LANES
 
 # 2. the OpenCL vendors: those registered system-wide, plus NVIDIA's library when no file names it
@@ -87,11 +87,16 @@ if [ -n "$nvlib" ] && ! grep -qs "libnvidia-opencl" "$vendors"/*.icd; then
 fi
 export OCL_ICD_VENDORS="$vendors"
 say "NVIDIA OpenCL library: ${nvlib:-not found}; vendor files: $(ls "$vendors" | tr '\n' ' ')"
-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader >> "$log" 2>&1
+timeout 30 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader >> "$log" 2>&1
 
 # 3. the devices, their widths, and the GPU
-"$py" -m s2cl devices > "$out/devices.txt" 2>&1
-"$py" -m s2cl devices --json > "$out/devices.json" 2>> "$log"
+if ! timeout 60 "$py" -c "import s2cl, pyopencl" >> "$log" 2>&1; then
+  say "s2cl or pyopencl does not import with the carried wheels (see $log)"
+  exit 2
+fi
+# the first listing probes every device's widths (a child per device, at most 120 s each)
+timeout 300 "$py" -m s2cl devices > "$out/devices.txt" 2>&1
+timeout 60 "$py" -m s2cl devices --json > "$out/devices.json" 2>> "$log"
 cat "$out/devices.txt" >> "$log"
 read -r gpu cpu <<<"$("$py" - "$out/devices.json" "${S2CL_GPU:-}" <<'EOF'
 import json, sys
@@ -114,17 +119,18 @@ sed -n "/^[* ] $gpu /,/^[* ] [0-9]/p" "$out/devices.txt" | head -3 | tee -a "$lo
 
 # 4. the kernel tests on the GPU, then the quick benchmarks on the GPU and the CPU
 status=0
-run 300 kernel-tests-gpu "$py" -m pytest -q -p no:cacheprovider -m kernel --device "$gpu" \
-  --junitxml "$out/kernel-tests-gpu.xml" tests || status=1
-left=$(( 560 - $(elapsed) ))
+# a kernel build that warns fails the tests (as in CI); the benchmarks only log it
+S2CL_BUILD_WARNINGS=error run 270 kernel-tests-gpu "$py" -m pytest -q -p no:cacheprovider -m kernel \
+  --device "$gpu" --junitxml "$out/kernel-tests-gpu.xml" tests || status=1
+left=$(( 510 - $(elapsed) ))
 share=$(( left / 2 ))
 if [ "$share" -gt 30 ]; then
   PYOPENCL_CTX="$gpu" run "$share" bench-gpu "$py" -m bench --quick --out "$out/bench-gpu" || status=1
 else
   say "bench-gpu: skipped (no time left)"; status=1
 fi
-if [ "$cpu" != "-" ] && [ "$(( 580 - $(elapsed) ))" -gt 30 ]; then
-  PYOPENCL_CTX="$cpu" run $(( 580 - $(elapsed) )) bench-cpu "$py" -m bench --quick --out "$out/bench-cpu" || status=1
+if [ "$cpu" != "-" ] && [ "$(( 540 - $(elapsed) ))" -gt 30 ]; then
+  PYOPENCL_CTX="$cpu" run $(( 540 - $(elapsed) )) bench-cpu "$py" -m bench --quick --out "$out/bench-cpu" || status=1
 else
   say "bench-cpu: skipped (no CPU device, or no time left)"
 fi

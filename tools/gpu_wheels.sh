@@ -15,7 +15,7 @@ fi
 # machine brings; one version of each
 WHEELS=(
   pyopencl pytools platformdirs typing-extensions siphash24 pocl-binary-distribution
-  pydantic pydantic-core annotated-types typing-inspection
+  pydantic annotated-types typing-inspection
   mako markupsafe
   h5netcdf packaging spectral filelock psutil
   pytest pluggy iniconfig hypothesis sortedcontainers attrs pytest-benchmark py-cpuinfo
@@ -26,6 +26,18 @@ for p in manylinux_2_28_x86_64 manylinux_2_27_x86_64 manylinux_2_17_x86_64 manyl
 done
 python -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
   "${platforms[@]}" -d "$dest" "${WHEELS[@]}"
+# pydantic pins its core exactly: take the version its metadata names, not the newest
+core=$(python - "$dest" <<'EOF'
+import pathlib, re, sys, zipfile
+wheel = max(pathlib.Path(sys.argv[1]).glob("pydantic-[0-9]*.whl"))
+meta = next(n for n in zipfile.ZipFile(wheel).namelist() if n.endswith(".dist-info/METADATA"))
+text = zipfile.ZipFile(wheel).read(meta).decode()
+print(re.search(r"^Requires-Dist: pydantic-core\s*\(?==\s*([^\s;)]+)", text, re.M).group(1))
+EOF
+)
+rm -f "$dest"/pydantic_core-*.whl
+python -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+  "${platforms[@]}" -d "$dest" "pydantic-core==$core"
 # the versions the pyproject asks for, checked here rather than on a machine that cannot fetch another
 python - "$dest" <<'EOF'
 import pathlib, re, sys

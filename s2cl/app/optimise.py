@@ -3,12 +3,14 @@ sensor's own bands and reported — :func:`optimise` returns what ``s2cl optimis
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from s2cl.errors import InputError, token
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
 
@@ -32,9 +34,10 @@ class OptimiseResult:
         return self.summary.get("reference")
 
     @property
-    def best(self) -> dict[str, Any]:
-        """The best configuration's row."""
-        return self.summary["top"][0]
+    def best(self) -> dict[str, Any] | None:
+        """The best configuration's row; None when no configuration could be ranked."""
+        top = self.summary.get("top") or []
+        return top[0] if top else None
 
     @property
     def ranking(self) -> pd.DataFrame:
@@ -75,7 +78,6 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     from s2cl.app.plan import plan_sweep, reference_row
     from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
     from s2cl.cl.runtime import get_runtime
-    from s2cl.errors import InputError
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
     from s2cl.scene.caveats import report
@@ -84,6 +86,12 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
 
     if workers and scheduler:
         raise InputError("give workers or a scheduler, not both", key="--scheduler")
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise InputError(f"must be 1 to {MAX_WORKERS}, got {workers}", key="--workers")
+    if chunk is not None and chunk < 1:
+        raise InputError(f"must be at least 1 configuration, got {chunk}", key="--chunk")
+    if scheduler:
+        scheduler = check_scheduler(scheduler)
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
@@ -161,6 +169,27 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)
+
+
+#: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address
+_SCHEDULER = re.compile(r"(?:(?P<protocol>[a-z][a-z0-9+.-]*)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)"
+                        r":(?P<port>[0-9]{1,5})")
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` when it has the form of a Dask scheduler address (``tcp://HOST:PORT`` or ``HOST:PORT``),
+    else a one-line :class:`~s2cl.errors.InputError` naming ``--scheduler``; checked before anything is
+    created (whether it answers: :func:`s2cl.sweep.engine.reach_scheduler`)."""
+    m = _SCHEDULER.fullmatch(address.strip())
+    if m is None or not 1 <= int(m["port"]) <= 65535 or (m["protocol"] or "tcp") not in SCHEDULER_PROTOCOLS:
+        raise InputError(f"{token(address, 60)} is not a scheduler address: give [PROTOCOL://]HOST:PORT with PORT in "
+                         f"1-65535 and PROTOCOL one of {', '.join(SCHEDULER_PROTOCOLS)} (e.g. tcp://10.0.0.5:8786)",
+                         key="--scheduler")
+    return address.strip()
+
+
+MAX_WORKERS = 1024
 
 
 def output_folder(sc: Scene, out: str | Path | None) -> tuple[Path, str]:

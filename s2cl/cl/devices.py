@@ -174,19 +174,21 @@ def _first_working(infos: list[DeviceInfo]) -> DeviceInfo:
     are probed (:mod:`s2cl.cl.probe`; cached in the user cache after the first time).
     """
     pocl = [i for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind]
-    logs, working = [], []
-    for info in pocl + [i for i in infos if i not in pocl]:
+    logs: list[str] = []
+
+    def builds(info: DeviceInfo) -> bool:
         said = builds_at_all(info)
-        if said is None:
-            working.append(info)
-            continue
-        _log.debug("skipping OpenCL device %s: it cannot compile a probe kernel: %s", info, said)
-        logs.append(f"{info}: {said}")
-    cpus = [i for i in working if i in pocl]
+        if said is not None:
+            _log.debug("skipping OpenCL device %s: it cannot compile a probe kernel: %s", info, said)
+            logs.append(f"{info}: {said}")
+        return said is None
+
+    cpus = [i for i in pocl if builds(i)]  # other devices are probed only when no PoCL CPU device builds
     if cpus:
         return max(cpus, key=lambda i: (widths_of(i).clean["float32"], -cpus.index(i)))
-    if working:
-        return working[0]
+    other = next((i for i in infos if i not in pocl and builds(i)), None)
+    if other is not None:
+        return other
     text = " ".join(logs)
     hint = NEWER_POCL_HINT if "unknown target CPU" in text else INSTALL_HINT
     raise DeviceError("no OpenCL device could compile a kernel (" + "; ".join(logs) + "): " + hint)

@@ -18,7 +18,8 @@ built shows as a warning before any crash can.
 Two environment variables emulate machines one does not have (tests, ``tools/cpu_check.sh``):
 ``$S2CL_REPORTED_WIDTH`` makes every device report that native width (``16``: 16 floats and 8 doubles;
 or ``float32=16,float64=8``), as a driver whose report and target disagree does; ``$S2CL_PROBE_ABORT``
-(a width) makes the probe's child abort before building that width, as LLVM does.
+(a width) makes the probe's child abort before building that width, as LLVM does, and ``$S2CL_PROBE_HANG`` (a width)
+makes it hang there, as a compiler that never returns (``$S2CL_PROBE_TIMEOUT`` shortens the wait, seconds).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,11 +40,14 @@ from s2cl.cl.vectypes import VALID_LANES, VecTypes
 _log = logging.getLogger("s2cl.cl.runtime")
 
 #: Bump when the probe kernel or the verdict rules change: cached verdicts of older probes are ignored.
-PROBE_VERSION = 1
+PROBE_VERSION = 2
 REPORTED_ENV = "S2CL_REPORTED_WIDTH"
 ABORT_ENV = "S2CL_PROBE_ABORT"
 PRECISIONS = ("float32", "float64")
-_CHILD_TIMEOUT_S = 300.0
+HANG_ENV = "S2CL_PROBE_HANG"
+TIMEOUT_ENV = "S2CL_PROBE_TIMEOUT"
+#: a probe child without a verdict for this long (s) is stopped and its width counts as aborted ($S2CL_PROBE_TIMEOUT)
+CHILD_TIMEOUT_S = 120.0
 
 
 def probe_source(real_t: str, width: int) -> str:
@@ -82,7 +87,7 @@ def build_verdict(device: Any, real_t: str, width: int) -> tuple[str, str]:
     """Build the probe for (``real_t``, ``width``) on ``device``: ("clean" | "warns" | "fails", detail)."""
     cl = pyopencl()
     context = cl.Context([device])
-    _, log, err = quiet_build(lambda: cl.Program(context, probe_source(real_t, width)).build(), device)
+    _, log, err = quiet_build(lambda: cl.Program(context, probe_source(real_t, width)).build(cache_dir=False), device)
     if err is not None:
         return "fails", first_diagnostic(log) or str(err)
     if "warning" in log.lower():
@@ -193,7 +198,7 @@ def measure(device: Any, platform_index: int, device_index: int) -> Widths:
     reported = reported_widths(device)
     todo = plan(reported, cpu=cpu, fp64="cl_khr_fp64" in device.extensions)
     key = {"probe": PROBE_VERSION, **describe(device), "reported": reported, "plan": todo,
-           "abort": os.environ.get(ABORT_ENV, "")}
+           "abort": os.environ.get(ABORT_ENV, ""), "hang": os.environ.get(HANG_ENV, "")}
     cached = _read_cache(key)
     if cached is not None:
         return cached
@@ -221,8 +226,9 @@ def _probe_here(device: Any, todo: dict[str, list[int]]) -> list[WidthCheck]:
 
 def _probe_in_child(key: dict[str, Any], platform_index: int, device_index: int,
                     todo: dict[str, list[int]]) -> tuple[list[WidthCheck] | None, str]:
-    """Probe in child processes; a child that dies (an LLVM abort) marks the width it was building
-    ``aborted`` and the next child goes on after it. None when no child can probe this device."""
+    """Probe in child processes; a child that dies or hangs (an LLVM abort, a compiler that never returns) marks the
+    width it was building ``aborted`` and the next child goes on below it. None when no child can probe this
+    device (it cannot start, fails before building anything, or sees another device)."""
     checks: list[WidthCheck] = []
     remaining = {r: list(ws) for r, ws in todo.items()}
     while any(remaining.values()):
@@ -230,36 +236,51 @@ def _probe_in_child(key: dict[str, Any], platform_index: int, device_index: int,
             "platform", "platform_version", "device", "device_version", "driver")}, "plan": remaining}
         try:
             proc = subprocess.run([sys.executable, "-m", "s2cl.cl.probe", json.dumps(job)], capture_output=True,
-                                  text=True, timeout=_CHILD_TIMEOUT_S, env=os.environ.copy())
+                                  text=True, timeout=_timeout(), env=os.environ.copy())
+            stdout, rc, stderr = proc.stdout, proc.returncode, proc.stderr
+            how = f"signal {-rc}" if rc < 0 else f"exit status {rc}"
+        except subprocess.TimeoutExpired as err:
+            out = err.stdout or ""
+            stdout, rc, stderr = out.decode(errors="replace") if isinstance(out, bytes) else out, None, ""
+            how = f"no verdict in {_timeout():g} s"
         except (OSError, subprocess.SubprocessError) as err:
             _log.debug("width probe child could not run (%s): probing in process", err)
             return None, ""
         started: tuple[str, int] | None = None
-        for line in proc.stdout.splitlines():
+        gained = 0
+        for line in stdout.splitlines():
             if line.startswith("start "):
                 _, r, w = line.split()
                 started = (r, int(w))
             elif line.startswith("{"):
                 c = json.loads(line)
                 checks.append(WidthCheck(c["real_t"], c["width"], c["verdict"], c["detail"]))
-                started = None
+                started, gained = None, gained + 1
             elif line.startswith("mismatch"):
                 _log.debug("width probe child sees another device (%s): probing in process", line)
                 return None, ""
-        if proc.returncode == 0:
+        if rc == 0:
             break
-        if started is None:
-            _log.debug("width probe child failed (rc %s) before building: probing in process: %s",
-                       proc.returncode, proc.stderr.strip()[-300:])
+        if started is None and not gained:
+            _log.debug("width probe child failed (%s) before building: probing in process: %s", how,
+                       stderr.strip()[-300:])
             return None, ""
-        rc = proc.returncode
-        how = f"signal {-rc}" if rc < 0 else f"exit status {rc}"
-        checks.append(WidthCheck(started[0], started[1], "aborted", f"the compiler killed the probe ({how})"))
+        if started is not None:  # it died or hung building this width; else it died after its last verdict
+            checks.append(WidthCheck(started[0], started[1], "aborted", f"the compiler killed the probe ({how})"
+                                     if rc is not None else f"the compiler gave {how}"))
         done = {c.real_t for c in checks if c.verdict == "clean"}
         tried = {(c.real_t, c.width) for c in checks}
-        remaining = {r: [w for w in ws if (r, w) not in tried and (r != started[0] or w < started[1])]
+        cut = started or ("", 0)
+        remaining = {r: [w for w in ws if (r, w) not in tried and (r != cut[0] or w < cut[1])]
                      for r, ws in remaining.items() if r not in done}
     return checks, "child"
+
+
+def _timeout() -> float:
+    try:
+        return max(1.0, float(os.environ.get(TIMEOUT_ENV, CHILD_TIMEOUT_S)))
+    except ValueError:
+        return CHILD_TIMEOUT_S
 
 
 def _cache_path(key: dict[str, Any]) -> Any:
@@ -301,12 +322,14 @@ def _child(job: dict[str, Any]) -> int:
     if seen != job["expect"]:
         print(f"mismatch {json.dumps(seen)}", flush=True)
         return 0
-    abort_at = os.environ.get(ABORT_ENV, "").strip()
+    abort_at, hang_at = os.environ.get(ABORT_ENV, "").strip(), os.environ.get(HANG_ENV, "").strip()
     for real_t, widths in job["plan"].items():
         for width in widths:
             print(f"start {real_t} {width}", flush=True)
             if abort_at == str(width):
                 os.abort()
+            if hang_at == str(width):
+                time.sleep(3600)
             verdict, detail = build_verdict(device, real_t, width)
             print(json.dumps({"real_t": real_t, "width": width, "verdict": verdict, "detail": detail}), flush=True)
             if verdict == "clean":

@@ -63,9 +63,13 @@ class Runtime:
         return VecTypes(real_t, self.lanes(real_t, lanes) if vector else 1)
 
     def native_lanes(self, real_t: str = "float32") -> int:
-        """The widest vector of ``real_t`` this device builds cleanly (elements; at least 1): on CPUs its reported
-        native width or, where its code target lacks that, a half of it (:mod:`s2cl.cl.probe`)."""
-        return max(1, self.widths.clean.get(real_t, 0))
+        """The device's native vector width for ``real_t`` (elements; at least 1), as it builds: on CPUs the
+        widest clean width (the reported width, or a half of it where the code target lacks that:
+        :mod:`s2cl.cl.probe`); on other devices the reported width, capped at the widest clean one."""
+        clean = max(1, self.widths.clean.get(real_t, 0))
+        if "CPU" in self.info.kind:
+            return clean
+        return max(1, min(self.widths.reported.get(real_t, 1), clean))
 
     def reported_lanes(self, real_t: str = "float32") -> int:
         """The device's native vector width for ``real_t`` as its driver reports it (a claim: see
@@ -82,7 +86,8 @@ class Runtime:
                 if not env.isdigit() or int(env) not in VALID_LANES:
                     raise InputError(f"must be one of {VALID_LANES}, got {env!r}", key=LANES_ENV)
                 requested = int(env)
-        lanes, why = choose_lanes(clean=self.native_lanes(real_t), device_type=self.info.kind, requested=requested)
+        clean = max(1, self.widths.clean.get(real_t, 0))
+        lanes, why = choose_lanes(clean=clean, device_type=self.info.kind, requested=requested)
         if why:
             _log.debug("%s, %s: %s", self.name, real_t, why)
         return lanes

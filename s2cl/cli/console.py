@@ -26,13 +26,14 @@ class _Advance:
         self.enabled, self.stack, self.label, self.total = enabled, stack, label, total
         self.unit, self.per_item = unit, per_item
         self.bar: Any = None
+        self.closed = False  # set when the progress_bar block ends: a late call shows nothing
         self.t0, self.first = time.perf_counter(), 0
 
     def start(self, total: int, done: int = 0, per_item: int | None = None, label: str | None = None) -> None:
         """Show the bar, ``total`` items of which ``done`` are already done."""
         self.per_item = self.per_item if per_item is None else per_item
         self.label, self.total = label or self.label, total
-        if not self.enabled:
+        if not self.enabled or self.closed:
             return
         if self.bar is None:
             from rich.progress import Progress
@@ -44,7 +45,7 @@ class _Advance:
         self.t0, self.first = time.perf_counter(), done
 
     def __call__(self, n: int) -> None:
-        if not self.enabled:
+        if not self.enabled or self.closed:
             return
         if self.bar is None:
             self.start(self.total or 0)
@@ -67,7 +68,11 @@ def progress_bar(total: int | None, label: str, enabled: bool = True, unit: str 
     :param per_item: evaluations per item; when given, the rate also shows millions of evaluations/s.
     """
     with ExitStack() as stack:
-        yield _Advance(enabled, stack, label, total, unit, per_item)
+        advance = _Advance(enabled, stack, label, total, unit, per_item)
+        try:
+            yield advance
+        finally:
+            advance.closed = True
 
 
 def _columns() -> list[Any]:

@@ -108,6 +108,14 @@ def _default_runtime() -> Any:
         env = os.environ.get("PYOPENCL_CTX")
         if not env:
             raise
+        from s2cl.cl.devices import select
+
+        try:
+            select(env)
+        except DeviceError:
+            pass
+        else:
+            raise  # it names a device, which cannot compile: that is the error to show
         LOGGER.warning("$PYOPENCL_CTX=%s matches no device: unset it, or set it to a PLATFORM:DEVICE index "
                        "listed here", token(env))
         return Runtime(None)

@@ -8,8 +8,9 @@ from typing import Any
 
 import click
 
+from s2cl.app.optimise import MAX_WORKERS
 from s2cl.cli.console import progress_bar, rich_console
-from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, check_scheduler, quiet_option
+from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, quiet_option
 from s2cl.cli.ranking import print_sweep
 
 
@@ -62,7 +63,7 @@ def _sweep_options(f: Callable) -> Callable:
     options = [
         click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
                      help="output folder (default: the scene's output.directory, else s2cl-out/<scene name>)"),
-        click.option("--workers", type=click.IntRange(1, 1024), help="run on a local Dask cluster of N workers"),
+        click.option("--workers", type=click.IntRange(1, MAX_WORKERS), help="run on a local Dask cluster of N workers"),
         click.option("--scheduler", help="run on a Dask cluster: scheduler address, e.g. tcp://10.0.0.5:8786"),
         click.option("--overwrite", is_flag=True, help="replace a different sweep found in the output folder"),
         click.option("--chunk", type=click.IntRange(1), help="configurations per chunk (default: auto)"),
@@ -82,8 +83,6 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
 
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
-    if scheduler:
-        scheduler = check_scheduler(scheduler)
     with progress_bar(None, "sweep", not quiet, unit="configs") as advance:
         def on_start(job: Any, todo: int, done: int) -> None:
             if not quiet:

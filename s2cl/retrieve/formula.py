@@ -1,10 +1,10 @@
 """A retrieval written as a formula of band reflectances: ``705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)`` (S2REP,
 Frampton et al. 2013), parsed safely (:mod:`s2cl.retrieve.formula_syntax`: the grammar and its errors).
 
-Next step (not done here): the analysis registry entry, ``[analysis] kind = "formula"`` with
-``expression = "..."`` and ``parameter = "..."`` (the library parameter it is regressed on); the scene
-schema, the sweep kernel (which splices :meth:`Formula.device_source`), the design rule
-(:meth:`Formula.subtracted_pairs`) and the CLI build on this module.
+A scene selects it with ``[analysis] kind = "formula"``, ``expression = "..."`` and ``parameter = "..."`` (the
+library parameter it is regressed on): :class:`s2cl.retrieve.analysis.AnalysisSettings` holds it, the design rule
+uses :meth:`Formula.subtracted_pairs`, ``simulate`` runs :class:`s2cl.retrieve.formula_kernel.FormulaKernel` and the
+sweep kernel splices :meth:`Formula.device_source`.
 
 Validity, one rule for the kernel and the float64 numpy twin: status INVALID and value 0 when a band is not
 finite or |ρ| > ``max_abs``, a denominator is 0, sqrt has a negative or log a non-positive argument, or an

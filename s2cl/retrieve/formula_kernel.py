@@ -1,6 +1,7 @@
 """A formula retrieval (:mod:`s2cl.retrieve.formula`, e.g. S2REP) on the device, per pixel, from band reflectances
 ``(n_bands, n_pixels)``: the value and a status (:attr:`s2cl.status.Status.INVALID` with value 0 where the formula's
-validity rule fails). The standalone twin of what the sweep kernel will splice (``kernels/formula.cl.mako``).
+validity rule fails). The standalone kernel (``kernels/formula.cl.mako``), splicing the same device function as the
+sweep kernel.
 """
 
 from __future__ import annotations

@@ -28,6 +28,7 @@ from s2cl.errors import InputError, token
 KEY = "analysis.expression"
 MAX_LENGTH = 500  #: characters
 MAX_DEPTH = 32  #: nested parentheses (groups and calls)
+MAX_TREE_DEPTH = 64  #: operations nested in one another (unary minus and chains of + - * / included)
 LIMIT = 1e30  #: largest literal, and |intermediate| above which a pixel is invalid (formula.py)
 TINY = 1e-30  #: smallest non-zero literal
 #: function name -> number of arguments
@@ -157,10 +158,14 @@ class _Parser:
         return self.binary("*/", "unary")
 
     def unary(self) -> Node:
-        if self.peek().kind == "op" and self.peek().text == "-":
+        signs = 0
+        while self.peek().kind == "op" and self.peek().text == "-":  # iterative: 500 minus signs do not recurse
             self.take()
-            return Negate(self.unary())
-        return self.primary()
+            signs += 1
+        node = self.primary()
+        for _ in range(signs):
+            node = Negate(node)
+        return node
 
     def close(self, opening: _Token) -> None:
         t = self.take()
@@ -254,6 +259,16 @@ def children(node: Node) -> tuple[Node, ...]:
     return node.args if isinstance(node, Call) else ()
 
 
+def tree_depth(root: Node) -> int:
+    """Operations nested in one another in ``root`` (a band or a number: 0), counted without recursion."""
+    deepest, stack = 0, [(root, 0)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in children(node))
+    return deepest
+
+
 def bands_of(node: Node) -> Iterator[str]:
     """Every band ``node`` names, in reading order (with repeats)."""
     if isinstance(node, Band):
@@ -284,6 +299,10 @@ def parse_expression(text: str, bands: Sequence[str]) -> Node:
     if not text.strip():
         raise _fail(0, "the expression is empty")
     root = _Parser(text, bands).parse()
+    depth = tree_depth(root)
+    if depth > MAX_TREE_DEPTH:
+        raise _fail(0, f"the expression nests {depth} operations in one another; at most {MAX_TREE_DEPTH} (write "
+                       "it more simply)")
     if not any(bands_of(root)):
         raise _fail(0, f"the expression names no band; bands: {', '.join(bands)}")
     return root
