@@ -41,11 +41,13 @@ def analysis_bands(scene: Scene) -> list[str]:
     return list(scene.sensor.band_names)
 
 
-def analysis_design(scene: Scene) -> tuple[list[str], AnalysisSettings]:
-    """The bands and settings of the scene's [analysis], refused in one line (file and key) when the
-    retrieval cannot fit that design (:mod:`s2cl.retrieve.design`, the rule sweeps apply): call it before work."""
-    bands = analysis_bands(scene)
-    settings = AnalysisSettings.from_scene(scene, bands)
+def analysis_design(scene: Scene, bands: list[str] | None = None,
+                    settings: AnalysisSettings | None = None) -> tuple[list[str], AnalysisSettings]:
+    """The bands and settings of the scene's [analysis] (``bands``, ``settings``: as the caller already has them),
+    refused in one line (file and key) when the retrieval cannot fit that design (:mod:`s2cl.retrieve.design`, the
+    rule sweeps apply): call it before work."""
+    bands = bands if bands is not None else analysis_bands(scene)
+    settings = settings or AnalysisSettings.from_scene(scene, bands)
     shapes = [scene.sensor.band(b) for b in bands]
     check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
                  source=scene.source, key="analysis.bands", slots=settings.slots, pairs=settings.pairs)

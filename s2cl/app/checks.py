@@ -46,13 +46,11 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
     if scene.spec.analysis is not None and scene.spec.surface.cube is None:
-        from s2cl.app.analysis import analysis_bands
+        from s2cl.app.analysis import analysis_bands, analysis_design
 
         bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
         analysis = _analysis(scene, bands, library)
-        shapes = [scene.sensor.band(b) for b in bands]
-        check_design(analysis.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                     source=scene.source, key="analysis.bands", slots=analysis.slots, pairs=analysis.pairs)
+        analysis_design(scene, bands, analysis)  # the design rule, as simulate's analysis applies it
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
