@@ -197,8 +197,7 @@ def test_unknown_band_and_function_name_the_known_ones() -> None:
     with pytest.raises(InputError, match=r"column 1: unknown function 'tan'; functions: sqrt, log, exp, abs, "
                                          r"min, max$"):
         parse("tan(B4)")
-    with pytest.raises(InputError, match="unknown band 'b4'"):
-        parse("b4 + B5")  # band names are case-sensitive, as the sensor's are
+    assert parse("b4 + B5").bands == ("B4", "B5")  # band names match without regard to case, as the scene's keys
 
 
 def test_band_names_with_hyphens_or_a_leading_digit_go_in_brackets() -> None:
@@ -383,3 +382,9 @@ def test_device_source_is_one_guarded_function_per_type() -> None:
            "const double4 b3, long4 *status)" in source
     assert "#ifndef S2_FORMULA_D4" in source and "/* " + S2REP + " (b0 = B4, b1 = B7, b2 = B5, b3 = B6) */" in source
     assert "eval" not in source
+
+
+def test_band_names_match_without_regard_to_case() -> None:
+    """As every band key of a scene: ``b6 - b5`` is B6 - B5, under the sensor's spelling."""
+    f = Formula.parse("(b6 - B5) / b8A", ["B5", "B6", "B8A"])
+    assert f.bands == ("B6", "B5", "B8A") and f.subtracted_pairs() == (("B6", "B5"),)

@@ -202,8 +202,13 @@ class _Parser:
         return value
 
     def band(self, t: _Token, name: str) -> Band:
+        """The band ``name`` names, matched without regard to case as every band key of a scene is (``b8a`` is
+        B8a), under the sensor's own spelling."""
         if name in self.bands:
             return Band(name)
+        same = [b for b in self.bands if b.lower() == name.lower()]
+        if len(same) == 1:
+            return Band(same[0])
         rest = self.text[t.pos:]
         hyphenated = [b for b in self.bands if t.kind == "name" and "-" in b and rest.startswith(b)]
         if hyphenated:
