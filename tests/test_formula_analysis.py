@@ -70,7 +70,8 @@ def test_coincident_subtracted_bands_are_underdetermined_everywhere(tmp_path) ->
     assert underdetermined_count(checked.space, checked.analysis) == 2  # 740/15 and 740/20 in B5 and B6
     problem = design_problem("formula", ["B4", "B5", "B6", "B7"], [665, 740, 740, 783], [30, 15, 15, 20],
                              pairs=checked.analysis.pairs)
-    assert problem == "underdetermined: the formula takes B6 - B5, and they are the same band (740/15 nm)"
+    assert problem == ("underdetermined: the formula compares B6 with B5 (a difference or a ratio, 0 or 1 for one "
+                       "band), and they are the same band (740/15 nm)")
     job = plan_sweep(scene)
     assert job.n_configs == 6 * 4
     import importlib.resources
@@ -84,7 +85,7 @@ def test_coincident_subtracted_bands_are_underdetermined_everywhere(tmp_path) ->
                             "analysis": {"kind": "formula", "expression": S2REP, "parameter": "cab"}})
     from s2cl.app.analysis import analysis_design
 
-    with pytest.raises(InputError, match="the formula takes B6 - B5, and they are the same band"):
+    with pytest.raises(InputError, match=r"the formula compares B6 with B5 \(a difference or a ratio"):
         analysis_design(same)
 
 
@@ -129,3 +130,15 @@ def test_deeply_nested_expressions_are_one_line_errors_not_recursion(text: str) 
 
     with pytest.raises(InputError, match=r"nests \d+ operations in one another; at most 64"):
         Formula.parse(text, ["B4", "B5"])
+
+
+def test_a_ratio_of_one_band_with_itself_is_underdetermined() -> None:
+    """CIred-edge, B7 / B5 - 1, is 0 for every pixel when B7 and B5 are one band: flagged like a vanishing
+    difference (the sweep leaves those designs out)."""
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.plan import underdetermined_count
+
+    checked = check_sweep(_scene("B7 / B5 - 1", {"B5": {"centres": [705, 783], "widths": [15, 20]},
+                                                 "B7": {"centre": 783, "width": 20}}))
+    assert checked.analysis.pairs == ((1, 0),)
+    assert underdetermined_count(checked.space, checked.analysis) == 1  # B5 at 783/20 on B7

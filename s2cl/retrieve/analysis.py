@@ -35,8 +35,8 @@ class AnalysisSettings:
     :param igrm: IGRM fit settings (keys of ``s2cl.retrieve.igrm.IgrmSettings``).
     :param regress: IGRM statuses (:class:`s2cl.status.Status` values) whose index enters the regression.
     :param expression: formula: the expression (:class:`s2cl.retrieve.formula.Formula`).
-    :param pairs: formula: slot pairs the design rule requires to differ, the bands of each difference the
-        expression takes (:func:`s2cl.retrieve.design.design_problem`).
+    :param pairs: formula: slot pairs the design rule requires to differ, the bands of each difference or ratio
+        the expression takes (:func:`s2cl.retrieve.design.design_problem`).
     """
 
     kind: str
@@ -97,7 +97,8 @@ class AnalysisSettings:
                 raise InputError(err.detail, source=scene.source, key="analysis.expression") from None
             slots = {b: slot(b, "expression") for b in formula.bands}
             return cls("formula", a.parameter, slots=tuple(slots.values()), expression=a.expression,
-                       pairs=tuple((slots[x], slots[y]) for x, y in formula.subtracted_pairs()))
+                       pairs=tuple(dict.fromkeys((slots[x], slots[y]) for x, y in
+                                                 formula.subtracted_pairs() + formula.divided_pairs())))
         if a.kind in INDICES:
             return cls(a.kind, a.parameter, slots=index_slots(a.kind, a.roles, slot))
         if a.kind == "sam":

@@ -12,8 +12,9 @@ a sweep never ranks a design that the direct API refuses.
   differ (one band in both roles gives a constant index).
 - **SAM** needs at least two distinct bands (with one direction every pixel has the same angle
   to every class).
-- **A formula** (:mod:`s2cl.retrieve.formula`) needs the two bands of each difference it takes (``B6 - B5``) to
-  differ: one band in both places makes the difference vanish (S2REP's denominator).
+- **A formula** (:mod:`s2cl.retrieve.formula`) needs the two bands of each difference (``B6 - B5``) or ratio
+  (``B7 / B5``) it takes to differ: one band in both places makes the difference vanish (S2REP's denominator) or
+  the ratio 1 (CIred-edge).
 
 Band order is not part of validity: the IGRM kernels sort a design's bands by centre.
 """
@@ -68,8 +69,8 @@ def design_problem(kind: str, names: Sequence[str], centres: Sequence[float], wi
     if kind == "formula":
         for x, y in pairs:
             if same_band(c[x], w[x], c[y], w[y]):
-                return (f"underdetermined: the formula takes {names[x]} - {names[y]}, and they are the same band "
-                        f"({c[x]:g}/{w[x]:g} nm)")
+                return (f"underdetermined: the formula compares {names[x]} with {names[y]} (a difference or a ratio, "
+                        f"0 or 1 for one band), and they are the same band ({c[x]:g}/{w[x]:g} nm)")
         return None
     raise InputError(f"unknown analysis kind {kind!r}", key="analysis.kind")
 

@@ -3,8 +3,8 @@ Frampton et al. 2013), parsed safely (:mod:`s2cl.retrieve.formula_syntax`: the g
 
 A scene selects it with ``[analysis] kind = "formula"``, ``expression = "..."`` and ``parameter = "..."`` (the
 library parameter it is regressed on): :class:`s2cl.retrieve.analysis.AnalysisSettings` holds it, the design rule
-uses :meth:`Formula.subtracted_pairs`, ``simulate`` runs :class:`s2cl.retrieve.formula_kernel.FormulaKernel` and the
-sweep kernel splices :meth:`Formula.device_source`.
+uses :meth:`Formula.subtracted_pairs` and :meth:`Formula.divided_pairs`, ``simulate`` runs
+:class:`s2cl.retrieve.formula_kernel.FormulaKernel` and the sweep kernel splices :meth:`Formula.device_source`.
 
 Validity, one rule for the kernel and the float64 numpy twin: status INVALID and value 0 when a band is not
 finite or |ρ| > ``max_abs``, a denominator is 0, sqrt has a negative or log a non-positive argument, or an
@@ -77,10 +77,18 @@ class Formula:
         """Band pairs (X, Y) of every subtraction ``L - R`` whose sides each name one band, X and Y, and are the
         same expression apart from it (``B6 - B5``, ``log(B6) - log(B5)``): the difference vanishes when X and
         Y are one band. In order of appearance, without repeats."""
+        return self._pairs("-")
+
+    def divided_pairs(self) -> tuple[tuple[str, str], ...]:
+        """As :meth:`subtracted_pairs` for divisions ``L / R`` (``B7 / B5``): the ratio is 1 when X and Y are one
+        band."""
+        return self._pairs("/")
+
+    def _pairs(self, op: str) -> tuple[tuple[str, str], ...]:
         out: dict[tuple[str, str], None] = {}
 
         def walk(node: Node) -> None:
-            if isinstance(node, Binary) and node.op == "-":
+            if isinstance(node, Binary) and node.op == op:
                 left, right = set(bands_of(node.left)), set(bands_of(node.right))
                 if len(left) == len(right) == 1 and left != right:
                     (x,), (y,) = left, right
