@@ -388,7 +388,8 @@ def test_a_local_dask_cluster_keeps_its_scratch_in_the_output_folder(tmp_path, m
     pytest.importorskip("dask.distributed")
     import dask.distributed
 
-    from s2cl.sweep.engine import DASK_SCRATCH, run_sweep
+    from s2cl.sweep.cluster import DASK_SCRATCH
+    from s2cl.sweep.engine import run_sweep
 
     used: list[str] = []
     real = dask.distributed.LocalCluster

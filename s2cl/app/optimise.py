@@ -81,8 +81,10 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
     from s2cl.scene.caveats import report
-    from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk, run_sweep
+    from s2cl.sweep.cluster import reach_scheduler
+    from s2cl.sweep.engine import check_folder, kernel_evaluator, resumable_chunk, run_sweep
     from s2cl.sweep.report import Digest, open_results, paper_match, summarise
+    from s2cl.sweep.search import run_search
 
     if workers and scheduler:
         raise InputError("give workers or a scheduler, not both", key="--scheduler")
@@ -102,25 +104,34 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     host_metrics = bool(workers or scheduler) or not rt.has_fp64
     plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(folder, overwrite),
                            host_metrics=host_metrics)
-    require_sweep_disk(checked, folder)
+    searching = sc.spec.sweep is not None and sc.spec.sweep.search != "exhaustive"
+    if not searching:  # a search writes the designs it evaluates, not the space
+        require_sweep_disk(checked, folder)
     if scheduler:
         reach_scheduler(scheduler)
     t0 = time.perf_counter()
     job = plan_sweep(sc, checked=checked, device=device, resources=plan)
     check_folder(job, folder, overwrite=overwrite)
-    if not (workers or scheduler):
+    if not (workers or scheduler or searching):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
     warnings = report(checked.caveats)
     with claim(folder):
         started = (lambda todo, done: on_start(job, todo, done)) if on_start else None
-        results = run_sweep(job, folder, progress=progress, on_start=started, workers=workers, scheduler=scheduler,
-                            overwrite=overwrite, device=device)
+        record = None
+        if searching:
+            results, record = run_search(job, folder, workers=workers, scheduler=scheduler, overwrite=overwrite,
+                                         device=device)
+        else:
+            results = run_sweep(job, folder, progress=progress, on_start=started, workers=workers,
+                                scheduler=scheduler, overwrite=overwrite, device=device)
         path, meta = open_results(results)
         reference = reference_row(sc, job, device)
         digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))
         summary = summarise(digest, meta, reference)
         summary["seconds"] = time.perf_counter() - t0
         summary["warnings"] = warnings
+        if record is not None:
+            summary["search"] = record
         written = write_report(digest, summary, folder, summary["bands"])
     return OptimiseResult(summary, folder, (Path(results), *written))
 
@@ -180,7 +191,7 @@ SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 def check_scheduler(address: str) -> str:
     """``address`` when it has the form of a Dask scheduler address (``tcp://HOST:PORT`` or ``HOST:PORT``),
     else a one-line :class:`~s2cl.errors.InputError` naming ``--scheduler``; checked before anything is
-    created (whether it answers: :func:`s2cl.sweep.engine.reach_scheduler`)."""
+    created (whether it answers: :func:`s2cl.sweep.cluster.reach_scheduler`)."""
     m = _SCHEDULER.fullmatch(address.strip())
     if m is None or not 1 <= int(m["port"]) <= 65535 or (m["protocol"] or "tcp") not in SCHEDULER_PROTOCOLS:
         raise InputError(f"{token(address, 60)} is not a scheduler address: give [PROTOCOL://]HOST:PORT with PORT in "
@@ -250,7 +261,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
                                                                                  bands_of(columns)))
     summary = summarise(digest, meta, reference)
-    for key in ("seconds", "warnings"):
+    for key in ("seconds", "warnings", "search"):
         if key in kept:
             summary[key] = kept[key]
     with claim(folder):

@@ -18,6 +18,7 @@ from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.search import SearchSettings
 from s2cl.sweep.space import addition_scene
 from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
 
@@ -44,9 +45,10 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
     tables = _tables(tables_scene, checked.space, checked.analysis, checked.library)
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
     run = scene.run
+    search = SearchSettings.of_spec(scene.spec.sweep)
     job = SweepJob(tables, checked.analysis, chunk=plan.chunk, precision=run.precision, lanes=run.lanes,
                    device=run.device, scene_name=scene.name, scene_text=text,
-                   underdetermined=scene.spec.sweep.underdetermined)
+                   underdetermined=scene.spec.sweep.underdetermined, search=search.record() if search else None)
     base = checked.base
     if base is None:
         return job
@@ -76,7 +78,7 @@ def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: Analysis
     """Metrics of the one configuration of ``space`` (fixed bands) scored by ``analysis``, with ``job``'s library,
     atmosphere, noise deviates (keyed by each band's index in ``scene``'s sensor), precision and device."""
     tables = _tables(scene, space, analysis, library)
-    one = replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None)
+    one = replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None, search=None)
     rows = evaluate_chunk(one, 0, 1, device)
     return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
 

@@ -161,6 +161,23 @@ class SweepSpec(Section):
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
     add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
                                 "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
+    search: Literal["exhaustive", "halving"] = Field(
+        "exhaustive", description="exhaustive: score every design on every pixel; halving: successive halving on "
+        "noise copies (every design on one copy, the best search_keep on search_keep⁻¹ times more, ..., the "
+        "finalists on every pixel, scored exactly as the exhaustive sweep scores them), from a coarse sub-grid "
+        "refined step by step when the space holds more than search_start designs (s2cl.sweep.search)")
+    search_keep: float = Field(0.25, gt=0, le=0.5, description="halving: fraction of the designs a rung keeps; the "
+                               "next rung scores them on 1 / search_keep times more copies")
+    search_finalists: int = Field(16, ge=1, le=100_000, description="halving: designs scored on every pixel at the "
+                                  "end of each halving (at least)")
+    search_start: int = Field(50_000, ge=100, le=100_000_000, description="halving: most designs of the first rung; "
+                              "a larger space starts from a coarse sub-grid of its centres and widths and refines "
+                              "around the finalists down to the space's own step")
+    search_radius: int = Field(5, ge=1, le=50, description="halving of a refined space: the last stage moves each band "
+                               "alone over ± search_radius steps of centre and width, and all bands together over ± "
+                               "1 step, on every pixel, until no design there scores better")
+    search_seed: int = Field(0, ge=0, le=2**31 - 1, description="halving: seed of the coarse sub-grid's offset (the "
+                             "noise is effects.seed's); the same seed gives the same search")
 
 
 #: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), a user's formula

@@ -35,6 +35,18 @@ def metric_of(columns: list[str]) -> str:
     return "omission_error_pct" if "omission_error_pct" in columns else "rms"
 
 
+def rankable_rows(df: Any, meta: dict[str, str]) -> Any:
+    """The configurations a ranking may use: without the designs the analysis cannot fit (``underdetermined``,
+    :mod:`s2cl.retrieve.design`) unless the sweep keeps them (``sweep.underdetermined``), and, in a search's
+    results, only the designs scored on every pixel (``full_fidelity``, :mod:`s2cl.sweep.search`). Every
+    ranking, heatmap and paper comparison goes through this one function."""
+    if "full_fidelity" in df.columns:
+        df = df[df["full_fidelity"].to_numpy(dtype=bool)]
+    if "underdetermined" not in df.columns or meta.get("underdetermined", "exclude") == "keep":
+        return df
+    return df[~df["underdetermined"].to_numpy(dtype=bool)]
+
+
 def bands_of(columns: Any) -> list[str]:
     return [c[: -len("_centre_nm")] for c in columns if c.endswith("_centre_nm")]
 
@@ -136,10 +148,8 @@ class Digest:
         return d
 
     def rankable(self, df: Any) -> Any:
-        """The rows a ranking may use (see :func:`s2cl.sweep.report.rankable`)."""
-        if "underdetermined" not in df.columns or self.meta.get("underdetermined", "exclude") == "keep":
-            return df
-        return df[~df["underdetermined"].to_numpy(dtype=bool)]
+        """The rows a ranking may use (:func:`rankable_rows`)."""
+        return rankable_rows(df, self.meta)
 
     def add(self, df: Any) -> None:
         """Reduce one batch of rows into the digest."""

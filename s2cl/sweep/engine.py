@@ -19,7 +19,6 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
-import os
 import shutil
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -28,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.errors import DependencyError, InputError, ResourceError, token
+from s2cl.errors import InputError, ResourceError
 from s2cl.io.budget import available_memory, require_disk
 from s2cl.io.output import write_json
 from s2cl.resources import code_fingerprint
@@ -36,6 +35,7 @@ from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import underdetermined
 from s2cl.status import REGRESS_NAMES
 from s2cl.sweep.addition import META_KEY as ADDITION_META
+from s2cl.sweep.cluster import DASK_SCRATCH, dask_client
 from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_chunk
 from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
@@ -68,6 +68,8 @@ class SweepJob:
     #: addition (added band, base bands, metric, base score) from which each row's ``gain`` is taken
     base_row: dict[str, Any] | None = None
     addition: dict[str, Any] | None = None
+    #: a search instead of the exhaustive sweep: its settings (s2cl.sweep.search.SearchSettings.record)
+    search: dict[str, Any] | None = None
 
     @property
     def n_configs(self) -> int:
@@ -84,6 +86,8 @@ class SweepJob:
         h.update(repr((self.analysis, self.precision, __version__, code_fingerprint())).encode())
         if self.addition is not None:
             h.update(json.dumps(self.addition, sort_keys=True).encode())
+        if self.search is not None:
+            h.update(json.dumps(self.search, sort_keys=True).encode())
         return h.hexdigest()
 
     def columns(self) -> list[str]:
@@ -249,6 +253,11 @@ def _has_sweep_files(out: Path) -> bool:
 def merge_results(job: SweepJob, out: Path) -> Path:
     """All chunk files, in configuration order, as ``results.parquet`` with the sweep's metadata
     (:func:`s2cl.sweep.folder.merge_chunks`)."""
+    return merge_chunks(out, [lo for lo, _ in job.chunks()], results_meta(job))
+
+
+def results_meta(job: SweepJob) -> dict[bytes, bytes]:
+    """The schema metadata of a sweep's ``results.parquet`` (scene, fingerprint, analysis, bands, policies)."""
     meta = {b"s2cl_version": __version__.encode(), b"scene": job.scene_name.encode(),
             b"scene_toml": job.scene_text.encode(), b"fingerprint": job.fingerprint().encode(),
             b"analysis": job.analysis.kind.encode(), b"bands": json.dumps(list(job.tables.bands)).encode(),
@@ -256,7 +265,9 @@ def merge_results(job: SweepJob, out: Path) -> Path:
             b"regress": json.dumps([REGRESS_LABELS[c] for c in job.analysis.regress]).encode()}
     if job.addition is not None:
         meta[ADDITION_META.encode()] = json.dumps(job.addition).encode()
-    return merge_chunks(out, [lo for lo, _ in job.chunks()], meta)
+    if job.search is not None:
+        meta[b"search"] = json.dumps(job.search).encode()
+    return meta
 
 
 # -- estimates --------------------------------------------------------------------------------------
@@ -315,67 +326,14 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
     return merge_results(job, out)
 
 
-def reach_scheduler(address: str, timeout: float = 10.0) -> None:
-    """Reach the Dask scheduler at ``address`` (a TCP connection within ``timeout`` seconds, then closed): a
-    one-line :class:`InputError` (key ``--scheduler``) before anything is created when the address is
-    malformed or nothing listens there."""
-    import socket
-
-    try:
-        from distributed.comm.addressing import parse_address, parse_host_port
-    except ImportError as err:
-        raise DependencyError('Dask sweeps need dask.distributed: pip install "s2cl[dask]"') from err
-    try:
-        scheme, location = parse_address(address)
-        host, port = parse_host_port(location)
-    except (ValueError, TypeError) as err:
-        raise InputError(f"{token(address, 80)} is not a scheduler address ({err}); give it as tcp://HOST:PORT",
-                         key="--scheduler") from None
-    if scheme not in ("tcp", "tls"):
-        return  # other transports (inproc, ucx) are left to Dask
-    try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
-    except (OSError, ValueError, OverflowError) as err:
-        reason = "timed out" if isinstance(err, TimeoutError) else (os.strerror(err.errno) if getattr(
-            err, "errno", None) else type(err).__name__)
-        raise InputError(f"cannot connect to the Dask scheduler {token(address, 80)} ({reason}; waited at most "
-                         f"{timeout:g} s)", key="--scheduler") from None
-
-
-#: Dask's scratch space of a local cluster, inside the output folder (removed when the run ends)
-DASK_SCRATCH = ".dask-scratch"
-
-
 def _run_dask(job: SweepJob, todo: list[tuple[int, int]], workers: int | None, scheduler: str | None,
               device: str | None, evaluator: ChunkEvaluator | None,
               scratch: Path) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
-    try:
-        import dask
-        from dask.distributed import Client, LocalCluster, as_completed
-    except ImportError as err:
-        raise DependencyError('Dask sweeps need dask.distributed: pip install "s2cl[dask]"') from err
-    cluster = None
-    try:
-        if scheduler:
-            try:
-                client = Client(scheduler)
-            except Exception as err:  # reachable, but not a scheduler that answers
-                raise InputError(f"cannot use the Dask scheduler {token(scheduler, 80)} ({type(err).__name__})",
-                                 key="--scheduler") from None
-        else:
-            with dask.config.set({"temporary-directory": str(scratch)}):
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, local_directory=str(scratch))
-            client = Client(cluster)
-        try:
-            shared = client.scatter(job, broadcast=True)
-            futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo
-                       for lo, hi in todo}
-            for future in as_completed(futures):
-                yield futures[future], future.result()
-        finally:
-            client.close()
-    finally:
-        if cluster is not None:
-            cluster.close()
-        shutil.rmtree(scratch, ignore_errors=True)
+    with dask_client(workers, scheduler, scratch) as client:
+        from dask.distributed import as_completed
+
+        shared = client.scatter(job, broadcast=True)
+        futures = {client.submit(evaluate_chunk, shared, lo, hi, device, evaluator, pure=False): lo
+                   for lo, hi in todo}
+        for future in as_completed(futures):
+            yield futures[future], future.result()

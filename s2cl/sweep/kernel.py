@@ -37,7 +37,8 @@ class SweepKernel:
         t = tables
         self.pitch = max(-(-t.n_pixels // self.T.lanes) * self.T.lanes, self.T.lanes)
         counts = list(t.counts)
-        strides = [int(np.prod(counts[k + 1:])) for k in range(len(counts))]
+        # a design list (diagonal tables): every slot takes variant cfg
+        strides = [1] * len(counts) if t.diagonal else [int(np.prod(counts[k + 1:])) for k in range(len(counts))]
         row0 = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
         variables = dict(T=self.T, T1=VecTypes(precision, 1), n_slots=t.n_slots, counts=counts, strides=strides,
                          row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
@@ -89,6 +90,15 @@ class SweepKernel:
             "s": rt.to_device(np.concatenate(t.s).astype(dtype)),
             "refs": rt.to_device(refs.astype(dtype)),
         }
+
+    def load(self, tables: SweepTables) -> None:
+        """Evaluate ``tables`` from now on: tables of the same shape (a search's next batch of designs on the same
+        copies, :mod:`s2cl.sweep.design_tables`), so the built kernels and the metrics' target stay valid."""
+        t = self.tables
+        if tables.counts != t.counts or tables.n_pixels != t.n_pixels or tables.diagonal != t.diagonal:
+            raise ValueError("tables of another shape need their own kernel")
+        self.tables = tables
+        self._upload()
 
     def _launch(self, start: int, stop: int) -> dict:
         """Run configurations ``start … stop-1``; their per-pixel outputs stay on the device."""

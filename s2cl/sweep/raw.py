@@ -1,7 +1,8 @@
 """Per-pixel results of a chunk of sweep configurations, and the configuration numbering.
 
 Configurations are numbered in mixed radix over the band slots, last slot fastest: configuration
-``c`` takes variant ``(c // strides[k]) % counts[k]`` of slot ``k`` (the kernel decodes the same).
+``c`` takes variant ``(c // strides[k]) % counts[k]`` of slot ``k`` (the kernel decodes the same); in
+tables of a design list (``diagonal``) configuration ``c`` takes variant ``c`` of every slot.
 """
 
 from __future__ import annotations
@@ -42,8 +43,10 @@ class _Counted(Protocol):
 
 
 def variant_indices(t: _Counted, start: int, stop: int) -> np.ndarray:
-    """Variant index per slot, ``(n_configs, n_slots)``, last slot fastest."""
+    """Variant index per slot, ``(n_configs, n_slots)``, last slot fastest (diagonal tables: ``c`` in every slot)."""
     flat = np.arange(start, stop, dtype=np.int64)
+    if getattr(t, "diagonal", False):
+        return np.repeat(flat[:, None], t.n_slots, axis=1)
     out = np.empty((flat.size, t.n_slots), dtype=np.int64)
     for k in range(t.n_slots - 1, -1, -1):
         flat, out[:, k] = np.divmod(flat, t.counts[k])

@@ -17,7 +17,7 @@ import numpy as np
 from s2cl.errors import InputError, token
 from s2cl.io.output import write_json
 from s2cl.io.plots import pyplot, save_png
-from s2cl.sweep.digest import Digest, bands_of, metric_of
+from s2cl.sweep.digest import Digest, bands_of, metric_of, rankable_rows
 
 __all__ = ["Digest", "bands_of", "metric_of"]
 
@@ -119,12 +119,8 @@ def shapes(row: Any, bands: list[str]) -> dict[str, list[float]]:
 
 
 def rankable(df: Any, meta: dict[str, str]) -> Any:
-    """The configurations a ranking may use: without the designs the analysis cannot fit
-    (``underdetermined``, :mod:`s2cl.retrieve.design`) unless the sweep keeps them (``sweep.underdetermined``).
-    Every ranking, heatmap and paper comparison goes through this one function."""
-    if "underdetermined" not in df.columns or meta.get("underdetermined", "exclude") == "keep":
-        return df
-    return df[~df["underdetermined"].to_numpy(dtype=bool)]
+    """The configurations a ranking may use (:func:`s2cl.sweep.digest.rankable_rows`)."""
+    return rankable_rows(df, meta)
 
 
 def digest_of(data: Any, meta: dict[str, str], **kwargs: Any) -> Digest:

@@ -58,6 +58,9 @@ class SweepTables:
     references: tuple[np.ndarray, ...] = ()
     noise: bool = True
     quantise: bool = True
+    #: a design list rather than a product space: configuration ``c`` takes variant ``c`` of every slot (the
+    #: tables hold each design's variants row by row: :func:`s2cl.sweep.design_tables.design_tables`)
+    diagonal: bool = False
 
     @property
     def n_slots(self) -> int:
@@ -73,7 +76,7 @@ class SweepTables:
 
     @property
     def n_configs(self) -> int:
-        return int(np.prod(self.counts))
+        return int(self.counts[0]) if self.diagonal else int(np.prod(self.counts))
 
     @property
     def maxdn(self) -> int:
@@ -82,7 +85,8 @@ class SweepTables:
     def fingerprint(self) -> str:
         """sha256 of every table: two sweeps with the same fingerprint compute the same numbers."""
         h = hashlib.sha256()
-        for name in ("bands", "counts", "bits", "copies", "calibration_gain", "class_names", "noise", "quantise"):
+        for name in ("bands", "counts", "bits", "copies", "calibration_gain", "class_names", "noise", "quantise",
+                     "diagonal"):
             h.update(repr(getattr(self, name)).encode())
         for name in ("centre", "width", "radiance", "sigma", "lp", "g", "s", "references"):
             for a in getattr(self, name):
