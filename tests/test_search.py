@@ -1,0 +1,163 @@
+"""Search instead of sweep: design tables (common random numbers, exact at every copy), the lattice, successive
+halving against the exhaustive answer, refinement to a local optimum, resume and Dask."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+from sweep_fixtures import gvmi_job, numpy_evaluator
+
+from s2cl.reference.sweep import evaluate
+from s2cl.retrieve.metrics import regression_metrics
+from s2cl.sweep.design_tables import copy_pixels, design_tables
+from s2cl.sweep.engine import RESULTS, run_sweep
+from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.lattice import Lattice
+from s2cl.sweep.raw import variant_indices
+from s2cl.sweep.search import SearchSettings, run_search
+
+
+def _job(copies: int = 20, **search):
+    job = gvmi_job(chunk=8, copies=copies, b11_max_width=150.0)
+    return replace(job, search=SearchSettings(**search).record())
+
+
+def test_schedule_multiplies_copies_by_the_inverse_of_keep() -> None:
+    assert SearchSettings(keep=0.25).schedule(100) == [1, 4, 16, 64, 100]
+    assert SearchSettings(keep=0.5).schedule(5) == [1, 2, 4, 5]
+    assert SearchSettings().schedule(1) == [1]
+
+
+def test_design_tables_score_each_design_as_the_sweep_does_on_every_copy_subset() -> None:
+    """Common random numbers: a design on copies 0…k-1 sees exactly the pixels (and deviates) the exhaustive
+    sweep gives those copies, whichever designs share its batch and in whichever order."""
+    job = _job()
+    t = job.tables
+    full = evaluate(t, job.analysis, 0, t.n_configs)
+    configs = np.array([11, 3, 27, 3, 0])
+    designs = variant_indices(t, 0, t.n_configs)[configs]
+    for copies in (1, 6, t.copies):
+        sub = design_tables(t, designs, copies, rows=7)
+        got = evaluate(sub, job.analysis, 0, len(configs))
+        pix = copy_pixels(t, copies)
+        assert np.array_equal(got.index, full.index[configs][:, pix])
+        assert np.array_equal(got.status, full.status[configs][:, pix])
+    again = evaluate(design_tables(t, designs[::-1], 6), job.analysis, 0, len(configs))
+    assert np.array_equal(again.index[::-1], evaluate(design_tables(t, designs, 6), job.analysis, 0, 5).index)
+
+
+def test_design_kernel_equals_the_sweep_kernel_on_every_pixel(rt) -> None:
+    """At all copies a design list scored by the fused kernel is bit for bit the exhaustive sweep's score."""
+    job = _job(copies=9)
+    t = job.tables
+    configs = np.array([5, 30, 2, 17])
+    whole = SweepKernel(t, job.analysis, rt)
+    want = whole.metrics(0, t.n_configs)
+    kernel = SweepKernel(design_tables(t, variant_indices(t, 0, t.n_configs)[configs], t.copies, rows=5),
+                         job.analysis, rt)
+    got = kernel.metrics(0, 4)
+    for k in ("rms", "r2", "n_valid", "failed_fraction"):
+        assert np.array_equal(got[k], want[k][configs]), k
+    kernel.load(design_tables(t, variant_indices(t, 0, t.n_configs)[configs[::-1]], t.copies, rows=5))
+    assert np.array_equal(kernel.metrics(0, 4)["rms"], want["rms"][configs[::-1]])
+    with pytest.raises(ValueError, match="another shape"):
+        kernel.load(design_tables(t, variant_indices(t, 0, 3), 2, rows=5))
+
+
+def test_lattice_neighbourhoods_stay_in_the_space() -> None:
+    job = _job()
+    lat = Lattice(job)
+    everything = variant_indices(job.tables, 0, job.n_configs)
+    assert np.array_equal(lat.configs(everything), np.arange(job.n_configs))
+    inner = everything[job.n_configs // 2]
+    joint = lat.joint(inner, 1)
+    assert 1 < len(joint) <= 3 ** 4 and np.any((joint == inner).all(axis=1))
+    box = lat.band_box(inner, 1, 2)
+    assert np.all(box[:, 0] == inner[0]) and len(box) <= 25
+    grid, stride = lat.coarse(10, np.random.default_rng(0))
+    assert stride > 1 and 1 <= len(grid) <= 10
+
+
+def _scores(out) -> pd.DataFrame:
+    return pd.read_parquet(out / RESULTS)
+
+
+def test_halving_finds_the_exhaustive_winner_with_fewer_pixel_evaluations(tmp_path) -> None:
+    job = _job(finalists=4)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    path, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    df = pd.read_parquet(path)
+    full = df[df["full_fidelity"]]
+    assert record["best_config"] == int(exhaustive["rms"].idxmin())
+    assert record["pixel_evaluations"] < 0.6 * record["exhaustive_pixel_evaluations"]
+    rungs = record["stages"][0]["rungs"]
+    assert [r["copies"] for r in rungs] == [1, 4, 16, 20] and rungs[0]["designs"] == job.n_configs
+    assert len(full) == rungs[-1]["designs"] and (full["copies"] == job.tables.copies).all()
+    assert np.array_equal(full["rms"].to_numpy(), exhaustive.loc[full["config"], "rms"].to_numpy())
+    assert df["config"].is_unique and len(df) == job.n_configs
+    assert record["evaluations"] >= len(df)
+
+
+def _scores_of_sweep(job, out) -> pd.DataFrame:
+    plain = replace(job, search=None)
+    return pd.read_parquet(run_sweep(plain, out, evaluator=numpy_evaluator(plain))).set_index("config")
+
+
+def test_refined_search_ends_on_a_local_optimum_and_repeats_from_its_seed(tmp_path) -> None:
+    """A space above search_start starts from a coarse sub-grid and refines; no design of the final
+    neighbourhood scores better on every pixel, and the same seed gives the same file."""
+    job = _job(copies=6, start=100, finalists=4, radius=2)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    path, record = run_search(job, tmp_path / "a", evaluator_of=numpy_evaluator)
+    assert record["stages"][0]["stage"].startswith("start: sub-grid")
+    lat = Lattice(job)
+    best = variant_indices(job.tables, record["best_config"], record["best_config"] + 1)[0]
+    around = lat.configs(lat.neighbourhood(best, 2))
+    assert exhaustive.loc[around, "rms"].min() == exhaustive.loc[record["best_config"], "rms"]
+    _, again = run_search(job, tmp_path / "b", evaluator_of=numpy_evaluator)
+    assert again["best_config"] == record["best_config"] and again["evaluations"] == record["evaluations"]
+    assert pd.read_parquet(tmp_path / "b" / RESULTS).equals(pd.read_parquet(path))
+
+
+def test_search_resumes_from_its_chunk_files(tmp_path) -> None:
+    job = _job(finalists=4)
+    out = tmp_path / "out"
+    path, record = run_search(job, out, evaluator_of=numpy_evaluator)
+    first = pd.read_parquet(path)
+    chunks = sorted((out / "chunks").glob("*.parquet"))
+    assert len(chunks) >= 3
+    for c in chunks[1:]:
+        c.unlink()
+    (out / RESULTS).unlink()
+    calls: list[int] = []
+
+    def counting(j):
+        calls.append(j.n_configs)
+        return numpy_evaluator(j)
+
+    path, again = run_search(job, out, evaluator_of=counting)
+    assert pd.read_parquet(path).equals(first)
+    assert len(calls) == len(chunks) - 1 and again["evaluations"] == record["evaluations"]
+
+
+@pytest.mark.slow
+def test_search_on_dask_equals_single_process(tmp_path) -> None:
+    pytest.importorskip("dask.distributed")
+    job = _job(finalists=4)
+    single, _ = run_search(job, tmp_path / "single", evaluator_of=numpy_evaluator)
+    on_dask, _ = run_search(job, tmp_path / "dask", evaluator_of=numpy_evaluator, workers=2)
+    assert pd.read_parquet(on_dask).equals(pd.read_parquet(single))
+
+
+def test_metrics_of_a_copy_subset_are_the_metrics_of_those_pixels() -> None:
+    job = _job()
+    t = job.tables
+    sub = design_tables(t, variant_indices(t, 4, 5), 3)
+    raw = evaluate(sub, job.analysis, 0, 1)
+    full = evaluate(t, job.analysis, 4, 5)
+    pix = copy_pixels(t, 3)
+    m = regression_metrics(full.index[:, pix], full.status[:, pix], full.bounds[:, pix], t.target[pix])
+    assert regression_metrics(raw.index, raw.status, raw.bounds, sub.target)["rms"][0] == m["rms"][0]
