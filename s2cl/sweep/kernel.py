@@ -26,6 +26,20 @@ ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds"
         Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
 
 
+#: work-items per group at most: PoCL's own choice for few pixels and many configurations (e.g. 8 × 512 items for
+#: 120 pixels × 1,024 configurations) crashed the kernel; groups this small measured no slower
+MAX_GROUP = 64
+
+
+def work_group(blocks: int) -> tuple[int, int]:
+    """The work-group of a launch of ``blocks`` pixel blocks: the largest power of two up to :data:`MAX_GROUP`
+    that divides ``blocks``, times configurations up to :data:`MAX_GROUP` items in all."""
+    g = 1
+    while g * 2 <= MAX_GROUP and blocks % (g * 2) == 0:
+        g *= 2
+    return g, MAX_GROUP // g
+
+
 class SweepKernel:
     """The fused per-configuration kernel for one sweep's tables and analysis, on ``rt``'s device."""
 
@@ -109,7 +123,9 @@ class SweepKernel:
         out = {"index": rt.alloc(n * pitch * T.dtype.itemsize), "status": rt.alloc(n * pitch),
                "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
         values = {**out, **self.buffers, "config_start": start, "n_configs": n}
-        self.kernel(rt.queue, (pitch // T.lanes, n), None, *bind(ARGS, values, T))
+        local = work_group(pitch // T.lanes)
+        configs = -(-n // local[1]) * local[1]  # the kernel returns for configurations past n_configs
+        self.kernel(rt.queue, (pitch // T.lanes, configs), local, *bind(ARGS, values, T))
         return out
 
     def _fetch(self, out: dict, start: int, stop: int, rows: np.ndarray | None = None) -> RawChunk:

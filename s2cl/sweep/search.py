@@ -108,13 +108,11 @@ class Scorer:
 
     def batch_rows(self, copies: int) -> int:
         """Designs per batch at ``copies``: about :data:`BATCH_EVALUATIONS`, at most the sweep's chunk scaled to
-        the pixels, one less than a power of two (one kernel build per fidelity)."""
+        the pixels, a power of two (one kernel build per fidelity)."""
         t = self.job.tables
         pixels = t.n_spectra * copies
         most = min(MAX_BATCH, max(1, self.job.chunk * t.n_pixels // pixels), max(1, BATCH_EVALUATIONS // pixels))
-        # odd: PoCL's own work-group choice for a launch of 2^k configurations of few pixels can crash the
-        # sweep kernel (seen with 1,024 configurations × 120 pixels)
-        return max(1, (1 << max(1, math.floor(math.log2(most + 1)))) - 1)
+        return 1 << max(0, math.floor(math.log2(most)))
 
     def score(self, designs: np.ndarray, copies: int) -> np.ndarray:
         """The metric of ``designs`` on ``copies`` copies (+inf where the ranking leaves a design out)."""
