@@ -151,12 +151,12 @@ def section(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def splice(page: str, block: str) -> str:
-    """``page`` with the text between :data:`START` and :data:`END` replaced by ``block``."""
-    a, b = page.find(START), page.find(END)
+def splice(page: str, block: str, start: str = START, end: str = END) -> str:
+    """``page`` with the text from ``start`` to ``end`` replaced by ``block`` (which holds both markers)."""
+    a, b = page.find(start), page.find(end)
     if a < 0 or b < 0:
-        raise SystemExit(f"docs/search.md has no {START} … {END} block")
-    return page[:a] + block + page[b + len(END):]
+        raise SystemExit(f"docs/search.md has no {start} … {end} block")
+    return page[:a] + block + page[b + len(end):]
 
 
 def write_docs(results: dict[str, Any]) -> Path:

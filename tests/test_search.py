@@ -161,3 +161,25 @@ def test_metrics_of_a_copy_subset_are_the_metrics_of_those_pixels() -> None:
     pix = copy_pixels(t, 3)
     m = regression_metrics(full.index[:, pix], full.status[:, pix], full.bounds[:, pix], t.target[pix])
     assert regression_metrics(raw.index, raw.status, raw.bounds, sub.target)["rms"][0] == m["rms"][0]
+
+
+def test_optimise_searches_a_scene_end_to_end(tmp_path) -> None:
+    """`s2cl optimise` of a scene with search = "halving" on the device: the same winner and score as the sweep,
+    the search's record in summary.json, the ranking from the designs scored on every pixel."""
+    from sweep_fixtures import SMALL_SWEEP_TOML
+
+    from s2cl.app.optimise import optimise
+    from s2cl.scene.scene import Scene
+
+    (tmp_path / "sweep.toml").write_text(SMALL_SWEEP_TOML.format(copies=8))
+    (tmp_path / "search.toml").write_text(SMALL_SWEEP_TOML.format(copies=8).replace(
+        "[sweep.ranges]", 'search = "halving"\nsearch_finalists = 2\n[sweep.ranges]'))
+    swept = optimise(Scene.load(str(tmp_path / "sweep.toml")), tmp_path / "a")
+    searched = optimise(Scene.load(str(tmp_path / "search.toml")), tmp_path / "b")
+    record = searched.summary["search"]
+    assert record["exhaustive_configurations"] == 6 and record["strategy"] == "halving"
+    assert [r["copies"] for r in record["stages"][0]["rungs"]] == [1, 8]
+    assert searched.best["bands"] == swept.best["bands"] and searched.best["rms"] == swept.best["rms"]
+    table = searched.table()
+    assert table["full_fidelity"].sum() == 2 == len(searched.summary["top"])
+    assert record["pixel_evaluations"] < record["exhaustive_pixel_evaluations"]

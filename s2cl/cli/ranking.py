@@ -120,4 +120,9 @@ def _print_ranking_notes(summary: dict[str, Any]) -> None:
                        f"{b[add['metric']]:.4g}, gain {b['gain']:.4g} over the base set")
     elif "reference" in summary:
         click.echo(f"reference = the sensor's own bands; {summary['reference']['configurations_better']:,} "
-                   "configurations do better")
+                   "configurations do better" + (" (of those scored on every pixel)" if "search" in summary else ""))
+    search = summary.get("search")
+    if search is not None:
+        click.echo(f"searched ({search['strategy']}): {search['evaluations']:,} design evaluations, "
+                   f"{search['pixel_evaluation_fraction']:.3g} of the {search['exhaustive_configurations']:,} "
+                   f"designs' pixel-evaluations, {search['seconds']:.1f} s; ranked: the designs scored on every pixel")
