@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -90,7 +90,7 @@ class SearchSettings:
 
 # -- scoring designs, resumably ------------------------------------------------------------------------
 
-Evaluate = Callable[[list[SweepJob]], Iterator[tuple[int, dict[str, np.ndarray]]]]
+Evaluate = Callable[[Iterable[SweepJob]], Iterator[tuple[int, dict[str, np.ndarray]]]]
 
 
 @dataclass
@@ -137,8 +137,8 @@ class Scorer:
             if not self._resumed(start, part, copies):
                 jobs.append((start, part))
         pending = {start: part for start, part in jobs}
-        subjobs = [replace(self.job, tables=design_tables(self.job.tables, part, copies, rows), chunk=rows)
-                   for _, part in jobs]
+        subjobs = (replace(self.job, tables=design_tables(self.job.tables, part, copies, rows), chunk=rows)
+                   for _, part in jobs)  # gathered one at a time where they run one at a time
         for i, raw in self.evaluate(subjobs):
             start = jobs[i][0]
             self._store(start, self._rows(raw, pending[start], copies), copies)
@@ -254,7 +254,7 @@ def _local(device: str | None, evaluator_of: Callable[[SweepJob], ChunkEvaluator
     """Batches in this process: one sweep kernel per fidelity, loaded with each batch's tables in turn."""
     kernels: dict[tuple[int, int], Any] = {}
 
-    def evaluate(jobs: list[SweepJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    def evaluate(jobs: Iterable[SweepJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         for i, j in enumerate(jobs):
             if evaluator_of is not None:
                 yield i, evaluate_chunk(j, 0, j.n_configs, evaluator=evaluator_of(j))
@@ -271,7 +271,7 @@ def _local(device: str | None, evaluator_of: Callable[[SweepJob], ChunkEvaluator
 
 def _on_dask(client: Any, device: str | None,
              evaluator_of: Callable[[SweepJob], ChunkEvaluator] | None) -> Evaluate:
-    def evaluate(jobs: list[SweepJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    def evaluate(jobs: Iterable[SweepJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         from dask.distributed import as_completed
 
         futures = {client.submit(evaluate_chunk, j, 0, j.n_configs, device,
