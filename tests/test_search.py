@@ -183,3 +183,18 @@ def test_optimise_searches_a_scene_end_to_end(tmp_path) -> None:
     table = searched.table()
     assert table["full_fidelity"].sum() == 2 == len(searched.summary["top"])
     assert record["pixel_evaluations"] < record["exhaustive_pixel_evaluations"]
+
+
+@pytest.mark.bench
+def test_search_check_quick_on_table5(bench_path: None, tmp_path) -> None:
+    """`python -m bench.search_check --quick --only table5-b11`: both runs, the exactness check, the row."""
+    import json
+
+    from bench.search_check import main, section
+
+    assert main(["--quick", "--only", "table5-b11", "--out", str(tmp_path), "--no-docs"]) == 0
+    data = json.loads((tmp_path / "search-check-quick-part.json").read_text())
+    (row,) = data["sweeps"]
+    assert row["configurations"] == 36 and row["rank"] >= 1 and row["gap"] >= 0
+    assert 0 < row["pixel_evaluation_fraction"] <= 1 and row["metric"] == "rms"
+    assert "table5-b11" in section(data) and len(data["load_average"]["before"]) == 3
