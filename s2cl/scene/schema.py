@@ -170,7 +170,7 @@ class SweepSpec(Section):
                                "next rung scores them on 1 / search_keep times more copies")
     search_finalists: int = Field(16, ge=1, le=100_000, description="halving: designs scored on every pixel at the "
                                   "end of each halving (at least)")
-    search_start: int = Field(50_000, ge=100, le=100_000_000, description="halving: most designs of the first rung; "
+    search_start: int = Field(100_000, ge=100, le=100_000_000, description="halving: most designs of the first rung; "
                               "a larger space starts from a coarse sub-grid of its centres and widths and refines "
                               "around the finalists down to the space's own step")
     search_radius: int = Field(5, ge=1, le=50, description="halving of a refined space: the last stage moves each band "

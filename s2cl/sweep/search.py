@@ -8,7 +8,7 @@ deviates). A rung ranks by the sweep's metric (:func:`s2cl.sweep.digest.metric_o
 number; designs the ranking leaves out (``sweep.underdetermined``) and NaN scores rank last.
 
 A space of more than :attr:`SearchSettings.start` designs starts from a coarse sub-grid of each band's centres
-and widths (every ``s``-th, from an offset drawn from the seed), then refines: around the best finalists, all
+and widths (every ``s``-th, from an offset drawn from the seed), then refines: around the eight best finalists, all
 bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above; then,
 at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre and width and
 all bands together over ``± 1`` step, from the best design, until no design there scores better.
@@ -54,6 +54,8 @@ STRATEGIES = ("exhaustive", "halving")
 #: configuration-pixel evaluations per batch at low fidelity (kernel launches and table gathers amortised)
 BATCH_EVALUATIONS = 2_000_000
 MAX_BATCH = 8192
+#: finalists a refinement stage moves around (each basin among them keeps its chance)
+REFINE_AROUND = 8
 
 
 @dataclass(frozen=True)
@@ -63,7 +65,7 @@ class SearchSettings:
     strategy: str = "halving"
     keep: float = 0.25
     finalists: int = 16
-    start: int = 50_000
+    start: int = 100_000
     radius: int = 5
     seed: int = 0
 
@@ -225,7 +227,7 @@ class Halving:
         step = stride
         while step > 1:
             step = max(1, step // 2)
-            top = best[: max(1, min(len(best), 4))]
+            top = best[:REFINE_AROUND]
             joint = [lattice.joint(d, step) for d in top] if 3 ** (2 * len(lattice.slots)) <= MAX_JOINT else \
                 [lattice.neighbourhood(d, step) for d in top]
             best, _ = self.halve(np.concatenate([best, *joint]), f"refine ± {step} steps")
