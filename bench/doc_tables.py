@@ -19,6 +19,7 @@ STUDY_JSON = {**{s: DOCS / "studies" / s / f"{s}.json" for s in STUDIES},
               "cellulose": DOCS / "cellulose" / "cellulose.json",
               "water-vapour-1020": DOCS / "water-vapour-1020" / "water-vapour-1020.json"}
 SWEEP_JSON = RESULTS / "sweep.json"
+CHUNKS_JSON = RESULTS / "sweep-chunks-amd-epyc-2c-2026-11-24.json"
 THROUGHPUT_JSON = RESULTS / "sweep-throughput-amd-epyc-2c-2026-11-24.json"
 FIG7_JSON = RESULTS / "fig7_igrm.json"
 IGRM_ACCURACY_JSON = RESULTS / "igrm-accuracy-amd-epyc-2c-2026-11-24.json"
@@ -174,6 +175,17 @@ def throughput() -> str:
             f"{_rel(THROUGHPUT_JSON)}`; {_machine(r)}).")
 
 
+def chunks() -> str:
+    """Time per configuration of one sweep against the chunk size."""
+    r = _load(CHUNKS_JSON)
+    rows = [(f"{int(c):,}", f"{v['ms_per_configuration']:.3g}", f"{v['min_ms']:.3g}–{v['max_ms']:.3g}")
+            for c, v in sorted(r["chunks"].items(), key=lambda kv: int(kv[0]))]
+    return (md_table(("chunk (configurations)", "ms per configuration (median)", "range"), rows)
+            + f"\n\n{r['scene']}, {r['pixels']:,} pixels per configuration. From `{_rel(CHUNKS_JSON)}` (written by "
+            f"`python -m bench.bench_sweep --skip-dask --scene {r['scene']} --chunks "
+            f"{','.join(sorted(r['chunks'], key=int))}`; {_machine(r)}).")
+
+
 def atmosphere_cost() -> str:
     """The resample kernel with and without the atmosphere, and the float64 numpy oracle."""
     r = _load(ATMOSPHERE_JSON)
@@ -208,6 +220,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "paper.table3-timings": table3_timings,
     "paper.throughput": throughput,
     "bench.atmosphere": atmosphere_cost,
+    "bench.chunks": chunks,
 }
 
 # pages generated whole (path relative to the repository → its text)
