@@ -78,6 +78,8 @@ def study_table(name: str) -> str:
 def study_key_figures(name: str) -> str:
     """The study's key figures beside the paper's (None: the paper gives none)."""
     r = _load(STUDY_JSON[name])
+    if not r["key_figures"]:
+        return f"Segl et al. (2012) give no figure to set beside this study's (`{_rel(STUDY_JSON[name])}`)."
     rows = [(k["quantity"].strip(), k["s2cl"], k["paper"], k["unit"], k.get("note") or "") for k in r["key_figures"]]
     return (f"Key figures, s2cl beside Segl et al. (2012) (`{_rel(STUDY_JSON[name])}`):\n\n"
             + md_table(("quantity", "s2cl", "paper", "unit", "note"), rows))
