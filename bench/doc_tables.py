@@ -177,6 +177,18 @@ def throughput() -> str:
             f"{_rel(THROUGHPUT_JSON)}`; {_machine(r)}).")
 
 
+def band_addition(part: str) -> str:
+    """``python -m bench.band_addition --tables``: the Mg-OH/carbonate band (``mgoh``) or the yellow band."""
+    from bench import band_addition as b
+
+    results = _load(b.RESULTS_JSON)
+    text = b.tables(results)
+    first_yellow = "\n\n" + next(iter(results["yellow"])) + " ("
+    mgoh, yellow = text.split(first_yellow, 1)
+    body = mgoh if part == "mgoh" else first_yellow.strip("\n") + yellow
+    return body + f"\n\nFrom `{_rel(b.RESULTS_JSON)}` (written by `python -m bench.band_addition`)."
+
+
 def chunks() -> str:
     """Time per configuration of one sweep against the chunk size."""
     r = _load(CHUNKS_JSON)
@@ -223,6 +235,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "paper.throughput": throughput,
     "bench.atmosphere": atmosphere_cost,
     "bench.chunks": chunks,
+    "band-addition.mgoh": lambda: band_addition("mgoh"),
+    "band-addition.yellow": lambda: band_addition("yellow"),
 }
 
 # pages generated whole (path relative to the repository → its text)
