@@ -189,6 +189,30 @@ def band_addition(part: str) -> str:
     return body + f"\n\nFrom `{_rel(b.RESULTS_JSON)}` (written by `python -m bench.band_addition`)."
 
 
+def soils(k: int) -> str:
+    """``python -m bench.soil_backgrounds [-k K]``: table4-b4 over each background set, B4 at FWHM 30 nm."""
+    from bench import soil_backgrounds as sb
+
+    path = sb.result_path(k)
+    r = _load(path)
+    paper = r["paper"]
+    cells = ("660/30", "665/30", "675/30", "680/30")
+    rows = [("Lib1", "**paper** (goethite/hematite, MODTRAN4)", *(paper[c] for c in cells),
+             f"{(paper['660/30'] + paper['665/30']) / (paper['675/30'] + paper['680/30']):.2f}", "", "")]
+    for key, v in r["runs"].items():
+        lib, name = key.split("/", 1)
+        w = v["worst_background"]
+        rows.append((lib.capitalize(), name, *(f"{v[c]:.2f}" for c in cells), f"{v['ratio_660_665_to_675_680']:.2f}",
+                     "{:g}/{:g}: {:.2f}".format(*v["best"], v["rms_best"]),
+                     f"{w['background'].removeprefix('earthlib:')}: {w['ratio_660_665_to_675_680']:.2f}"))
+    table = md_table(("library", "background set", *cells, "(660+665)/(675+680)", "best B4: RMS",
+                      "worst single soil: ratio"), rows)
+    sets = "".join(f"\n- {name}: {', '.join(b.removeprefix('earthlib:') for b in v['backgrounds'])} ({v['rule']})"
+                   for name, v in r["sets"].items()) if k == 3 else ""
+    return (f"{k} soils per set; chlorophyll RMS in µg/cm².\n\n{table}\n{sets}\n\nFrom `{_rel(path)}` (written by "
+            f"`python -m bench.soil_backgrounds{'' if k == 3 else f' -k {k}'}`; {_machine(r)}).")
+
+
 def chunks() -> str:
     """Time per configuration of one sweep against the chunk size."""
     r = _load(CHUNKS_JSON)
@@ -235,6 +259,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "paper.throughput": throughput,
     "bench.atmosphere": atmosphere_cost,
     "bench.chunks": chunks,
+    **{f"soils.k{k}": (lambda k=k: soils(k)) for k in (3, 10, 30)},
     "band-addition.mgoh": lambda: band_addition("mgoh"),
     "band-addition.yellow": lambda: band_addition("yellow"),
 }
