@@ -213,6 +213,31 @@ def soils(k: int) -> str:
             f"`python -m bench.soil_backgrounds{'' if k == 3 else f' -k {k}'}`; {_machine(r)}).")
 
 
+def cases(path: Path, command: str) -> str:
+    """A benchmark's cases (``bench/results/igrm.json``, ``sam.json``): each case's contenders, their rate, s2cl's
+    ratio over them and, where measured, the share at the float64 optimum, mean iterations and lane use."""
+    r = _load(path)
+    extra = (("frac_at_float64_optimum", "at float64 optimum", lambda v: f"{100 * v:.4f} %"),
+             ("mean_iterations", "mean iterations", lambda v: f"{v:.2f}"),
+             ("lane_use", "lane use", lambda v: f"{100 * v:.0f} %"))
+    out = []
+    for case in r["cases"]:
+        cols = [e for e in extra if any(e[0] in row for row in case["rows"])]
+        rows = [(row["method"] + (" *(baseline)*" if row.get("baseline") else ""), f"{row['per_s']:.3g}",
+                 f"{row['ratio_s2cl_over_this']:.3g}",
+                 *(f(row[k]) if row.get(k) is not None else "–" for k, _, f in cols)) for row in case["rows"]]
+        out.append(f"**{case['title']}** ({case['n']:,} items)\n\n"
+                   + md_table(("method", case["unit"], "s2cl ÷ this", *(t for _, t, _ in cols)), rows))
+        if "float32_vs_float64" in case:
+            d = case["float32_vs_float64"]
+            q = ", ".join(f"{k} {v:.2g} nm" for k, v in d["lp"].items())
+            out.append(f"float32 against float64, |Δλp| over pixels both fitted: {q}; the same status for "
+                       f"{100 * d['status_agreement']:.4f} %.")
+        if "agreement_with_spy" in case:
+            out.append(f"Same argmin as SPy: {100 * case['agreement_with_spy']:.3f} %.")
+    return "\n\n".join(out) + f"\n\nFrom `{_rel(path)}` (written by `{command}`; {_machine(r)})."
+
+
 def chunks() -> str:
     """Time per configuration of one sweep against the chunk size."""
     r = _load(CHUNKS_JSON)
@@ -259,6 +284,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "paper.throughput": throughput,
     "bench.atmosphere": atmosphere_cost,
     "bench.chunks": chunks,
+    "bench.igrm": lambda: cases(RESULTS / "igrm.json", "python -m bench.bench_igrm"),
+    "bench.sam": lambda: cases(RESULTS / "sam.json", "python -m bench.bench_sam"),
     **{f"soils.k{k}": (lambda k=k: soils(k)) for k in (3, 10, 30)},
     "band-addition.mgoh": lambda: band_addition("mgoh"),
     "band-addition.yellow": lambda: band_addition("yellow"),
