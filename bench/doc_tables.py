@@ -238,6 +238,18 @@ def cases(path: Path, command: str) -> str:
     return "\n\n".join(out) + f"\n\nFrom `{_rel(path)}` (written by `{command}`; {_machine(r)})."
 
 
+def lanes() -> str:
+    """``python -m bench.bench_lanes``: each kernel family's rate per vector width, and the default's."""
+    path = RESULTS / "lanes-amd-epyc-2c-2026-11-24.json"
+    r = _load(path)
+    fams = r["families"]
+    widths = sorted({int(w) for f in fams.values() for w in f["rate"]})
+    rows = [(name, f["unit"], *(f"{f['rate'][str(w)]:.3g}" if str(w) in f["rate"] else "" for w in widths),
+             f["best_width"], f["default_width"]) for name, f in fams.items()]
+    return (md_table(("kernel", "unit", *(f"{w} lanes" for w in widths), "fastest", "default"), rows)
+            + f"\n\nFrom `{_rel(path)}` (written by `python -m bench.bench_lanes`; {_machine(r)}; {r['load_note']}).")
+
+
 def chunks() -> str:
     """Time per configuration of one sweep against the chunk size."""
     r = _load(CHUNKS_JSON)
@@ -284,6 +296,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "paper.throughput": throughput,
     "bench.atmosphere": atmosphere_cost,
     "bench.chunks": chunks,
+    "bench.lanes": lanes,
     "bench.igrm": lambda: cases(RESULTS / "igrm.json", "python -m bench.bench_igrm"),
     "bench.sam": lambda: cases(RESULTS / "sam.json", "python -m bench.bench_sam"),
     **{f"soils.k{k}": (lambda k=k: soils(k)) for k in (3, 10, 30)},
