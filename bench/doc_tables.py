@@ -172,8 +172,8 @@ def throughput() -> str:
     return (md_table(("", "evaluations/s", f"whole {r['scene']}, extrapolated"), rows)
             + f"\n\nChecked first ({v['criterion']}): the same status for {100 * v['same_status_fraction']:.2f} % of "
             f"the pixels, |Δλp| median {v['index_abs_diff']['p50']:.1g} nm, 99th percentile "
-            f"{v['index_abs_diff']['p99']:.1g} nm, per-configuration RMS within {v['rms_rel_diff_max']:.1g} (relative). "
-            f"From `{_rel(THROUGHPUT_JSON)}` (written by `python -m bench.bench_sweep --skip-dask --output "
+            f"{v['index_abs_diff']['p99']:.1g} nm, per-configuration RMS within {v['rms_rel_diff_max']:.1g} "
+            f"(relative). From `{_rel(THROUGHPUT_JSON)}` (written by `python -m bench.bench_sweep --skip-dask --output "
             f"{_rel(THROUGHPUT_JSON)}`; {_machine(r)}).")
 
 

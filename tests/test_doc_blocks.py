@@ -52,7 +52,7 @@ def test_a_stale_whole_page_is_named(tmp_path: Path) -> None:
 
 def test_an_unknown_block_name_is_an_error(tmp_path: Path) -> None:
     page = _page(tmp_path, "y")
-    with pytest.raises(ValueError, match="docs/a.md: unknown generated block 'x'"):
+    with pytest.raises(ValueError, match=r"docs/a\.md: unknown generated block 'x'"):
         doc_blocks.render(page.read_text(encoding="utf-8"), {}, where="docs/a.md")
 
 
