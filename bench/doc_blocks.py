@@ -4,9 +4,11 @@
     ...
     <!-- end generated -->
 
-and is rendered by the function registered as NAME in :data:`BLOCKS` from committed results files only
-(bench/results/*.json, docs/*/…json, s2cl/data/*.json), never by running a benchmark. The command that
-measures a results file is named in the block's own text.
+and is rendered by the function registered as NAME in :data:`BLOCKS` from committed results files
+(bench/results/*.json, docs/*/…json, s2cl/data/*.json), never by running a benchmark or 6S; a figure that is
+computed rather than measured (a LUT's range, a profile's column, an SRF's floor) is computed by the code that
+defines it from the committed data it reads (s2cl/data/). The command that measures a results file is named in
+the block's own text.
 
     python -m bench.doc_blocks              # rewrite every block of every page (and docs/bench.md)
     python -m bench.doc_blocks NAME ...     # rewrite only the named blocks

@@ -5,6 +5,7 @@ command writes that file."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
@@ -24,6 +25,9 @@ THROUGHPUT_JSON = RESULTS / "sweep-throughput-amd-epyc-2c-2026-11-24.json"
 FIG7_JSON = RESULTS / "fig7_igrm.json"
 IGRM_ACCURACY_JSON = RESULTS / "igrm-accuracy-amd-epyc-2c-2026-11-24.json"
 ATMOSPHERE_JSON = RESULTS / "atmosphere.json"
+LUT_BUILD_JSON = RESULTS / "lut_build.json"
+LUT_ACCURACY_JSON = RESULTS / "lut_accuracy.json"
+RESIDUALS_JSON = RESULTS / "correction_residuals.json"
 BENCH_PAGE_JSON = RESULTS / "amd-epyc-2c-2026-11-24.json"  # the full `python -m bench` run docs/bench.md shows
 Result = dict[str, Any]
 
@@ -276,6 +280,285 @@ def atmosphere_cost() -> str:
             f"{_machine(r)}).")
 
 
+# -- docs/atmos.md ------------------------------------------------------------------------------------
+
+def _pct(v: float, digits: int = 2) -> str:
+    return f"{100 * v:.{digits}g} %"
+
+
+def _accuracy_source() -> str:
+    r = _load(LUT_ACCURACY_JSON)
+    return (f"From `{_rel(LUT_ACCURACY_JSON)}` (written by `python -m bench.lut_accuracy`; {r['sixs']}; "
+            f"{_machine(r)}).")
+
+
+def lut_build_times() -> str:
+    """``python -m bench.bench_lut_build``: the separable build against brute force (extrapolated)."""
+    r = _load(LUT_BUILD_JSON)
+    sl, sh, per = r["slice"], r["shipped_lut"], r["brute_force_seconds_per_run"]
+
+    def brute(s: float) -> str:
+        return f"{s / 3600:.2g} h" if s < 2 * 86400 else f"{s / 86400:,.0f} days"
+
+    rows = [(f"slice: {sl['axes']}", f"{sl['separable_seconds']:.0f} s ({sl['separable_sixs_runs']:,} runs)",
+             brute(sl["brute_force_seconds_extrapolated"]), f"{sl['ratio_brute_over_separable']:,.0f}×"),
+            ("shipped LUT (axes below)", f"{sh['separable_seconds']:.0f} s = {sh['separable_seconds'] / 60:.1f} min "
+             f"({sh['separable_sixs_runs']:,} runs, {sh['separable_workers']} workers)",
+             brute(sh["brute_force_seconds_extrapolated"]), f"{sh['ratio_brute_over_separable']:,.0f}×")]
+    machine = (_machine(r) if "cpu" in r["machine"] else f"{r['machine'].get('cpus', '?')} cores, CPU and load not "
+               "recorded by that run")
+    where = f"{machine}, {r['workers']} workers, {r['sixs']}" + (f"; {r['load_note']}" if "load_note" in r else "")
+    return (md_table(("LUT", "separable build", "brute force (extrapolated)", "ratio"), rows)
+            + f"\n\nBrute force: {r['brute_force_definition']}: {per['aerosol']:.3g} s per run with aerosol and "
+            f"{per['aerosol_free']:.2g} s without. The shipped LUT's build time is the one its provenance records "
+            f"(`lut.provenance['build']`). Checked first: the shipped LUT against direct 6S runs, largest relative "
+            f"error {r['correctness_max_rel_error_vs_6s']:.1g}. From `{_rel(LUT_BUILD_JSON)}` (written by "
+            f"`python -m bench.bench_lut_build`; {where}).")
+
+
+def lut_nodes() -> str:
+    """The LUT formula against 6S at node states: the standard state's table, the others' largest error."""
+    r = _load(LUT_ACCURACY_JSON)
+    std = r["nodes"]["standard"]["linear"]["relative_error"]
+    rows = [(f"{wl:g}", *(f"{100 * e:+.4f} %" for e in errs), f"{100 * max(map(abs, errs)):.4f} %")
+            for wl, errs in zip(r["wavelengths_nm"], std, strict=True)]
+    off = [label for label, v in r["nodes"].items() if not v["on_nodes"]]
+    if off:
+        raise ValueError(f"{_rel(LUT_ACCURACY_JSON)}: node states {off} are not on the LUT's nodes")
+    others = [f"{label} ({_pct(v['linear']['max_abs'], 2)})" for label, v in r["nodes"].items() if label != "standard"]
+    return (md_table(("wavelength (nm)", *(f"ρ = {rho:g}" for rho in r["reflectances"]), "max abs"), rows)
+            + f"\n\nLargest |relative error| at the other node states (330 DU, SZA 40°), over the same wavelengths "
+            f"and reflectances: {'; '.join(others)}. " + _accuracy_source())
+
+
+def lut_off_node() -> str:
+    """Largest |relative error| over the paper's wavelengths and three reflectances, states between nodes."""
+    r = _load(LUT_ACCURACY_JSON)
+    rows = []
+    for group, states in r["off_node"].items():
+        if group == "all off node":
+            rows += [(label, _pct(v["linear"]["max_abs"]), _pct(v["nearest"]["max_abs"]))
+                     for label, v in states.items()]
+            continue
+        values = " / ".join(re.search(r"[\d.]+", label)[0] for label in states)  # type: ignore[index]
+        linear = " / ".join(f"{100 * v['linear']['max_abs']:.2g}" for v in states.values()) + " %"
+        worst = max(states, key=lambda k: states[k]["nearest"]["max_abs"])
+        w = states[worst]["nearest"]
+        exact = " (no nodes: Beer's law)" if all(v["on_nodes"] for v in states.values()) else ""
+        rows.append((f"{group}{exact}: {values}", linear,
+                     f"{_pct(w['max_abs'])} ({worst}, {w['worst_wavelength_nm']:g} nm)"))
+    return (md_table(("off-node state (one parameter moved from the standard state)", "max error, linear",
+                      "max error, nearest"), rows) + "\n\n" + _accuracy_source())
+
+
+def lut_backscatter() -> str:
+    """6S's path reflectance at 1610 nm for zeniths near backscatter, beside the LUT's linear interpolation."""
+    r = _load(LUT_ACCURACY_JSON)["sza_backscatter"]
+    rows = [(f"{z:g}", f"{a:.5f}", f"{b:.5f}") for z, a, b in zip(r["solar_zenith_deg"], r["sixs_path_reflectance"],
+                                                                 r["lut_linear_path_reflectance"], strict=True)]
+    nodes = ", ".join(f"{z:g}" for z in r["lut_solar_zenith_nodes"])
+    return (f"Path reflectance (TOA reflectance over a black target) at {r['wavelength_nm']:g} nm, {r['state']}; "
+            f"the LUT's zenith nodes are {nodes}°:\n\n"
+            + md_table(("solar zenith (deg)", "6S", "LUT, linear"), rows) + "\n\n" + _accuracy_source())
+
+
+def visibility_check() -> str:
+    """The stored visibility → AOT550 table against 6S's own conversion."""
+    r = _load(LUT_ACCURACY_JSON)["visibility"]
+    v = r["visibility_km"]
+    return (f"Against 6S's own conversion at {len(v)} visibilities from {v[0]:g} to {v[-1]:g} km, the table's AOT550 "
+            f"differs by at most {r['max_abs_difference']:.2g} (6S prints 5 decimals). " + _accuracy_source())
+
+
+def water_vapour_ranges() -> str:
+    """The water-vapour range of the shipped LUT at a few zeniths (``lut.water_vapour_range``)."""
+    from s2cl.atmos.atmosphere import AtmosphereLUT
+
+    lut = AtmosphereLUT.load()
+    ranges = ", ".join("{:.3g}–{:.3g} g/cm² at {:g}°".format(*lut.water_vapour_range(z), z) for z in (0.0, 40.0, 60.0))
+    wv = lut.axes.water_vapour
+    return (f"The water-vapour axis has {wv.size} nodes, {wv[0]:.3g}–{wv[-1]:.3g} g/cm² at the reference zenith of "
+            f"40°; the range a state may use depends on the zenith: {ranges} (`lut.water_vapour_range(sza)`, read "
+            "from the shipped `s2cl/data/atmosphere_lut.npz`).")
+
+
+def profile_columns() -> str:
+    """The water and ozone columns s2cl integrates from 6S's two mid-latitude profiles."""
+    from s2cl.atmos.sixs_profiles import PROFILES, get_profile
+
+    cols = "; ".join(f"{name.replace('_', ' ')}: {get_profile(name).water_column:.3g} g/cm² and "
+                     f"{get_profile(name).ozone_column:.0f} DU" for name in PROFILES)
+    return (f"s2cl defines a profile's columns by hydrostatic integration of its table "
+            f"(`s2cl/data/sixs_profiles.csv`, `s2cl.atmos.sixs_profiles.get_profile(name).water_column` and "
+            f"`.ozone_column`): {cols}.")
+
+
+def lut_limits() -> str:
+    """6S's measured limits: gas aliasing on its 2.5 nm grid, grid snapping, the Rayleigh-path floor."""
+    r = _load(LUT_ACCURACY_JSON)
+    g, s, f = r["gas_aliasing"], r["grid_snapping"], r["rayleigh_floor"]
+    jumps = ", ".join(f"{b['max_jump']:.2f} in the {name} band ({b['between_nm'][0]:g}–{b['between_nm'][1]:g} nm)"
+                      for name, b in g["bands"].items())
+    interp = " and ".join(f"{wl} nm by {100 * p['relative_difference']:+.0f} %"
+                          for wl, p in g["neighbour_interpolation"].items())
+    nan = ", ".join(f"{w:g}" for w in s["non_finite_nm"][:3])
+    floor = ", ".join(f"{p:.5f} at {w:g}" for w, p in zip(f["water_vapour_g_cm2"], f["sixs_path_reflectance"],
+                                                          strict=True))
+    return (f"- **2.5 nm gas grid, aliasing.** 6S's gas band model works in 10 cm⁻¹ intervals sampled at 2.5 nm. "
+            f"Adjacent samples of the two-way gas transmittance jump by up to {jumps}, for the {g['state']}; linear "
+            f"interpolation to 1 nm cannot resolve such lines: 6S itself differs from the linear interpolation of its "
+            f"neighbours 2.5 nm either side at {interp}. In the SWIR one 10 cm⁻¹ interval covers several samples. "
+            "Narrow-band results at 760, 940 and 1375 nm (the B10 cirrus study) inherit this; a MODTRAN-class code "
+            "resolves it better.\n"
+            f"- **Wavelengths must be on 6S's grid.** 6S snaps any other wavelength to its grid: of {s['requests']:,} "
+            f"one-nm requests (400–2500 nm, {s['on_grid']} of them on the grid) only {s['distinct_results']:,} give "
+            f"distinct results, and {s['non_finite']} come back non-finite"
+            + (f" (for example {nan} nm)" if nan else "") + ", silently through Py6S. The builder only asks for grid "
+            "wavelengths and refuses non-finite output.\n"
+            f"- **Water vapour lies above the aerosol** in 6S, and the Rayleigh path gets no H₂O absorption. This "
+            f"leaves a path-reflectance floor at {f['wavelength_nm']:g} nm at any water column ({floor} g/cm², "
+            f"{f['state']}), which matters for the B10 cirrus study.\n\n" + _accuracy_source())
+
+
+def user_water_and_ozone() -> str:
+    """6S's ``UserWaterAndOzone`` profile against the LUT's scaled profile: path reflectance."""
+    r = _load(LUT_ACCURACY_JSON)["user_water_and_ozone"]
+    wls = sorted({row["wavelength_nm"] for row in r["rows"]})
+    wvs = sorted({row["water_vapour_g_cm2"] for row in r["rows"]})
+    return (f"6S's `UserWaterAndOzone` option would rescale the US-62 shape instead, which moves the path reflectance "
+            f"at {' and '.join(f'{w:g}' for w in wls)} nm by {100 * r['min_abs_relative_difference']:.0f}–"
+            f"{100 * r['max_abs_relative_difference']:.0f} % (water columns {', '.join(f'{w:g}' for w in wvs)} g/cm², "
+            f"otherwise the paper's standard atmosphere). " + _accuracy_source())
+
+
+def sixs_versions() -> str:
+    """6SV2.1 against 6SV1.1: path reflectance at the paper's wavelengths."""
+    r = _load(LUT_ACCURACY_JSON)["version_2_1"]
+    rows = [(f"{row['wavelength_nm']:g}", f"{row['v1_1']:.5f}", f"{row['v2_1']:.5f}",
+             f"{100 * row['relative_difference']:+.2f} %") for row in r["rows"]]
+    return (f"Path reflectance (TOA reflectance over a black target), {r['state'].split(';')[0]}:\n\n"
+            + md_table(("wavelength (nm)", "6SV1.1", "6SV2.1", "V2.1 − V1.1"), rows) + "\n\n" + _accuracy_source())
+
+
+def correction_residuals() -> str:
+    """``s2cl residuals``: the largest |corrected − true| band reflectance per library (× 10⁻⁴)."""
+    r = _load(RESIDUALS_JSON)
+    rows = [(f"`{lib}`", *(f"{1e4 * x:.2f}" for x in v["max_abs"])) for lib, v in r["libraries"].items()]
+    return (md_table(("library", *r["bands"]), rows)
+            + f"\n\nIn units of 10⁻⁴ reflectance; {r['sensor']}, float64 oracles. From `{_rel(RESIDUALS_JSON)}` "
+            f"(written by `python -m bench.correction_residuals`, the numbers `{r['command']}` prints).")
+
+
+def srf_floor() -> str:
+    """The SRF model's constant floor, computed from :mod:`s2cl.sensor.srf`'s constants on the default grid."""
+    import numpy as np
+
+    from s2cl.grid import DEFAULT_GRID
+    from s2cl.sensor.srf import ALPHA, X0, XE, XS, super_gaussian
+
+    wl = DEFAULT_GRID.wavelengths
+    floor = X0 * wl.size * DEFAULT_GRID.step_nm
+    band = float(np.sum(super_gaussian(wl, 1500.0, 20.0) - X0) * DEFAULT_GRID.step_nm)
+    cross = ALPHA / 2 * np.log(XS / X0) ** (1 / XE)
+    return (f"Integrated over {wl[0]:g}–{wl[-1]:g} nm the floor would add X0 × {wl.size:,} nm = {floor:.2g} nm of "
+            f"equivalent width, {100 * floor / band:.1g} % of a 20 nm band's weight drawn from the whole spectrum. "
+            f"The super-Gaussian falls below the floor at ±{cross:.3f} FWHM (where Xs·exp(−|2x/α|^Xe) = X0). "
+            "Computed from the constants of `s2cl/sensor/srf.py` on the default grid.")
+
+
+def lut_errors() -> str:
+    """The messages the shipped LUT gives for three bad inputs, produced by calling it."""
+    from s2cl.atmos.atmosphere import AtmosphereLUT
+    from s2cl.atmos.state import AtmosphereState
+    from s2cl.errors import InputError
+    from s2cl.grid import SpectralGrid
+
+    lut = AtmosphereLUT.load()
+    lines = []
+    bad = ((AtmosphereState(aot550=1.2), None), (AtmosphereState(water_vapour=6.0, solar_zenith=60.0), None),
+           (AtmosphereState(), SpectralGrid(350.0, 2500.0, 1.0)))
+    for state, grid in bad:
+        try:
+            lut.terms(state, grid) if grid is not None else lut.terms(state)
+        except InputError as err:
+            lines.append(f"- key `{err.key}`: `{err.detail}`")
+        else:
+            raise AssertionError(f"{state} on {grid} was accepted")
+    return "\n".join(lines)
+
+
+def stability_noise_free() -> str:
+    """The noise-free nominal error of each stability application, from the study's JSON."""
+    path = STUDY_JSON["stability"]
+    apps = _load(path)["data"]["applications"]
+    errors = "; ".join(f"{a['label']}: {a['nominal_error_no_noise']:.3g} {a['unit']} ({a['metric']})" for a in apps)
+    return f"Noise-free nominal errors: {errors}. From `{_rel(path)}` (written by `{study_command('stability')}`)."
+
+
+def soil_fe_band_depth() -> str:
+    """The spread of ``fe_band_depth`` over the shipped soils, computed from the committed earthlib file."""
+    import numpy as np
+
+    from s2cl.libraries.earthlib_spectra import soil_indices
+
+    d = soil_indices()["fe_band_depth"]
+    return (f"Over the {d.size:,} soils `fe_band_depth` runs from {d.min():.2g} to {d.max():.3g} (median "
+            f"{np.median(d):.2g}, 95th percentile {np.percentile(d, 95):.2g}); computed by "
+            "`s2cl.libraries.earthlib_spectra.soil_indices()` from the shipped `s2cl/data/earthlib_soils_npv.npz`.")
+
+
+def cellulose_co2() -> str:
+    """CO₂'s two-way transmittance near 2 µm in the shipped LUT (paper standard atmosphere), and its share of the
+    2030/20 shoulder band (model SRF, eq. 1, cut at ±1 FWHM)."""
+    import numpy as np
+
+    from s2cl.atmos.atmosphere import AtmosphereLUT
+    from s2cl.atmos.state import AtmosphereState
+    from s2cl.sensor.srf import DEFAULT_SUPPORT, super_gaussian
+
+    t = AtmosphereLUT.load().terms(AtmosphereState.paper_standard())
+    wl, co2 = t.wavelength_nm, t.transmittance["carbon_dioxide"]
+
+    def at(w: float) -> str:
+        return f"{float(co2[np.argmin(np.abs(wl - w))]):.2f} at {w:g} nm"
+
+    def span(lo: float, hi: float) -> np.ndarray:
+        return co2[(wl >= lo) & (wl <= hi)]
+
+    srf = super_gaussian(wl, 2030.0, 20.0) * (np.abs(wl - 2030.0) <= DEFAULT_SUPPORT * 20.0)
+    share = 1.0 - float(np.sum(srf * co2) / np.sum(srf))
+    return (f"Near 2 µm the LUT shows the 2.0 µm CO₂ band (two-way transmittance {at(2005)} and {at(2020)}) and the "
+            f"2.06 µm band ({at(2055)} and {at(2070)}); between 2080 and 2100 nm it lies between "
+            f"{span(2080, 2100).min():.2f} and {span(2080, 2100).max():.2f}, and from 2110 to 2250 nm it is at least "
+            f"{span(2110, 2250).min():.3f}. In the 2030/20 shoulder band CO₂ absorbs {100 * share:.0f} % of the "
+            "SRF-weighted transmittance, the same for every design. Read from the shipped LUT "
+            "(`transmittance[\"carbon_dioxide\"]`, paper standard atmosphere: MLS, SZA 40°).")
+
+
+def igrm_hyperspectral() -> str:
+    """Where the hyperspectral IGRM puts l0, s and lp for PROSAIL canopies (the basis of the fit's default bounds)."""
+    r = _load(FIG7_JSON)
+
+    def rng(w: Result, key: str) -> str:
+        return "{:.0f}–{:.0f} nm".format(*w[key])
+
+    parts = [f"{w['window_nm'][0]}–{w['window_nm'][1]} nm: l0 {rng(w, 'l0_range_nm')}, s {rng(w, 's_range_nm')}, "
+             f"lp {rng(w, 'lp_range_nm')}" for w in r["windows"]]
+    return (f"Hyperspectral IGRM fits (float64, every 1 nm band of the window) of `{r['library']}` ({r['n_spectra']} "
+            f"PROSAIL canopies, Cab 5–100 µg/cm², LAI 3 and 4): {'; '.join(parts)}. From `{_rel(FIG7_JSON)}` "
+            "(written by `python -m bench.fig7_igrm`).")
+
+
+def band_addition_machine() -> str:
+    """Where ``python -m bench.band_addition`` ran, from its results file."""
+    from bench import band_addition as b
+
+    r = _load(b.RESULTS_JSON)
+    load = r["machine"].get("load_average")
+    return (f"Measured on {_machine(r)}" + (f" (1-minute load average {load[0]:.1f} at the start)" if load else "")
+            + f"; from `{_rel(b.RESULTS_JSON)}`.")
+
+
 def bench_page() -> str:
     """docs/bench.md as ``python -m bench`` writes it from :data:`BENCH_PAGE_JSON` (its figures are not redrawn)."""
     from bench import report
@@ -302,6 +585,24 @@ BLOCKS: dict[str, Callable[[], str]] = {
     **{f"soils.k{k}": (lambda k=k: soils(k)) for k in (3, 10, 30)},
     "band-addition.mgoh": lambda: band_addition("mgoh"),
     "band-addition.yellow": lambda: band_addition("yellow"),
+    "band-addition.machine": band_addition_machine,
+    "atmos.build-times": lut_build_times,
+    "atmos.nodes": lut_nodes,
+    "atmos.off-node": lut_off_node,
+    "atmos.backscatter": lut_backscatter,
+    "atmos.visibility": visibility_check,
+    "atmos.water-vapour-range": water_vapour_ranges,
+    "atmos.profile-columns": profile_columns,
+    "atmos.limits": lut_limits,
+    "atmos.user-water-and-ozone": user_water_and_ozone,
+    "atmos.sixs-versions": sixs_versions,
+    "atmos.residuals": correction_residuals,
+    "atmos.errors": lut_errors,
+    "sensor.srf-floor": srf_floor,
+    "stability.noise-free": stability_noise_free,
+    "soils.fe-band-depth": soil_fe_band_depth,
+    "cellulose.co2": cellulose_co2,
+    "retrieve.igrm-hyperspectral": igrm_hyperspectral,
 }
 
 # pages generated whole (path relative to the repository → its text)
