@@ -58,7 +58,7 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
 def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
     """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.retrieve.design`), counted without
     enumerating them; None when there are too many distinct centres to count."""
-    return count_underdetermined(analysis.kind, space, slots=analysis.slots, pairs=analysis.pairs)
+    return count_underdetermined(analysis, space)
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:

@@ -131,7 +131,7 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
         rows[f"{b}_centre_nm"] = centres[:, k]
         rows[f"{b}_width_nm"] = widths[:, k]
     a = job.analysis
-    rows["underdetermined"] = underdetermined(a.kind, centres, widths, slots=a.slots, pairs=a.pairs)
+    rows["underdetermined"] = underdetermined(a, centres, widths)
     # the kernel computes its metrics on the device where it can; any other evaluator gives per-pixel results
     metrics = getattr(ev, "metrics", None)
     m = metrics(start, stop) if metrics else host_metrics(a, ev(start, stop), t.target, len(t.class_names))
