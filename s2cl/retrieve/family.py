@@ -77,6 +77,8 @@ class Family:
     has_condition: ClassVar[bool] = False
     width_matters: ClassVar[bool] = True
     twin: ClassVar[str]
+    #: a library parameter it is usually regressed on (examples in messages)
+    example_parameter: ClassVar[str] = "cab"
 
     def kinds(self) -> tuple[str, ...]:
         return (self.kind,)
@@ -147,9 +149,9 @@ class AnalysisSettings:
     :param angle_threshold_deg: sam: pixels whose smallest angle exceeds it are unclassified.
     :param igrm: IGRM fit settings (keys of ``s2cl.retrieve.igrm.IgrmSettings``).
     :param regress: IGRM statuses (:class:`s2cl.status.Status` values) whose index enters the regression.
-    :param expression: formula: the expression (:class:`s2cl.retrieve.formula.Formula`).
-    :param pairs: formula: slot pairs the design rule requires to differ, the bands of each difference or ratio
-        the expression takes (:func:`s2cl.retrieve.design.design_problem`).
+    :param options: a family's own settings, as (key, value) pairs (formula: its ``expression``).
+    :param pairs: slot pairs the design rule requires to differ (formula: the bands of each difference or ratio
+        the expression takes).
     """
 
     kind: str
@@ -187,13 +189,13 @@ class AnalysisSettings:
             return lower.index(name.lower())
 
         if family.metric == "regression" and not a.parameter:
-            raise InputError(f"{a.kind} needs the library parameter to regress (e.g. 'cab')",
+            raise InputError(f"{a.kind} needs the library parameter to regress (e.g. {family.example_parameter!r})",
                              source=scene.source, key="analysis.parameter")
         own = family.roles(a)
         stray = [r for r in a.roles if r not in own]
         if stray:
-            raise InputError(f"unknown key of [analysis] (nor a band role of {a.kind}"
-                             + (f": its roles are {', '.join(own)})" if own else ")"),
+            raise InputError(f"not a band role of {a.kind} " + (f"(its roles: {', '.join(own)})" if own else
+                                                                 "(it has none), nor a key of [analysis]"),
                              source=scene.source, key=f"analysis.{stray[0]}")
         foreign = sorted(k for k in family_keys() - set(family.keys) if k in a.model_fields_set)
         if foreign:

@@ -28,6 +28,7 @@ class IndexFamily(Family):
         self.nd = nd
         self.kind = nd.kind  # type: ignore[misc]  # one instance per index
         self.title = nd.title  # type: ignore[misc]
+        self.example_parameter = nd.parameter  # type: ignore[misc]
 
     def roles(self, spec: Any) -> tuple[str, ...]:
         return self.nd.roles
