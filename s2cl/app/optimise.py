@@ -114,7 +114,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     with claim(folder):
         started = (lambda todo, done: on_start(job, todo, done)) if on_start else None
         results = run_sweep(job, folder, progress=progress, on_start=started, workers=workers, scheduler=scheduler,
-                            overwrite=overwrite, device=device)
+                            overwrite=overwrite, device=device, resources_checked=True)
         path, meta = open_results(results)
         reference = reference_row(sc, job, device)
         digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))

@@ -58,7 +58,7 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
 def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int | None:
     """Configurations of ``space`` the analysis cannot fit (:mod:`s2cl.retrieve.design`), counted without
     enumerating them; None when there are too many distinct centres to count."""
-    return count_underdetermined(analysis.kind, space, slots=analysis.slots, pairs=analysis.pairs)
+    return count_underdetermined(analysis, space)
 
 
 def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
@@ -66,9 +66,25 @@ def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dic
     band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`)."""
     if job.base_row is not None:
         return base_reference(job.base_row, job.addition["band"])
-    fixed = SweepSpace(tuple(BandRange.fixed(b, scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm)
-                             for b in job.tables.bands)).validate(scene.source)
-    return fixed_row(scene, job, fixed, job.analysis, device=device)
+    shapes = [(scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm) for b in job.tables.bands]
+    config = configuration_of(job.tables, shapes)
+    if config is not None:  # the sensor's own design is one of the sweep's: its tables and kernel serve
+        rows = evaluate_chunk(job, config, config + 1, device)
+        return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    fixed = SweepSpace(tuple(BandRange.fixed(b, c, w) for b, (c, w) in zip(job.tables.bands, shapes, strict=True)))
+    return fixed_row(scene, job, fixed.validate(scene.source), job.analysis, device=device)
+
+
+def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> int | None:
+    """The configuration number of the design whose slot ``k`` has centre and width ``shapes[k]`` (nm), or None
+    when a slot has no such variant (within 1e-9 nm): the mixed radix of :mod:`s2cl.sweep.raw`."""
+    config = 0
+    for k, (c, w) in enumerate(shapes):
+        hit = np.flatnonzero((np.abs(tables.centre[k] - c) <= 1e-9) & (np.abs(tables.width[k] - w) <= 1e-9))
+        if hit.size == 0:
+            return None
+        config = config * tables.counts[k] + int(hit[0])
+    return config
 
 
 def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,

@@ -58,12 +58,5 @@ def _print_summary(rows: list[dict[str, Any]], attrs: dict[str, Any], pixels: in
 
 
 def _print_analysis(a: dict[str, Any]) -> None:
-    """The scene's analysis in one line: SAM accuracy, or the retrieval's RMS and failure fractions."""
-    bands = " ".join(a["bands"])
-    if a["kind"] == "sam":
-        click.echo(f"SAM on {bands}: mean omission error {a['omission_error_pct']:.1f} %, overall accuracy "
-                   f"{a['overall_accuracy_pct']:.1f} %, unclassified {a['unclassified_fraction']:.1%}")
-        return
-    click.echo(f"{a['kind'].upper()} on {bands} -> {a['parameter']}: RMS {a['rms']:.3g}, R² {a['r2']:.3f}, "
-               f"robust {a['robust_rms']:.3g}, without fits on a bound {a['rms_unbounded']:.3g}; "
-               f"failed {a['failed_fraction']:.2%}, on a bound {a['bound_fraction']:.2%}")
+    """The scene's analysis in one line (its family's :meth:`~s2cl.retrieve.family.Family.summary_line`)."""
+    click.echo(a["summary"])

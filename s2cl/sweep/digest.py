@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.retrieve.family import registry
+
 BATCH_ROWS = 65_536
 TOP = 10
 #: most centre rows and width columns a heatmap draws; beyond them consecutive values are grouped
@@ -30,8 +32,12 @@ BYTES_PER_VARIANT = 96
 BATCH_BYTES_PER_COLUMN = 4 * 8 * BATCH_ROWS
 
 
-def metric_of(columns: list[str]) -> str:
-    """The ranking metric of a results table."""
+def metric_of(columns: list[str], meta: dict[str, str] | None = None) -> str:
+    """The ranking metric of a results table: its analysis family's score column (``meta``: the table's metadata,
+    whose ``analysis`` is the kind), else the metric column it holds."""
+    family = registry().get((meta or {}).get("analysis", ""))
+    if family is not None and family.score_column in columns:
+        return family.score_column
     return "omission_error_pct" if "omission_error_pct" in columns else "rms"
 
 
@@ -102,7 +108,7 @@ class Digest:
 
     @property
     def metric(self) -> str:
-        return self.metric_column or metric_of(self.columns)
+        return self.metric_column or metric_of(self.columns, self.meta)
 
     @property
     def bands(self) -> list[str]:

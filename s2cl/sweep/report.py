@@ -80,7 +80,7 @@ def _check_results(columns: list[str], rows: int, meta: dict[str, str], source: 
     if missing:
         raise InputError(f"not an s2cl sweep result (no {', '.join(missing)} in its metadata)", source=source)
     bands = bands_of(columns)
-    needed = ["config", metric_of(columns), *(f"{b}_width_nm" for b in bands)]
+    needed = ["config", metric_of(columns, meta), *(f"{b}_width_nm" for b in bands)]
     lacking = [c for c in needed if c not in columns]
     if lacking or not bands:
         raise InputError(f"not an s2cl sweep result (columns missing: {', '.join(lacking) or 'band centres'})",
