@@ -19,6 +19,7 @@ Everything is seeded (:data:`SEED`): the same sweep gives the same set.
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -247,6 +248,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
         from s2cl.sweep.engine import kernel_evaluator
 
         evaluator = kernel_evaluator(job, device)
+    t0 = time.perf_counter()
     t = job.tables
     configs = top["config"].to_numpy(np.int64)
     stats = design_stats(job, configs, family, evaluator)
@@ -267,7 +269,8 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
             "count": int(boot.within.sum()),
             # False: the last candidate is still within noise, so designs ranked below it may be too
             "complete": not bool(boot.within[-1]),
-            "configs": [d["config"] for d in designs if d["within"]], "designs": designs}
+            "configs": [d["config"] for d in designs if d["within"]], "seconds": time.perf_counter() - t0,
+            "designs": designs}
 
 
 def _finite(value: Any) -> float | None:
