@@ -211,7 +211,7 @@ def draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str,
                     color="white" if dark else "black")
     if hatched is not None:
         for i, j in zip(*np.nonzero(hatched), strict=True):
-            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="white", lw=0, hatch="///"))
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec=(0, 0, 0, 0.55), lw=0, hatch="///"))
     if finite.size:
         pick = np.nanargmin if best == "min" else np.nanargmax
         i, j = np.unravel_index(pick(values), values.shape)
@@ -235,7 +235,7 @@ def heatmap(data: Any, band: str, path: str | Path, *, metric: str | None = None
     im = draw_grid(ax, centres, widths, values, band, fontsize=8, hatched=hatched)
     fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
     grouped = f"; cells group {gc} centres × {gw} widths" if gc * gw > 1 else ""
-    marked = "; hatched: within noise of #1" if hatched is not None and hatched.any() else ""
+    marked = ";\nhatched: within noise of #1" if hatched is not None and hatched.any() else ""
     ax.set_title(title or f"{band}: {metric} (best over the other bands{grouped}; red: best{marked})", fontsize=9)
     fig.tight_layout()
     return save_png(fig, path)
