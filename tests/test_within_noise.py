@@ -233,6 +233,10 @@ def test_optimise_reports_the_within_noise_set(tmp_path) -> None:
     np.testing.assert_allclose([d["difference"] for d in wn["designs"]],
                                [e["rms"] - result.best["rms"] for e in result.summary["top"]], rtol=1e-6, atol=1e-9)
     assert list(result.ranking["within_noise"]) == [d["within"] for d in wn["designs"]]
+    # the sensor's own bands, tested on the same pixels: its re-scored RMS is the reference row's
+    assert wn["reference"]["score"] == pytest.approx(result.reference["rms"], rel=1e-6)
+    assert result.reference["within_noise"] is wn["reference"]["within"]
+    assert wn["reference"]["difference"] == pytest.approx(result.reference["rms"] - result.best["rms"], rel=1e-5)
     table = result.table()
     assert table.set_index("config")["within_noise"].to_dict() == {d["config"]: d["within"] for d in wn["designs"]}
     assert (tmp_path / "api" / "heatmap_B4.png").exists()

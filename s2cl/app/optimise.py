@@ -80,7 +80,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     todo, done)`` once before the first chunk (``job``: the planned :class:`~s2cl.sweep.engine.SweepJob`).
     """
     from s2cl.app.checks import check_sweep
-    from s2cl.app.plan import plan_sweep, reference_row
+    from s2cl.app.plan import plan_sweep, reference_pixels, reference_row
     from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
     from s2cl.cl.runtime import get_runtime
     from s2cl.io.budget import Budget
@@ -129,7 +129,10 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
                                 top_n=max(TOP, candidates))
         summary = summarise(digest, meta, reference)
         if candidates:
-            summary["within_noise"] = within_noise(job, digest.top.head(candidates), digest.metric, device=device)
+            tested = within_noise(job, digest.top.head(candidates), digest.metric, device=device,
+                                  reference=reference_pixels(sc, job, device))
+            if tested is not None:
+                summary["within_noise"] = tested
             mark_top(summary)
         summary["seconds"] = time.perf_counter() - t0
         summary["warnings"] = warnings

@@ -233,13 +233,15 @@ def design_stats(job: Any, configs: np.ndarray, family: Family, evaluator: Chunk
 
 
 def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator | None = None,
-                 device: str | None = None, replicates: int = REPLICATES, seed: int = SEED,
-                 level: float = LEVEL) -> dict[str, Any] | None:
+                 device: str | None = None, reference: Any = None, replicates: int = REPLICATES,
+                 seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
     """The designs of ``top`` (the sweep's best rows, best first: ``config``, band centres and widths,
     ``metric``) within noise of the first, as ``summary.json``'s ``within_noise``; None when fewer than two
     designs were ranked or ``metric`` has no bootstrap (:data:`FAMILIES`).
 
     :param evaluator: per-pixel results of configurations (default: the sweep kernel of ``job`` on ``device``).
+    :param reference: per-pixel results (a :class:`~s2cl.sweep.raw.RawChunk` of one design on the same pixels)
+        of the sensor's own bands, tested against #1 too (``within_noise["reference"]``), or None.
     """
     family = FAMILIES.get(metric)
     if family is None or top is None or len(top) < 2:
@@ -252,25 +254,31 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
     t = job.tables
     configs = top["config"].to_numpy(np.int64)
     stats = design_stats(job, configs, family, evaluator)
+    if reference is not None:
+        stats = np.concatenate([stats, family.stats(reference, job)])
     strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
     boot = paired_bootstrap(stats, family.score, 0, replicates=replicates, seed=seed, level=level, strata=strata)
+    n = len(configs)
     bands = list(t.bands)
     designs = []
-    for i, (_, row) in enumerate(top.iterrows()):
+    for i, (_, row) in enumerate(top.iterrows()):  # the candidates; the reference, if any, is design n
         designs.append({
             "rank": i + 1, "config": int(row["config"]),
             "bands": {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands},
             metric: _finite(row[metric]), "difference": _finite(boot.difference[i]),
             "interval": [_finite(boot.low[i]), _finite(boot.high[i])], "as_good": float(boot.as_good[i]),
             "within": bool(boot.within[i])})
-    return {"metric": metric, "level": level, "replicates": replicates, "seed": seed,
-            "resampled": "library spectra" + (" within each class" if family.stratified else ""),
-            "spectra": t.n_spectra, "copies": t.copies, "candidates": len(designs),
-            "count": int(boot.within.sum()),
-            # False: the last candidate is still within noise, so designs ranked below it may be too
-            "complete": not bool(boot.within[-1]),
-            "configs": [d["config"] for d in designs if d["within"]], "seconds": time.perf_counter() - t0,
-            "designs": designs}
+    out = {"metric": metric, "level": level, "replicates": replicates, "seed": seed,
+           "resampled": "library spectra" + (" within each class" if family.stratified else ""),
+           "spectra": t.n_spectra, "copies": t.copies, "candidates": n, "count": int(boot.within[:n].sum()),
+           # False: the last candidate is still within noise, so designs ranked below it may be too
+           "complete": not bool(boot.within[n - 1]),
+           "configs": [d["config"] for d in designs if d["within"]]}
+    if reference is not None:
+        out["reference"] = {"score": _finite(boot.score[n]), "difference": _finite(boot.difference[n]),
+                            "interval": [_finite(boot.low[n]), _finite(boot.high[n])],
+                            "as_good": float(boot.as_good[n]), "within": bool(boot.within[n])}
+    return {**out, "seconds": time.perf_counter() - t0, "designs": designs}
 
 
 def _finite(value: Any) -> float | None:
@@ -279,12 +287,14 @@ def _finite(value: Any) -> float | None:
 
 
 def mark_top(summary: dict[str, Any]) -> None:
-    """Write each ``summary["top"]`` entry's ``within_noise`` (True, False, or None when it was not tested)
-    from ``summary["within_noise"]``."""
+    """Write each ``summary["top"]`` entry's and the reference's ``within_noise`` (True, False, or None when
+    it was not tested) from ``summary["within_noise"]``."""
     wn = summary.get("within_noise")
     tested = {d["config"]: d["within"] for d in wn["designs"]} if wn else {}
     for entry in summary.get("top", []):
         entry["within_noise"] = tested.get(entry.get("config"))
+    if isinstance(summary.get("reference"), dict):
+        summary["reference"]["within_noise"] = (wn or {}).get("reference", {}).get("within")
 
 
 def within_pairs(summary: dict[str, Any], band: str) -> list[tuple[float, float]]:
