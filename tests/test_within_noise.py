@@ -228,6 +228,7 @@ def test_optimise_reports_the_within_noise_set(tmp_path) -> None:
     result = s2cl.optimise(scene, tmp_path / "api")
     wn = result.summary["within_noise"]
     assert wn["metric"] == "rms" and wn["candidates"] == 6 and wn["designs"][0]["config"] == result.best["config"]
+    assert wn["complete"]  # every ranked design was tested
     assert wn["configs"][0] == result.best["config"] and result.best["within_noise"] is True
     assert [d["rms"] for d in wn["designs"]] == [e["rms"] for e in result.summary["top"]]
     np.testing.assert_allclose([d["difference"] for d in wn["designs"]],

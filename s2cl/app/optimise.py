@@ -130,7 +130,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
         summary = summarise(digest, meta, reference)
         if candidates:
             tested = within_noise(job, digest.top.head(candidates), digest.metric, device=device,
-                                  reference=reference_pixels(sc, job, device))
+                                  reference=reference_pixels(sc, job, device), ranked=digest.ranked)
             if tested is not None:
                 summary["within_noise"] = tested
             mark_top(summary)

@@ -233,8 +233,8 @@ def design_stats(job: Any, configs: np.ndarray, family: Family, evaluator: Chunk
 
 
 def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator | None = None,
-                 device: str | None = None, reference: Any = None, replicates: int = REPLICATES,
-                 seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
+                 device: str | None = None, reference: Any = None, ranked: int | None = None,
+                 replicates: int = REPLICATES, seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
     """The designs of ``top`` (the sweep's best rows, best first: ``config``, band centres and widths,
     ``metric``) within noise of the first, as ``summary.json``'s ``within_noise``; None when fewer than two
     designs were ranked or ``metric`` has no bootstrap (:data:`FAMILIES`).
@@ -242,6 +242,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
     :param evaluator: per-pixel results of configurations (default: the sweep kernel of ``job`` on ``device``).
     :param reference: per-pixel results (a :class:`~s2cl.sweep.raw.RawChunk` of one design on the same pixels)
         of the sensor's own bands, tested against #1 too (``within_noise["reference"]``), or None.
+    :param ranked: how many designs the sweep ranked (all of them tested: the set is complete).
     """
     family = FAMILIES.get(metric)
     if family is None or top is None or len(top) < 2:
@@ -272,7 +273,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
            "resampled": "library spectra" + (" within each class" if family.stratified else ""),
            "spectra": t.n_spectra, "copies": t.copies, "candidates": n, "count": int(boot.within[:n].sum()),
            # False: the last candidate is still within noise, so designs ranked below it may be too
-           "complete": not bool(boot.within[n - 1]),
+           "complete": not bool(boot.within[n - 1]) or n == ranked,
            "configs": [d["config"] for d in designs if d["within"]]}
     if reference is not None:
         out["reference"] = {"score": _finite(boot.score[n]), "difference": _finite(boot.difference[n]),
