@@ -158,6 +158,9 @@ class SweepSpec(Section):
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
+    within_noise_top: int = Field(100, ge=0, le=10_000, description="the best designs re-scored per pixel to find "
+                                  "those within noise of #1 (a paired bootstrap over library spectra, "
+                                  "s2cl.sweep.within_noise); 0: none")
     add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
                                 "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
 
