@@ -80,10 +80,9 @@ def check_bad_band_gaps(names: list[str], fractions: np.ndarray, quantity: str, 
     hit = [(n, f) for n, f in zip(names, fractions, strict=True) if f > GAP_WEIGHT_REPORTED]
     if not hit:
         return
-    listed = ", ".join(f"{n} ({100 * f:.0f} %)" for n, f in hit)
+    listed = ", ".join(f"{n} {100 * f:.0f} %" for n, f in hit)
+    what = f"SRF weight on wavelengths the bad band list (bbl) dropped: {listed}"
     if quantity == "radiance":
-        raise InputError(f"bands {listed} of their SRF weight on wavelengths the bad band list (bbl) dropped; "
-                         "a radiance cube cannot be interpolated over them: drop these bands from the sensor",
-                         source=source, key="bbl")
-    _log.warning("%s: bands %s of their SRF weight on wavelengths the bad band list (bbl) dropped: reflectance "
-                 "interpolated linearly over the gap", source, listed)
+        raise InputError(f"{what}; a radiance cube cannot be interpolated over them: leave these bands out "
+                         "(sensor.bands)", source=source, key="bbl")
+    _log.warning("%s: bbl: %s; reflectance interpolated linearly over the gap", source, what)
