@@ -123,7 +123,8 @@ def wavelength_scale(units: Any, p: Path, key: str) -> float:
 def _floating(values: np.ndarray) -> np.ndarray:
     """``values`` as a writable floating array: float32 for float32 and 8/16-bit integers (exact), else float64."""
     small = values.dtype == np.float32 or (values.dtype.kind in "iu" and values.dtype.itemsize <= 2)
-    return np.array(values, dtype=np.float32 if small else np.float64)
+    out = np.asarray(values, dtype=np.float32 if small else np.float64)
+    return out if out.flags.writeable else out.copy()
 
 
 def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str) -> np.ndarray | None:
@@ -224,7 +225,8 @@ def _load_envi(p: Path) -> CubeFile:
     except Exception as err:  # SPy raises many types for a bad header or data file
         raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
     real(raw.dtype, p, "data type")
-    raw = raw[:, :, good]
+    if not good.all():
+        raw = raw[:, :, good]
     values = _floating(raw)
     if ignore is not None:
         # a float file holds the ignore value at its own precision; an integer file compares exactly
