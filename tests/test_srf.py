@@ -138,3 +138,16 @@ def test_garbage_responses_are_refused_in_one_line(tmp_path, value, message: str
     with pytest.raises(InputError, match=message) as err:
         load_srf_csv(str(path))
     assert "\n" not in str(err.value)
+
+
+def test_py6s_oli_b4_table_loads_with_its_wing_noise_clipped(tmp_path, caplog) -> None:
+    """The measured table that motivated the rule: Py6S's Landsat 8 OLI B4 holds -0.000342 at 625 nm."""
+    p6 = pytest.importorskip("Py6S")
+    _, start_um, _, values = p6.PredefinedWavelengths.LANDSAT_OLI_B4
+    wl = 1000.0 * (start_um + 0.0025 * np.arange(len(values)))
+    path = tmp_path / "oli.csv"
+    path.write_text("wavelength_nm,B4\n" + "\n".join(f"{a:.4f},{b}" for a, b in zip(wl, values, strict=True)) + "\n")
+    with caplog.at_level("WARNING", logger="s2cl"):
+        table = load_srf_csv(str(path))
+    assert table["B4"].response.min() == 0.0
+    assert any("B4" in r.getMessage() and "at 625 nm" in r.getMessage() for r in caplog.records)

@@ -245,4 +245,4 @@ def measured_sentinel2_srf(platform: str, band: str) -> TabulatedResponse:
     if abs(wl[-1] - 1000.0 * stop_um) > 1e-6:
         raise InputError(f"unexpected Py6S table layout for {platform} {band}", key="sensor.srf")
     origin = f"Py6S {platform}_MSI_{_S2_PY6S[band]} (ESA measured)"
-    return TabulatedResponse(wl, np.clip(values, 0.0, None), origin=origin)
+    return TabulatedResponse(wl, clip_response_noise(wl, values, source=origin, key=band), origin=origin)
