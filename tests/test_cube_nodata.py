@@ -48,18 +48,18 @@ def _scene(tmp_path: Path, cube: str, psf: str = "none", quantity: str = "reflec
 
 
 def _write_envi(tmp_path: Path, ints: np.ndarray, *, dtype: str = "int16", interleave: str = "bsq",
-                ignore: str = "-99", name: str = "enmap") -> Path:
+                ignore: str = "-99", name: str = "enmap", big_endian: bool = False) -> Path:
     """ENVI pair ``name.hdr`` + ``name.<interleave>`` as EnMAP-like products ship (µm, scale factor, bbl)."""
     data = ints.astype(dtype)
     order = {"bsq": (2, 0, 1), "bil": (0, 2, 1), "bip": (0, 1, 2)}[interleave]
-    np.ascontiguousarray(data.transpose(order)).astype(data.dtype.newbyteorder("<")).tofile(
+    np.ascontiguousarray(data.transpose(order)).astype(data.dtype.newbyteorder(">" if big_endian else "<")).tofile(
         tmp_path / f"{name}.{interleave}")
     code = {"int16": 2, "float32": 4, "uint16": 12}[dtype]
     um = ", ".join(f"{w / 1000:.4f}" for w in WL)
     bbl = ", ".join("0" if b else "1" for b in BAD)
     hdr = tmp_path / f"{name}.hdr"
     hdr.write_text(f"ENVI\nsamples = {COLS}\nlines = {ROWS}\nbands = {WL.size}\nheader offset = 0\n"
-                   f"data type = {code}\ninterleave = {interleave}\nbyte order = 0\n"
+                   f"data type = {code}\ninterleave = {interleave}\nbyte order = {int(big_endian)}\n"
                    f"data ignore value = {ignore}\nreflectance scale factor = 10000\n"
                    f"wavelength units = Micrometers\nwavelength = {{{um}}}\nbbl = {{{bbl}}}\n")
     return hdr
@@ -237,10 +237,11 @@ def test_envi_no_data_keys_are_checked(tmp_path, line: str, message: str) -> Non
 
 @pytest.mark.parametrize("ext", ["bsq", "bil", "bip", "img", "dat"])
 def test_envi_data_file_names_and_interleaves(tmp_path, ext: str) -> None:
-    """NAME.bsq/.bil/.bip (interleave from the header) as well as NAME.img/.dat read the same cube."""
+    """NAME.bsq/.bil/.bip (interleave from the header) as well as NAME.img/.dat read the same cube (the
+    latter two big-endian)."""
     ints = _reflectance()
     interleave = ext if ext in ("bsq", "bil", "bip") else "bip"
-    hdr = _write_envi(tmp_path, ints, dtype="uint16", interleave=interleave)
+    hdr = _write_envi(tmp_path, ints, dtype="uint16", interleave=interleave, big_endian=ext in ("img", "dat"))
     if ext not in ("bsq", "bil", "bip"):
         (tmp_path / f"enmap.{interleave}").rename(tmp_path / f"enmap.{ext}")
     np.testing.assert_array_equal(load_cube(hdr).values, (ints[:, :, ~BAD] / np.float32(10000)).astype(np.float32))
