@@ -6,12 +6,16 @@ pixels → noise → quantisation → calibration at the band's own GSD (the SNR
 pixels of that size). Trailing rows/columns that do not fill a whole output pixel are dropped.
 Noise of band ``k`` at output pixel ``(y, x)`` keys on pixel index ``y · ncols + x`` of that
 band's grid.
+
+No-data (NaN or file-marked values, bad bands: :mod:`s2cl.io.cubes`) never refuses a cube: a pixel with
+any no-data sample is NODATA and an output pixel whose footprint touches one is NODATA too
+(:mod:`s2cl.forward.nodata` says why), flagged in every band's ``flags_<band>`` variable
+(:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -21,111 +25,27 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows, psf_radius
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
-from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
-from s2cl.io.inputs import input_file, parse_number
-from s2cl.libraries.library import check_finite, resample_to_grid
+from s2cl.io.cubes import CubeFile, cube_size, load_cube
+from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
+from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
 FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+__all__ = ["SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube", "to_grid"]
 
 
-def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A cube ``(rows, cols, wavelengths)`` and its wavelengths (nm) from NetCDF or ENVI.
+def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str, *,
+            owned: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The cube's spectra ``(rows·cols, grid.size)`` on the grid (interpolated if needed), finite, and the
+    NODATA mask ``(rows·cols,)`` of the pixels with any non-finite sample (their spectra set to 0).
 
-    NetCDF: a 3-D variable with a ``wavelength`` dimension and coordinate (nm, or µm if its
-    ``units`` say so). ENVI: the ``.hdr`` file, wavelengths from its ``wavelength`` field.
-    """
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        return _load_envi(p)
-    try:
-        ds = xr.open_dataset(p, engine="h5netcdf")
-    except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
-    with ds:
-        candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
-        name = variable or (candidates[0] if len(candidates) == 1 else None)
-        if name is None or name not in ds:
-            raise InputError(f"choose the cube variable (surface.variable); 3-D variables with a 'wavelength' "
-                             f"dimension: {candidates or 'none'}", source=p, key="surface.variable")
-        v = ds[name]
-        if "wavelength" not in v.dims or v.ndim != 3:
-            raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
-        v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
-        _real(v.dtype, p, name)
-        wl = np.asarray(ds["wavelength"].values, dtype=np.float64)
-        if str(ds["wavelength"].attrs.get("units", "nm")).lower() in ("um", "µm", "micrometer", "micrometers"):
-            wl = wl * 1000.0
-        return np.asarray(v.values), check_wavelengths(wl, source=str(p), key="wavelength")
-
-
-def cube_size(path: str | Path) -> tuple[int, int]:
-    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
-    (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
-
-    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
-        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        meta = read_envi_header(p)
-        layout = envi_layout(meta, p, envi_data_file(p))
-        _envi_wavelengths(meta, layout.bands, p)
-        return layout.samples * layout.lines, layout.bands
-    try:
-        with xr.open_dataset(p, engine="h5netcdf") as ds:
-            cubes = [v for v in ds.data_vars.values() if v.ndim == 3 and "wavelength" in v.dims]
-            if not cubes:
-                return 0, 0
-            v = max(cubes, key=lambda c: c.size)
-            return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
-    except Exception:  # a bad file is reported by load_cube, with its reason
-        return 0, 0
-
-
-def _real(dtype: np.dtype, p: Path, key: str) -> None:
-    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
-    if np.dtype(dtype).kind not in "fiu":
-        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
-                         source=p, key=key)
-
-
-def _envi_wavelengths(meta: dict, bands: int, p: Path) -> np.ndarray:
-    """The header's ``wavelength`` list as numbers, one per band."""
-    wl = meta.get("wavelength")
-    if not wl:
-        raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")
-    if len(wl) != bands:
-        raise InputError(f"lists {len(wl)} values for bands = {bands}", source=p, key="wavelength")
-    try:
-        return np.array([parse_number(str(x).strip()) for x in wl])
-    except ValueError:
-        raise InputError("holds a value that is not a number", source=p, key="wavelength") from None
-
-
-def _load_envi(p: Path) -> tuple[np.ndarray, np.ndarray]:
-    import spectral.io.envi as envi
-
-    meta = read_envi_header(p)
-    data = envi_data_file(p)
-    layout = envi_layout(meta, p, data)
-    w = _envi_wavelengths(meta, layout.bands, p)
-    try:
-        img = envi.open(str(p), str(data))
-        cube = np.asarray(img.load())
-    except Exception as err:  # SPy raises many types for a bad header or data file
-        raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
-    _real(cube.dtype, p, "data type")
-    if str(meta.get("wavelength units", "nm")).lower().startswith(("micro", "um", "µm")):
-        w *= 1000.0
-    return cube, check_wavelengths(w, source=str(p), key="wavelength")
-
-
-def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str) -> np.ndarray:
-    """The cube's spectra ``(rows·cols, grid.size)`` on the grid (interpolated if needed)."""
+    :param owned: ``cube`` may be changed in place (a cube just read from a file); else it is copied first
+        when a pixel must be zeroed."""
     cube = np.asarray(cube)
     if cube.ndim != 3:
         raise InputError(f"a cube needs shape (rows, cols, wavelengths), got {cube.shape}", source=source)
@@ -135,15 +55,25 @@ def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralG
         if nw != grid.size:
             raise InputError(f"cube has {nw} wavelengths but the grid {grid.describe()} has {grid.size}; "
                              "give the cube's wavelengths or match the grid", source=source)
-        check_finite(flat, source=source)
-        return flat
-    w = check_wavelengths(wavelengths_nm, source=source)
-    if w.size != nw:
-        raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
-    check_finite(flat, source=source)
+        w = grid.wavelengths
+    else:
+        w = check_wavelengths(wavelengths_nm, source=source)
+        if w.size != nw:
+            raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
+    nodata, flat = _zero_nodata(flat, owned)
     if w.size == grid.size and np.allclose(w, grid.wavelengths, atol=1e-6):
-        return flat
-    return resample_to_grid(w, flat, grid, source=source)
+        return flat, nodata
+    return resample_to_grid(w, flat, grid, source=source), nodata
+
+
+def _zero_nodata(flat: np.ndarray, owned: bool) -> tuple[np.ndarray, np.ndarray]:
+    """NODATA mask of ``flat`` and ``flat`` with those rows zeroed (a copy unless ``owned``)."""
+    nodata = nodata_rows(flat)
+    if nodata.any():
+        if not owned:
+            flat = flat.copy()
+        flat[nodata] = 0
+    return nodata, flat
 
 
 def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> np.ndarray:
@@ -163,27 +93,44 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
 
 @dataclass(frozen=True)
 class SceneCube:
-    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``."""
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, finite (zero at
+    NODATA pixels), and the NODATA mask ``(rows·cols,)``."""
 
     spectra: np.ndarray
     rows: int
     cols: int
     source: str
+    nodata: np.ndarray | None = None
+
+    @property
+    def nodata_image(self) -> np.ndarray:
+        """NODATA mask ``(rows, cols)`` (all False when the cube has none)."""
+        if self.nodata is None:
+            return np.zeros((self.rows, self.cols), bool)
+        return self.nodata.reshape(self.rows, self.cols)
 
 
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                     wavelengths_nm: np.ndarray | None = None) -> SceneCube:
-    """The scene's ``surface.cube`` file (or ``cube`` given in memory) loaded onto the scene's grid, with
-    every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it creates the folder."""
+    """The scene's ``surface.cube`` file (or ``cube`` given in memory: NaN marks no data) loaded onto the
+    scene's grid, with every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it
+    creates the folder."""
     s = scene.spec
     source = scene.source
+    owned = False
     if cube is None:
         if s.surface.cube is None:
             raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
-        cube, wavelengths_nm = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
         source = str(scene.resolve(s.surface.cube))
+        read: CubeFile = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
+        cube, wavelengths_nm, owned = read.values, read.wavelengths_nm, True
+        if read.bad_nm.size:
+            weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
+            check_bad_band_gaps([b.name for b in scene.sensor.bands],
+                                gap_weights(weights, scene.grid, read.wavelengths_nm, read.bad_nm),
+                                s.surface.quantity, source)
     rows, cols = np.asarray(cube).shape[:2]
-    spectra = to_grid(cube, wavelengths_nm, scene.grid, source)
+    spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source, owned=owned)
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
@@ -193,7 +140,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
-    return SceneCube(spectra, rows, cols, source)
+    return SceneCube(spectra, rows, cols, source, nodata if nodata.any() else None)
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
@@ -212,13 +159,16 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
     ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
                            "effects": scene.effects.describe(), "seed": scene.run.seed,
-                           "input_gsd_m": gsd_in, "psf": s.spatial.psf})
+                           "input_gsd_m": gsd_in, "psf": s.spatial.psf,
+                           "nodata_input_pixels": int(prepared.nodata_image.sum())})
     bands = scene.sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
         ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
         factor = _factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source)
         images = np.stack([aggregate(radiance[k], factor, psf) for k in ids])
-        _add_group(ds, scene, sim, ids, images, gsd)
+        nodata = footprint_nodata(prepared.nodata_image, factor, psf_radius(factor, psf, FWHM_TO_SIGMA))
+        images[:, nodata] = np.nan
+        _add_group(ds, scene, sim, ids, images, gsd, nodata)
     return ds
 
 
@@ -232,8 +182,9 @@ def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
 
 
 def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], images: np.ndarray,
-               gsd: float) -> None:
-    """Sense one GSD group's band images and add their variables to ``ds``."""
+               gsd: float, nodata: np.ndarray) -> None:
+    """Sense one GSD group's band images (NaN at the ``nodata`` pixels) and add their variables to ``ds``;
+    every band gets ``flags_<band>`` (the radiometric stage's when it quantises, else NODATA alone)."""
     bands = scene.sensor.bands
     ny, nx = images.shape[1:]
     ydim, xdim = f"y_{gsd:g}m", f"x_{gsd:g}m"
@@ -250,18 +201,26 @@ def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], ima
         sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
                           correction=correction)
         result = sensing(flat, seed=scene.run.seed, frame=scene.run.frame)
+    flags = result.flags if result is not None else None
+    if flags is None:
+        flags = np.where(nodata.reshape(1, -1), np.uint8(PixelFlag.NODATA), np.uint8(0)).repeat(len(ids), axis=0)
     for j, k in enumerate(ids):
         attrs = band_attrs(bands[k], scene.sensor.bits)
         name = bands[k].name
         ds[f"radiance_{name}"] = ((ydim, xdim), images[j],
                                   {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
+        ds[f"flags_{name}"] = ((ydim, xdim), flags[j].reshape(ny, nx),
+                               {**attrs, **pixel_attrs("flags", "1", "radiometric pixel flags")})
         if result is None:
             continue
         for var, units, long_name in PIXEL_VARIABLES:
             arr = getattr(result, var)
-            if arr is not None:
+            if arr is not None and var != "flags":
                 ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx),
                                        {**attrs, **pixel_attrs(var, units, long_name)})
-        if result.clipped is not None:
-            ds[f"radiance_{name}"].attrs.update(clipped_below_lmin=int(result.clipped[0, j]),
-                                               clipped_above_lmax=int(result.clipped[1, j]))
+        if result.flags is not None:  # no-data pixels are counted as such, not as clipped below Lmin
+            f = result.flags[j]
+            ds[f"radiance_{name}"].attrs.update(
+                clipped_below_lmin=int(np.count_nonzero(f & PixelFlag.LOW)),
+                clipped_above_lmax=int(np.count_nonzero(f & PixelFlag.HIGH)),
+                nodata_pixels=int(np.count_nonzero(f & PixelFlag.NODATA)))
