@@ -55,7 +55,7 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)
     if sc.spec.surface.cube is not None:
-        return _simulate_cube(sc, folder, device, budget, progress, on_start)
+        return _simulate_cube(checked, folder, device, budget, progress, on_start)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)
     get_runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
@@ -75,28 +75,45 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
                          result.attrs, result.analysis, total, seconds)
 
 
-def _simulate_cube(sc: Scene, folder: Path, device: str | None, budget: Any, progress: Callable[[int], None] | None,
+def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
+                   progress: Callable[[int], None] | None,
                    on_start: Callable[[str, int], None] | None) -> SimulationRun:
     """Simulate the scene's image cube (sized from its metadata, loaded whole and checked before the folder is
-    made) into ``simulation.nc``."""
+    made) into ``simulation.nc`` and ``simulation.json``; with an [analysis], its map goes into ``simulation.nc``
+    and a quicklook into ``quicklook.png`` (:mod:`s2cl.app.image_analysis`)."""
     from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import cube_size, load_scene_cube, simulate_cube
+    from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
     from s2cl.io.budget import BASELINE_BYTES
     from s2cl.io.outdir import claim
-    from s2cl.io.output import write_netcdf
+    from s2cl.io.output import write_json, write_netcdf
+    from s2cl.scene.caveats import report
 
-    pixels, wavelengths = cube_size(sc.resolve(sc.spec.surface.cube))
-    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size
+    sc = checked.scene
+    pixels, wavelengths = scene_cube_size(sc)
+    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + (CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0)
                  + CUBE_BYTES_PER_BAND * sc.sensor.size)
     budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
                    "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
+    warnings = report(checked.caveats)
     t0 = time.perf_counter()
+    written = [folder / "simulation.nc", folder / SIMULATION_JSON]
     with claim(folder):
         if on_start:
             on_start(f"{sc.name}: cube", 1)
         ds = simulate_cube(rt, sc, cube=cube, progress=(lambda n: progress(1)) if progress else None)
+        analysis = None
+        if checked.analysis is not None:
+            from s2cl.app.image_analysis import analyse_image
+            from s2cl.app.image_quicklook import write_quicklook
+
+            analysis = analyse_image(rt, sc, ds, cube, list(checked.analysis_bands), checked.analysis)
+            written.append(write_quicklook(ds, folder / "quicklook.png", analysis["map"]))
         write_netcdf(folder / "simulation.nc", ds)
-    return SimulationRun(sc.name, folder, (folder / "simulation.nc",), pixels=pixels,
-                         seconds=time.perf_counter() - t0)
+        seconds = time.perf_counter() - t0
+        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in ds.attrs.items()}
+        write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": pixels,
+                                              "seconds": seconds, "analysis": analysis, "warnings": warnings})
+    return SimulationRun(sc.name, folder, tuple(written), attrs=attrs, analysis=analysis, pixels=pixels,
+                         seconds=seconds)

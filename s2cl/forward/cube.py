@@ -10,7 +10,7 @@ band's grid.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,7 @@ from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
 from s2cl.io.inputs import input_file, parse_number
+from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import check_finite, resample_to_grid
 from s2cl.scene.scene import Scene
 from s2cl.version import __version__
@@ -161,14 +162,31 @@ def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> 
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SceneCube:
-    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``."""
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, or (a generated cube,
+    :mod:`s2cl.libraries.fields`) its distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming
+    each pixel's spectrum; ``truth``: parameter maps ``(rows, cols)`` where the cube knows them, and ``parcels``,
+    the id of the uniform parcel each pixel lies in (None for a cube read from a file)."""
 
     spectra: np.ndarray
     rows: int
     cols: int
     source: str
+    labels: np.ndarray | None = None
+    truth: dict[str, np.ndarray] = field(default_factory=dict)
+    parcels: np.ndarray | None = None
+
+
+def scene_cube_size(scene: Scene) -> tuple[int, int]:
+    """(pixels, wavelengths held per pixel) of the scene's cube from its metadata only: a generated cube holds
+    no spectrum per pixel (0)."""
+    cube = scene.spec.surface.cube
+    assert cube is not None
+    if is_builtin_cube(cube):
+        rows, cols = fields_shape(cube, source=scene.source)
+        return rows * cols, 0
+    return cube_size(scene.resolve(cube))
 
 
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
@@ -177,13 +195,21 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
     every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it creates the folder."""
     s = scene.spec
     source = scene.source
+    generated = None
     if cube is None:
         if s.surface.cube is None:
             raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
-        cube, wavelengths_nm = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
-        source = str(scene.resolve(s.surface.cube))
-    rows, cols = np.asarray(cube).shape[:2]
-    spectra = to_grid(cube, wavelengths_nm, scene.grid, source)
+        if is_builtin_cube(s.surface.cube):
+            rows, cols = fields_shape(s.surface.cube, source=source)
+            generated = fields_image(scene.grid, rows, cols, scene.run.seed)
+        else:
+            cube, wavelengths_nm = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
+            source = str(scene.resolve(s.surface.cube))
+    if generated is not None:
+        spectra = generated.library.spectra
+    else:
+        rows, cols = np.asarray(cube).shape[:2]
+        spectra = to_grid(cube, wavelengths_nm, scene.grid, source)
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
@@ -193,6 +219,9 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
+    if generated is not None:
+        return SceneCube(spectra, rows, cols, source, generated.labels.reshape(-1), generated.truth(),
+                         generated.parcels)
     return SceneCube(spectra, rows, cols, source)
 
 
@@ -206,7 +235,10 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
+    radiance = sim.band_radiance(spectra)
+    if prepared.labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
+        radiance = radiance[:, prepared.labels]
+    radiance = radiance.reshape(scene.sensor.size, rows, cols)
     if progress:
         progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
