@@ -164,7 +164,7 @@ def _against_truth(ds: xr.Dataset, scene: Scene, cube: SceneCube, r: PixelResult
     scored = np.isfinite(error)
     e, tt = error[scored], t[scored]
     ss_tot = float(((tt - tt.mean()) ** 2).sum()) if tt.size else 0.0
-    out.update({f"calibration_{k}": float(np.asarray(v)[0]) for k, v in stats.items()
+    out.update({f"calibration_{k}": np.asarray(v)[0].item() for k, v in stats.items()
                 if k in ("rms", "r2", "robust_rms", "rms_unbounded", "n_valid")})
     out.update(calibration={"x0": poly.x0, "xs": poly.xs, "coef": list(poly.coef)},
                scored_pixels=int(scored.sum()),

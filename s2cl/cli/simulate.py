@@ -36,6 +36,8 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
         _print_summary(run.rows, run.attrs, run.pixels, run.seconds)
         if run.analysis:
             _print_analysis(run.analysis)
+    elif not quiet and run.analysis:
+        _print_image_analysis(run.analysis)
     click.echo("wrote " + " and ".join(str(p) for p in run.written))
 
 
@@ -67,3 +69,14 @@ def _print_analysis(a: dict[str, Any]) -> None:
     click.echo(f"{a['kind'].upper()} on {bands} -> {a['parameter']}: RMS {a['rms']:.3g}, R² {a['r2']:.3f}, "
                f"robust {a['robust_rms']:.3g}, without fits on a bound {a['rms_unbounded']:.3g}; "
                f"failed {a['failed_fraction']:.2%}, on a bound {a['bound_fraction']:.2%}")
+
+
+def _print_image_analysis(a: dict[str, Any]) -> None:
+    """An image's analysis in two lines: the fit accounting, then the map against the truth where there is one."""
+    click.echo(f"{a['kind'].upper()} on {' '.join(a['bands'])} at {a['gsd_m']:g} m: {a['pixels']:,} pixels, "
+               f"{a['fitted_pixels']:,} fitted, {a['degenerate_pixels']:,} degenerate, {a['invalid_pixels']:,} "
+               f"invalid, {a['bound_pixels']:,} on a bound")
+    if "rms" in a:
+        click.echo(f"{a['parameter']} map against the truth over {a['scored_pixels']:,} pixels: RMS {a['rms']:.3g}, "
+                   f"bias {a['bias']:.3g}, R² {a['r2']:.3f} (calibration on {a['calibration_pixels']:,} pure pixels: "
+                   f"RMS {a['calibration_rms']:.3g})")
