@@ -17,6 +17,7 @@ from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube, simulate_cube
 from s2cl.forward.simulate import Simulator, scene_atmosphere
 from s2cl.grid import DEFAULT_GRID
+from s2cl.io.image_store import MemoryStore
 from s2cl.libraries.fields import CLASSES, fields_image, fields_shape
 from s2cl.reference.igrm import fit_numpy_lm
 from s2cl.reference.igrm_varpro import fit_numpy_varpro
@@ -42,11 +43,15 @@ def _scene(cube: str = "builtin:fields:40x48", *, noise: bool = True, psf: str =
     })
 
 
-def _run(rt, scene: Scene) -> tuple[xr.Dataset, dict, object]:
+def _run(rt, scene: Scene, block_rows: int | None = None) -> tuple[xr.Dataset, dict, object, MemoryStore]:
+    """Simulate and analyse ``scene`` in memory, ``block_rows`` input rows at a time (the analysis: half as many)."""
     checked = check_simulate(scene)
     cube = load_scene_cube(scene)
-    ds = simulate_cube(rt, scene, cube=cube)
-    return ds, analyse_image(rt, scene, ds, cube, checked.analysis_bands, checked.analysis), cube
+    store = MemoryStore()
+    simulate_cube(rt, scene, cube=cube, store=store, block_rows=block_rows)
+    a = analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis,
+                      block_rows=None if block_rows is None else block_rows // 2)
+    return store.dataset(), a, cube, store
 
 
 def test_fields_image_is_reproducible_with_its_truth() -> None:
@@ -81,12 +86,12 @@ def test_uniform_parcels_give_the_library_pixels_own_retrieval(rt) -> None:
     """Noise off, no PSF: each pixel inside a parcel gets, bit for bit, the retrieval the library path
     (Simulator.run_library + pixel_results) gives that parcel's spectrum."""
     scene = _scene(noise=False)
-    ds, _, cube = _run(rt, scene)
+    ds, _, cube, _ = _run(rt, scene)
     lib = fields_image(scene.grid, 40, 48, scene.run.seed).library
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     own = pixel_results(rt, scene, sim.run_library(lib, copies=1, seed=scene.run.seed))
     labels = cube.labels.reshape(40, 48)[::2, ::2][:20, :24]  # the spectrum of each 20 m pixel's first input pixel
-    pure = pure_pixels(cube.parcels, 2, (20, 24))
+    pure = pure_pixels(cube.parcels, 2, 24)
     assert pure.mean() > 0.5
     index, status = ds["analysis_index"].values, ds["analysis_status"].values
     np.testing.assert_array_equal(status[pure], own.status[labels[pure]])
@@ -98,11 +103,11 @@ def test_map_is_the_float64_twin_of_the_common_grid(rt) -> None:
     if not rt.has_fp64:
         pytest.skip("device has no cl_khr_fp64")
     scene = _scene(precision="float64", psf="gaussian")
-    ds, _, _ = _run(rt, scene)
+    ds, _, _, store = _run(rt, scene)
     b4 = ds["reflectance_B4"].values
     b4 = b4.reshape(20, 2, 24, 2).mean(axis=(1, 3))
     refl = np.stack([b4] + [ds[f"reflectance_{b}"].values for b in RED_EDGE[1:]]).reshape(4, -1)
-    np.testing.assert_allclose(common_grid(ds, scene, RED_EDGE).reflectance.reshape(4, -1), refl, rtol=1e-12)
+    np.testing.assert_allclose(common_grid(store, scene, RED_EDGE).reshape(4, -1), refl, rtol=1e-12)
     settings = IgrmSettings()
     centres = np.array([scene.sensor.band(b).centre_nm for b in RED_EDGE])
     twin = (fit_numpy_varpro if settings.resolved_solver() == "varpro" else fit_numpy_lm)(
@@ -115,9 +120,9 @@ def test_map_is_the_float64_twin_of_the_common_grid(rt) -> None:
 
 def test_bare_parcels_report_no_red_edge_and_stay_finite(rt) -> None:
     scene = _scene("builtin:fields:80x80", noise=False, seed=11)
-    ds, _, cube = _run(rt, scene)
+    ds, _, cube, _ = _run(rt, scene)
     groups = np.array(fields_image(scene.grid, 80, 80, 11).library.groups)[cube.labels.reshape(80, 80)]
-    pure = pure_pixels(cube.parcels, 2, (40, 40))
+    pure = pure_pixels(cube.parcels, 2, 40)
     first = groups[::2, ::2]
     index, status = ds["analysis_index"].values, ds["analysis_status"].values
     fitted = np.isin(status, FITTED)
@@ -147,9 +152,11 @@ def test_non_finite_reflectance_is_invalid_and_leaves_neighbours(rt) -> None:
     # in an image: one NaN input pixel spoils its own 20 m box only
     checked = check_simulate(scene)
     cube = load_scene_cube(scene)
-    ds = simulate_cube(rt, scene, cube=cube)
-    ds["reflectance_B4"].values[5, 7] = np.nan
-    analyse_image(rt, scene, ds, cube, checked.analysis_bands, checked.analysis)
+    store = MemoryStore()
+    simulate_cube(rt, scene, cube=cube, store=store)
+    store.read("reflectance_B4", slice(None))[5, 7] = np.nan
+    analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis)
+    ds = store.dataset()
     status = ds["analysis_status"].values
     assert status[2, 3] == Status.INVALID and np.isnan(ds["analysis_index"].values[2, 3])
     assert np.count_nonzero(status == Status.INVALID) == 1
@@ -157,8 +164,8 @@ def test_non_finite_reflectance_is_invalid_and_leaves_neighbours(rt) -> None:
 
 def test_error_map_and_metrics_against_the_truth(rt) -> None:
     scene = _scene("builtin:fields:60x60")
-    ds, a, cube = _run(rt, scene)
-    truth = truth_on_grid(cube.truth["cab"], 2, (30, 30))
+    ds, a, cube, _ = _run(rt, scene)
+    truth = truth_on_grid(cube.truth("cab"), 2, 30)
     np.testing.assert_allclose(ds["cab_truth"].values, truth, rtol=1e-6)
     err = ds["cab_error"].values.astype(np.float64)
     np.testing.assert_allclose(err, ds["cab_map"].values - truth, atol=1e-3, equal_nan=True)
@@ -212,3 +219,70 @@ def test_simulate_cube_fields_writes_the_map_its_error_and_a_quicklook(tmp_path)
     a = json.loads((out / "simulation.json").read_text())["analysis"]
     assert a["parameter"] == "cab" and np.isfinite(a["rms"]) and a["scored_pixels"] > 1000
     assert (out / "quicklook.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_row_blocks_give_the_whole_image(rt) -> None:
+    """With a PSF (its halo read around each block), noise and the analysis: blocks of 12 input rows (the last one
+    short, trailing rows filling no 60 m pixel) write exactly the variables of the whole image at once."""
+    scene = _scene("builtin:fields:58x44", psf="gaussian")
+    scene = Scene.from_dict({**scene.spec.model_dump(exclude_none=True), "sensor": {"bands": ["B1", "B2", "B3",
+                                                                                              *RED_EDGE]}})
+    whole, a_whole, _, _ = _run(rt, scene)
+    blocks, a_blocks, _, _ = _run(rt, scene, block_rows=12)
+    assert whole["dn_B1"].shape == (9, 7) and "cab_error" in whole
+    assert set(whole.data_vars) == set(blocks.data_vars)
+    for name in whole.data_vars:
+        np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
+        assert whole[name].attrs.keys() == blocks[name].attrs.keys()
+    assert whole["radiance_B1"].attrs["clipped_below_lmin"] == blocks["radiance_B1"].attrs["clipped_below_lmin"]
+    for key in ("rms", "bias", "r2", "calibration_rms", "fitted_pixels"):
+        assert a_blocks[key] == pytest.approx(a_whole[key], rel=1e-9, abs=1e-9), key
+
+
+@pytest.mark.slow
+def test_a_cube_larger_than_the_memory_limit_streams_with_a_bounded_peak(tmp_path) -> None:
+    """``s2cl simulate`` of a 960 × 960 image with --max-memory 400MB: the limit leaves the blocks a few tens of MB
+    beyond the baseline, a third of what the image takes whole; it runs in row blocks and the peak it allocates
+    (tracemalloc, numpy's arrays included, net of a 60 × 60 image's run) stays inside what the limit leaves, while
+    the same image simulated whole allocates more than three times that. Same files either way."""
+    import tracemalloc
+
+    from s2cl.app.simulate_scene import CUBE_BYTES_GENERATED, cube_block_rows, simulate_scene
+    from s2cl.io.budget import BASELINE_BYTES, Budget
+
+    def peak(cube: str, max_memory: str | None, out: str) -> tuple[int, dict]:
+        toml = tmp_path / f"{out}.toml"
+        toml.write_text(_toml(cube))
+        tracemalloc.start()
+        try:
+            run = simulate_scene(toml, tmp_path / out, max_memory=max_memory)
+            return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
+        finally:
+            tracemalloc.stop()
+
+    limit = 400_000_000
+    left = limit - BASELINE_BYTES  # what the limit leaves beyond the baseline (which the base run's peak stands for)
+    big = "builtin:fields:960x960"
+    scene = Scene.from_dict({"scene": {"name": "x"}, "surface": {"cube": big, "gsd_m": 10, "quantity": "reflectance"},
+                             "effects": {"atmosphere": True}, "spatial": {"psf": "gaussian"}})
+    assert left > 960 * 960 * CUBE_BYTES_GENERATED
+    assert cube_block_rows(scene, Budget.of(None)) is None  # the default limit holds it whole
+    assert cube_block_rows(scene, Budget.of(str(limit))) < 960 / 10
+    peak("builtin:fields:60x60", None, "warm")  # one-time costs: LUT, libraries, kernel builds
+    base, _ = peak("builtin:fields:60x60", None, "base")
+    streamed, small = peak(big, str(limit), "small")
+    whole, large = peak(big, None, "whole")
+    assert small["block_rows"] < 960 / 10 and large["block_rows"] is None
+    assert streamed - base < left, (streamed, base, left)
+    assert whole - base > 3 * left, (whole, base, left)
+    assert small["analysis"]["rms"] == pytest.approx(large["analysis"]["rms"], rel=1e-9)
+    with xr.open_dataset(tmp_path / "small" / "simulation.nc", engine="h5netcdf") as a, \
+            xr.open_dataset(tmp_path / "whole" / "simulation.nc", engine="h5netcdf") as b:
+        for name in ("dn_B5", "reflectance_B2", "analysis_index", "cab_error"):
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+def _toml(cube: str) -> str:
+    return (f'[scene]\nname = "big"\n[surface]\ncube = "{cube}"\ngsd_m = 10\nquantity = "reflectance"\n'
+            '[effects]\natmosphere = true\nnoise = true\nquantise = true\ncalibrate = true\ncorrect = true\n'
+            '[spatial]\npsf = "gaussian"\n[analysis]\nkind = "igrm"\nparameter = "cab"\n')

@@ -4,24 +4,34 @@ truth is known), drawn off screen (:mod:`s2cl.io.plots`)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import xarray as xr
 
+from s2cl.io.image_store import ImageStore
 from s2cl.io.plots import pyplot, save_png
 from s2cl.status import Status
 
 #: bands of the true-colour panel (red, green, blue), Sentinel-2 names
 TRUE_COLOUR = ("B4", "B3", "B2")
+#: largest side (pixels) of a panel: a larger image is read every n-th row and column
+MAX_SIDE = 600
 
 
-def true_colour(ds: xr.Dataset) -> np.ndarray | None:
+def _decimated(store: ImageStore, name: str) -> np.ndarray:
+    """Every n-th row and column of ``name`` (n: what keeps its larger side under :data:`MAX_SIDE`), float64."""
+    ny, nx = store.shape(name)
+    n = max(1, -(-max(ny, nx) // MAX_SIDE))
+    return store.read(name, slice(0, ny, n))[:, ::n].astype(np.float64)
+
+
+def true_colour(ds: Any) -> np.ndarray | None:
     """An RGB image ``(ny, nx, 3)`` in 0–1 of the corrected reflectance (each channel stretched to its 2–98 %
     percentiles), or None when a true-colour band is missing."""
     names = [f"reflectance_{b}" for b in TRUE_COLOUR]
     if not all(n in ds for n in names):
         return None
-    channels = [ds[n].values.astype(np.float64) for n in names]
+    channels = [_decimated(ds, n) for n in names]
     ny = min(c.shape[0] for c in channels)
     nx = min(c.shape[1] for c in channels)
     rgb = np.stack([c[:ny, :nx] for c in channels], axis=-1)
@@ -32,8 +42,9 @@ def true_colour(ds: xr.Dataset) -> np.ndarray | None:
     return np.clip((rgb - lo) / np.where(hi > lo, hi - lo, 1.0), 0.0, 1.0)
 
 
-def write_quicklook(ds: xr.Dataset, path: str | Path, map_name: str = "analysis_index") -> Path:
-    """Write the quicklook of ``ds``'s analysis (``map_name``: the variable shown as the map) to ``path``."""
+def write_quicklook(ds: ImageStore, path: str | Path, map_name: str = "analysis_index") -> Path:
+    """Write the quicklook of the analysis in store ``ds`` (``map_name``: the variable shown as the map) to
+    ``path``."""
     plt = pyplot()
     rgb = true_colour(ds)
     panels = ["rgb"] if rgb is not None else []
@@ -50,8 +61,7 @@ def write_quicklook(ds: xr.Dataset, path: str | Path, map_name: str = "analysis_
             ax.imshow(rgb, interpolation="nearest")
             ax.set_title("true colour (" + " ".join(TRUE_COLOUR) + ")")
             continue
-        v = ds[name]
-        data = v.values.astype(np.float64)
+        data = _decimated(ds, name)
         if name == "analysis_status":
             codes = [s.value for s in Status]
             cmap = plt.get_cmap("tab10").resampled(len(codes))
@@ -67,10 +77,11 @@ def write_quicklook(ds: xr.Dataset, path: str | Path, map_name: str = "analysis_
         else:
             truth = name.replace("_map", "_truth")
             if truth != name and truth in ds:  # the map on the truth's scale: outliers saturate
-                finite = ds[truth].values[np.isfinite(ds[truth].values)].astype(np.float64)
+                values = _decimated(ds, truth)
+                finite = values[np.isfinite(values)]
             lo, hi = (np.percentile(finite, [0, 100] if truth in ds else [2, 98]) if finite.size else (0.0, 1.0))
             im = ax.imshow(data, cmap="viridis", vmin=lo, vmax=hi, interpolation="nearest")
-        fig.colorbar(im, ax=ax, shrink=0.8, label=v.attrs.get("units", ""))
+        fig.colorbar(im, ax=ax, shrink=0.8, label=ds.attrs_of(name).get("units", ""))
         ax.set_title(name.replace("_", " "))
     fig.suptitle(f"{ds.attrs.get('scene', '')}: {ds.attrs.get('analysis_kind', '')} on "
                  f"{ds.attrs.get('analysis_bands', '')} at {ds.attrs.get('analysis_gsd_m', '')} m")

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,6 +17,11 @@ SIMULATION_JSON = "simulation.json"
 #: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
 #: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
 CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
+#: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
+CUBE_BYTES_GENERATED = 16
+#: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
+#: float32, DN, flags)
+CUBE_DISK_BYTES_PER_BAND = 23
 
 
 @dataclass(frozen=True)
@@ -75,45 +81,98 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
                          result.attrs, result.analysis, total, seconds)
 
 
+def cube_block_rows(sc: Scene, budget: Any) -> int | None:
+    """Input rows of the scene's cube simulated at a time within ``budget`` (None: the whole image fits); a
+    :class:`ResourceError` naming ``surface.cube`` when not even one block of rows fits.
+
+    What does not stream: a cube file's spectra, loaded whole onto the grid (:data:`CUBE_BYTES_PER_INPUT` per input
+    wavelength, :data:`CUBE_BYTES_PER_GRID` per grid wavelength), a generated cube's labels and parcel ids, and the
+    map's index, status and bounds. What does: per band and input pixel of a block (and of its PSF halo) the band
+    images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`)."""
+    from s2cl.forward.cube import FWHM_TO_SIGMA, scene_cube_size
+    from s2cl.forward.row_blocks import gaussian_radius
+    from s2cl.io.budget import BASELINE_BYTES
+
+    pixels, wavelengths = scene_cube_size(sc)
+    rows, cols = _cube_shape(sc, pixels)
+    whole = pixels * ((CUBE_BYTES_PER_INPUT * wavelengths + 8 * sc.grid.size) if wavelengths else CUBE_BYTES_GENERATED)
+    per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + ((CUBE_BYTES_PER_GRID - 8) * sc.grid.size if wavelengths
+                                                               else 0))
+    s = sc.spec
+    gsd_in = s.surface.gsd_m or 1.0
+    factors = [round(b.gsd_m / gsd_in) for b in sc.sensor.bands]
+    halo = gaussian_radius(s.spatial.psf_fwhm * max(factors) * FWHM_TO_SIGMA) if s.spatial.psf == "gaussian" else 0
+    unit = math.lcm(*factors)
+    fixed = BASELINE_BYTES + whole
+    if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:
+        return None
+    budget.require(fixed + (unit + 2 * halo) * per_row, what=f"a cube of {pixels:,} pixels × {wavelengths} "
+                   f"wavelengths in blocks of {unit} rows", key="surface.cube", source=sc.source,
+                   fits="crop the cube or coarsen grid.step_nm")
+    return max(unit, int((budget.memory_bytes - fixed) // per_row) - 2 * halo)
+
+
+def _cube_shape(sc: Scene, pixels: int) -> tuple[int, int]:
+    """(rows, cols) of the scene's cube from its metadata (a file cube: taken as square when only its pixel count is
+    known)."""
+    from s2cl.libraries.fields import fields_shape, is_builtin_cube
+
+    cube = sc.spec.surface.cube
+    assert cube is not None
+    if is_builtin_cube(cube):
+        return fields_shape(cube, source=sc.source)
+    side = max(1, math.isqrt(pixels))
+    return side, max(1, pixels // side)
+
+
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                    progress: Callable[[int], None] | None,
                    on_start: Callable[[str, int], None] | None) -> SimulationRun:
-    """Simulate the scene's image cube (sized from its metadata, loaded whole and checked before the folder is
-    made) into ``simulation.nc`` and ``simulation.json``; with an [analysis], its map goes into ``simulation.nc``
-    and a quicklook into ``quicklook.png`` (:mod:`s2cl.app.image_analysis`)."""
+    """Simulate the scene's image cube (sized from its metadata, checked before the folder is made) into
+    ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
+    with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
+    (:mod:`s2cl.app.image_analysis`)."""
     from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
-    from s2cl.io.budget import BASELINE_BYTES
+    from s2cl.forward.cube import load_scene_cube, simulate_cube
+    from s2cl.io.image_store import NetcdfStore
     from s2cl.io.outdir import claim
-    from s2cl.io.output import write_json, write_netcdf
+    from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
     from s2cl.scene.caveats import report
 
     sc = checked.scene
-    pixels, wavelengths = scene_cube_size(sc)
-    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + (CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0)
-                 + CUBE_BYTES_PER_BAND * sc.sensor.size)
-    budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
-                   "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
+    block_rows = cube_block_rows(sc, budget)
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
+    require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * CUBE_DISK_BYTES_PER_BAND * sc.sensor.size
+                 + 2e6)
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
-    written = [folder / "simulation.nc", folder / SIMULATION_JSON]
+    nc = folder / "simulation.nc"
+    written = [nc, folder / SIMULATION_JSON]
     with claim(folder):
         if on_start:
-            on_start(f"{sc.name}: cube", 1)
-        ds = simulate_cube(rt, sc, cube=cube, progress=(lambda n: progress(1)) if progress else None)
-        analysis = None
-        if checked.analysis is not None:
-            from s2cl.app.image_analysis import analyse_image
-            from s2cl.app.image_quicklook import write_quicklook
+            on_start(f"{sc.name}: cube", cube.rows * cube.cols)
+        with atomic_path(nc) as tmp, hdf5_errors(nc):
+            store = NetcdfStore(tmp)
+            try:
+                simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
+                analysis = None
+                if checked.analysis is not None:
+                    from s2cl.app.image_analysis import analyse_image
+                    from s2cl.app.image_quicklook import write_quicklook
 
-            analysis = analyse_image(rt, sc, ds, cube, list(checked.analysis_bands), checked.analysis)
-            written.append(write_quicklook(ds, folder / "quicklook.png", analysis["map"]))
-        write_netcdf(folder / "simulation.nc", ds)
+                    step = None if block_rows is None else max(1, block_rows * (sc.spec.surface.gsd_m or 1.0)
+                                                               // max(sc.sensor.band(b).gsd_m
+                                                                      for b in checked.analysis_bands))
+                    analysis = analyse_image(rt, sc, store, cube, list(checked.analysis_bands), checked.analysis,
+                                             block_rows=None if step is None else int(step))
+                    written.append(write_quicklook(store, folder / "quicklook.png", analysis["map"]))
+                attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
+            finally:
+                store.close()
         seconds = time.perf_counter() - t0
-        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in ds.attrs.items()}
-        write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": pixels,
-                                              "seconds": seconds, "analysis": analysis, "warnings": warnings})
-    return SimulationRun(sc.name, folder, tuple(written), attrs=attrs, analysis=analysis, pixels=pixels,
-                         seconds=seconds)
+        write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": cube.rows * cube.cols,
+                                              "block_rows": block_rows, "seconds": seconds, "analysis": analysis,
+                                              "warnings": warnings})
+    return SimulationRun(sc.name, folder, tuple(written), attrs=attrs, analysis=analysis,
+                         pixels=cube.rows * cube.cols, seconds=seconds)

@@ -21,10 +21,12 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
+from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import check_finite, resample_to_grid
@@ -150,32 +152,34 @@ def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralG
 def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> np.ndarray:
     """Box average of ``factor × factor`` blocks (after an optional Gaussian PSF of FWHM
     ``psf_fwhm`` output pixels); trailing partial blocks are dropped."""
-    if psf_fwhm:
-        image = gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")
-    if factor == 1:
-        return image
-    rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
-    if rows == 0 or cols == 0:
+    image = _psf(image, factor, psf_fwhm)
+    if image.shape[0] < factor or image.shape[1] < factor:
         raise InputError(
             f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
-    blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
-    return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
+    return box_mean(image, factor)
 
 
 @dataclass(frozen=True, eq=False)
 class SceneCube:
     """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, or (a generated cube,
     :mod:`s2cl.libraries.fields`) its distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming
-    each pixel's spectrum; ``truth``: parameter maps ``(rows, cols)`` where the cube knows them, and ``parcels``,
-    the id of the uniform parcel each pixel lies in (None for a cube read from a file)."""
+    each pixel's spectrum; ``truth_params``: the parameters of each distinct spectrum where the cube knows them,
+    and ``parcels`` ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a
+    file)."""
 
     spectra: np.ndarray
     rows: int
     cols: int
     source: str
     labels: np.ndarray | None = None
-    truth: dict[str, np.ndarray] = field(default_factory=dict)
+    truth_params: dict[str, np.ndarray] = field(default_factory=dict)
     parcels: np.ndarray | None = None
+
+    def truth(self, name: str, rows: slice = slice(None)) -> np.ndarray | None:
+        """The true ``name`` of each pixel of ``rows`` ``(n_rows, cols)``, or None when the cube does not know it."""
+        if self.labels is None or name not in self.truth_params:
+            return None
+        return self.truth_params[name][self.labels.reshape(self.rows, self.cols)[rows]]
 
 
 def scene_cube_size(scene: Scene) -> tuple[int, int]:
@@ -220,38 +224,47 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
     if generated is not None:
-        return SceneCube(spectra, rows, cols, source, generated.labels.reshape(-1), generated.truth(),
-                         generated.parcels)
+        lib = generated.library
+        return SceneCube(spectra, rows, cols, source, generated.labels.reshape(-1),
+                         {k: lib.params[k] for k in ("cab", "lai")}, generated.parcels)
     return SceneCube(spectra, rows, cols, source)
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
-                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None) -> xr.Dataset:
+                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None,
+                  store: ImageStore | None = None, block_rows: int | None = None) -> xr.Dataset | None:
     """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
-    already loaded by :func:`load_scene_cube`) on ``rt``."""
+    already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
+    written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
+    default all), read with the PSF's halo, so the result does not depend on it."""
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
-    rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
+    rows, cols = prepared.rows, prepared.cols
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    radiance = sim.band_radiance(spectra)
-    if prepared.labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
-        radiance = radiance[:, prepared.labels]
-    radiance = radiance.reshape(scene.sensor.size, rows, cols)
-    if progress:
-        progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
-    ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
-                           "effects": scene.effects.describe(), "seed": scene.run.seed,
-                           "input_gsd_m": gsd_in, "psf": s.spatial.psf})
-    bands = scene.sensor.bands
-    for gsd in sorted({b.gsd_m for b in bands}):
-        ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        factor = _factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source)
-        images = np.stack([aggregate(radiance[k], factor, psf) for k in ids])
-        _add_group(ds, scene, sim, ids, images, gsd)
-    return ds
+    out = store if store is not None else MemoryStore()
+    out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
+                      "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
+                      "psf": s.spatial.psf})
+    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out) for gsd in sorted({b.gsd_m for b in scene.sensor.bands})]
+    halo = max(gaussian_radius(psf * g.factor * FWHM_TO_SIGMA) for g in groups) if psf else 0
+    distinct = sim.band_radiance(prepared.spectra) if prepared.labels is not None else None
+    labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
+    for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
+        lo, hi = block.read_start, block.read_stop
+        if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
+            radiance = distinct[:, labels[lo:hi]]
+        else:
+            radiance = sim.band_radiance(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+        for g in groups:
+            g.add(block, radiance, psf)
+        if progress:
+            progress((block.stop - block.start) * cols)
+    for g in groups:
+        g.finish()
+    return out.dataset() if store is None else None
 
 
 def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
@@ -263,37 +276,76 @@ def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
     return factor
 
 
-def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], images: np.ndarray,
-               gsd: float) -> None:
-    """Sense one GSD group's band images and add their variables to ``ds``."""
-    bands = scene.sensor.bands
-    ny, nx = images.shape[1:]
-    ydim, xdim = f"y_{gsd:g}m", f"x_{gsd:g}m"
-    ds.coords[ydim] = (ydim, (np.arange(ny) + 0.5) * gsd, {"units": "m"})
-    ds.coords[xdim] = (xdim, (np.arange(nx) + 0.5) * gsd, {"units": "m"})
-    flat = images.reshape(len(ids), ny * nx)
-    result = None
-    if scene.effects.senses:
-        group_bands = [bands[k] for k in ids]
-        correction = None
-        if sim.correction is not None:
-            c = sim.correction
-            correction = BandAtmosphere(c.path_radiance[ids], c.ground_term[ids], c.spherical_albedo[ids])
-        sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
-                          correction=correction)
-        result = sensing(flat, seed=scene.run.seed, frame=scene.run.frame)
-    for j, k in enumerate(ids):
-        attrs = band_attrs(bands[k], scene.sensor.bits)
-        name = bands[k].name
-        ds[f"radiance_{name}"] = ((ydim, xdim), images[j],
-                                  {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
-        if result is None:
-            continue
-        for var, units, long_name in PIXEL_VARIABLES:
-            arr = getattr(result, var)
-            if arr is not None:
-                ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx),
-                                       {**attrs, **pixel_attrs(var, units, long_name)})
-        if result.clipped is not None:
-            ds[f"radiance_{name}"].attrs.update(clipped_below_lmin=int(result.clipped[0, j]),
-                                               clipped_above_lmax=int(result.clipped[1, j]))
+class _Group:
+    """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
+
+    def __init__(self, scene: Scene, sim: Simulator, gsd: float, gsd_in: float, rows: int, cols: int,
+                 store: MemoryStore | NetcdfStore):
+        bands = scene.sensor.bands
+        self.scene, self.store, self.gsd = scene, store, gsd
+        self.ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
+        self.factor = _factor(gsd, gsd_in, [bands[k].name for k in self.ids], scene.source)
+        ny, nx = rows // self.factor, cols // self.factor
+        self.nx = nx
+        self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
+        store.dimension(self.dims[0], (np.arange(ny) + 0.5) * gsd, {"units": "m"})
+        store.dimension(self.dims[1], (np.arange(nx) + 0.5) * gsd, {"units": "m"})
+        self.sensing = None
+        if scene.effects.senses:
+            correction = None
+            if sim.correction is not None:
+                c, i = sim.correction, self.ids
+                correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
+            self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
+                                   scene.effects, sim.precision, correction=correction)
+        self.clipped = np.zeros((2, len(self.ids)), np.int64)
+
+    def add(self, block: RowBlock, radiance: np.ndarray, psf: float | None) -> None:
+        """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)``."""
+        f, out_rows = self.factor, block.output_rows(self.factor)
+        ny = out_rows.stop - out_rows.start
+        if ny <= 0:
+            return
+        top = block.start - block.read_start
+        images = np.stack([box_mean(_psf(radiance[k], f, psf)[top : top + ny * f], f) for k in self.ids])
+        images = images[:, :, : self.nx]
+        result = None
+        if self.sensing is not None:
+            result = self.sensing(images.reshape(len(self.ids), -1), seed=self.scene.run.seed,
+                                  frame=self.scene.run.frame, pixel_offset=out_rows.start * self.nx)
+            if result.clipped is not None:
+                self.clipped += result.clipped
+        bands = self.scene.sensor.bands
+        for j, k in enumerate(self.ids):
+            attrs = band_attrs(bands[k], self.scene.sensor.bits)
+            name = bands[k].name
+            self._put(f"radiance_{name}", out_rows, images[j],
+                      {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
+            if result is None:
+                continue
+            for var, units, long_name in PIXEL_VARIABLES:
+                arr = getattr(result, var)
+                if arr is not None:
+                    self._put(f"{var}_{name}", out_rows, arr[j].reshape(ny, self.nx),
+                              {**attrs, **pixel_attrs(var, units, long_name)})
+
+    def _put(self, name: str, rows: slice, data: np.ndarray, attrs: dict) -> None:
+        if name not in self.store:
+            self.store.create(name, self.dims, data.dtype, attrs)
+        self.store.write(name, rows, data)
+
+    def finish(self) -> None:
+        """The clipping counts, once every block is in."""
+        if self.sensing is None or not self.scene.effects.quantise:
+            return
+        for j, k in enumerate(self.ids):
+            self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}",
+                                    {"clipped_below_lmin": int(self.clipped[0, j]),
+                                     "clipped_above_lmax": int(self.clipped[1, j])})
+
+
+def _psf(image: np.ndarray, factor: int, psf_fwhm: float | None) -> np.ndarray:
+    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), or the image itself."""
+    if not psf_fwhm:
+        return image
+    return gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")
