@@ -266,8 +266,8 @@ def test_a_cube_larger_than_the_memory_limit_streams_with_a_bounded_peak(tmp_pat
     scene = Scene.from_dict({"scene": {"name": "x"}, "surface": {"cube": big, "gsd_m": 10, "quantity": "reflectance"},
                              "effects": {"atmosphere": True}, "spatial": {"psf": "gaussian"}})
     assert left > 960 * 960 * CUBE_BYTES_GENERATED
-    assert cube_block_rows(scene, Budget.of(None)) is None  # the default limit holds it whole
-    assert cube_block_rows(scene, Budget.of(str(limit))) < 960 / 10
+    assert cube_block_rows(scene, Budget.of(None), 960, 960) is None  # the default limit holds it whole
+    assert cube_block_rows(scene, Budget.of(str(limit)), 960, 960) < 960 / 10
     peak("builtin:fields:60x60", None, "warm")  # one-time costs: LUT, libraries, kernel builds
     base, _ = peak("builtin:fields:60x60", None, "base")
     streamed, small = peak(big, str(limit), "small")
@@ -286,3 +286,25 @@ def _toml(cube: str) -> str:
     return (f'[scene]\nname = "big"\n[surface]\ncube = "{cube}"\ngsd_m = 10\nquantity = "reflectance"\n'
             '[effects]\natmosphere = true\nnoise = true\nquantise = true\ncalibrate = true\ncorrect = true\n'
             '[spatial]\npsf = "gaussian"\n[analysis]\nkind = "igrm"\nparameter = "cab"\n')
+
+
+def test_a_cube_file_of_the_same_spectra_gives_the_same_images_and_a_map_without_truth(rt, tmp_path) -> None:
+    """The generated image written out as a NetCDF cube file: the same band images (the generated path computes
+    each distinct spectrum once); the file has no truth, so the map comes without a parameter map or error."""
+    from s2cl.app.simulate_scene import simulate_scene
+
+    scene = _scene("builtin:fields:24x30", psf="gaussian")
+    image = fields_image(scene.grid, 24, 30, scene.run.seed)
+    cube = image.library.spectra[image.labels].astype(np.float32)
+    xr.Dataset({"reflectance": (("y", "x", "wavelength"), cube)},
+               coords={"wavelength": scene.grid.wavelengths}).to_netcdf(tmp_path / "c.nc", engine="h5netcdf")
+    data = scene.spec.model_dump(exclude_none=True)
+    data["surface"]["cube"] = "c.nc"
+    file_scene = Scene.from_dict(data, base_dir=tmp_path)
+    run = simulate_scene(file_scene, tmp_path / "out")
+    generated, _, _, _ = _run(rt, scene)
+    with xr.open_dataset(run.folder / "simulation.nc", engine="h5netcdf") as ds:
+        np.testing.assert_allclose(ds["radiance_B5"].values, generated["radiance_B5"].values, rtol=1e-6)
+        assert "analysis_index" in ds and "analysis_status" in ds and "cab_map" not in ds
+    assert "rms" not in run.analysis and run.analysis["pixels"] == 12 * 15
+    assert (run.folder / "quicklook.png").exists()

@@ -81,48 +81,38 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
                          result.attrs, result.analysis, total, seconds)
 
 
-def cube_block_rows(sc: Scene, budget: Any) -> int | None:
-    """Input rows of the scene's cube simulated at a time within ``budget`` (None: the whole image fits); a
-    :class:`ResourceError` naming ``surface.cube`` when not even one block of rows fits.
+def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0) -> int | None:
+    """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
+    simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
+    ``surface.cube`` when not even one block of rows fits.
 
-    What does not stream: a cube file's spectra, loaded whole onto the grid (:data:`CUBE_BYTES_PER_INPUT` per input
-    wavelength, :data:`CUBE_BYTES_PER_GRID` per grid wavelength), a generated cube's labels and parcel ids, and the
-    map's index, status and bounds. What does: per band and input pixel of a block (and of its PSF halo) the band
-    images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`)."""
-    from s2cl.forward.cube import FWHM_TO_SIGMA, scene_cube_size
+    What does not stream: a cube file's spectra, loaded whole onto the grid (:func:`cube_whole_bytes`), a generated
+    cube's labels and parcel ids, and the map's index, status and bounds. What does: per band and input pixel of a
+    block and of its PSF halo, the band images, the radiometric stage's outputs and the analysis
+    (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra on their way through the resampler."""
+    from s2cl.forward.cube import FWHM_TO_SIGMA
     from s2cl.forward.row_blocks import gaussian_radius
     from s2cl.io.budget import BASELINE_BYTES
 
-    pixels, wavelengths = scene_cube_size(sc)
-    rows, cols = _cube_shape(sc, pixels)
-    whole = pixels * ((CUBE_BYTES_PER_INPUT * wavelengths + 8 * sc.grid.size) if wavelengths else CUBE_BYTES_GENERATED)
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + ((CUBE_BYTES_PER_GRID - 8) * sc.grid.size if wavelengths
                                                                else 0))
     s = sc.spec
-    gsd_in = s.surface.gsd_m or 1.0
-    factors = [round(b.gsd_m / gsd_in) for b in sc.sensor.bands]
+    factors = [round(b.gsd_m / (s.surface.gsd_m or 1.0)) for b in sc.sensor.bands]
     halo = gaussian_radius(s.spatial.psf_fwhm * max(factors) * FWHM_TO_SIGMA) if s.spatial.psf == "gaussian" else 0
     unit = math.lcm(*factors)
-    fixed = BASELINE_BYTES + whole
+    fixed = BASELINE_BYTES + cube_whole_bytes(sc, rows * cols, wavelengths)
     if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:
         return None
-    budget.require(fixed + (unit + 2 * halo) * per_row, what=f"a cube of {pixels:,} pixels × {wavelengths} "
+    budget.require(fixed + (unit + 2 * halo) * per_row, what=f"a cube of {rows * cols:,} pixels × {wavelengths} "
                    f"wavelengths in blocks of {unit} rows", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")
     return max(unit, int((budget.memory_bytes - fixed) // per_row) - 2 * halo)
 
 
-def _cube_shape(sc: Scene, pixels: int) -> tuple[int, int]:
-    """(rows, cols) of the scene's cube from its metadata (a file cube: taken as square when only its pixel count is
-    known)."""
-    from s2cl.libraries.fields import fields_shape, is_builtin_cube
-
-    cube = sc.spec.surface.cube
-    assert cube is not None
-    if is_builtin_cube(cube):
-        return fields_shape(cube, source=sc.source)
-    side = max(1, math.isqrt(pixels))
-    return side, max(1, pixels // side)
+def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
+    """Bytes a cube holds whole whatever the blocks: a file's spectra as read (:data:`CUBE_BYTES_PER_INPUT` per
+    wavelength) and on the grid (float64), or a generated cube's :data:`CUBE_BYTES_GENERATED`."""
+    return pixels * ((CUBE_BYTES_PER_INPUT * wavelengths + 8 * sc.grid.size) if wavelengths else CUBE_BYTES_GENERATED)
 
 
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
@@ -133,16 +123,21 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
     (:mod:`s2cl.app.image_analysis`)."""
     from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import load_scene_cube, simulate_cube
+    from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
+    from s2cl.io.budget import BASELINE_BYTES
     from s2cl.io.image_store import NetcdfStore
     from s2cl.io.outdir import claim
     from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
     from s2cl.scene.caveats import report
 
     sc = checked.scene
-    block_rows = cube_block_rows(sc, budget)
+    pixels, wavelengths = scene_cube_size(sc)  # a file cube's whole part must fit before it is loaded
+    budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
+                   f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
+                   fits="crop the cube or coarsen grid.step_nm")
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
+    block_rows = cube_block_rows(sc, budget, cube.rows, cube.cols, wavelengths)
     require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * CUBE_DISK_BYTES_PER_BAND * sc.sensor.size
                  + 2e6)
     warnings = report(checked.caveats)
