@@ -142,7 +142,7 @@ def analyse_image(rt: Runtime, scene: Scene, store: ImageStore, cube: SceneCube,
     out: dict[str, Any] = {"kind": settings.kind, "bands": bands, "map": "analysis_index", "gsd_m": grid.gsd_m,
                            "grid": GRID_RULE, "pixels": int(grid.ny * grid.nx),
                            **_accounting(status.reshape(-1), bounds.reshape(-1))}
-    if cube.truth(settings.parameter or "", slice(0, 0)) is not None and cube.parcels is not None:
+    if cube.knows(settings.parameter or "") and cube.parcels is not None:
         out.update(_against_truth(store, scene, cube, (index, status, bounds), grid, settings, step))
     return out
 

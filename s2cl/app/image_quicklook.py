@@ -84,5 +84,5 @@ def write_quicklook(ds: ImageStore, path: str | Path, map_name: str = "analysis_
         fig.colorbar(im, ax=ax, shrink=0.8, label=ds.attrs_of(name).get("units", ""))
         ax.set_title(name.replace("_", " "))
     fig.suptitle(f"{ds.attrs.get('scene', '')}: {ds.attrs.get('analysis_kind', '')} on "
-                 f"{ds.attrs.get('analysis_bands', '')} at {ds.attrs.get('analysis_gsd_m', '')} m")
+                 f"{ds.attrs.get('analysis_bands', '')} at {float(ds.attrs.get('analysis_gsd_m', 0)):g} m")
     return save_png(fig, path, dpi=100)

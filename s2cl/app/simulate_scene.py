@@ -122,6 +122,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
     (:mod:`s2cl.app.image_analysis`)."""
+    from s2cl.app.image_quicklook import write_quicklook
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
     from s2cl.io.budget import BASELINE_BYTES
@@ -153,15 +154,9 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                 simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
                 analysis = None
                 if checked.analysis is not None:
-                    from s2cl.app.image_analysis import analyse_image
-                    from s2cl.app.image_quicklook import write_quicklook
-
-                    step = None if block_rows is None else max(1, block_rows * (sc.spec.surface.gsd_m or 1.0)
-                                                               // max(sc.sensor.band(b).gsd_m
-                                                                      for b in checked.analysis_bands))
-                    analysis = analyse_image(rt, sc, store, cube, list(checked.analysis_bands), checked.analysis,
-                                             block_rows=None if step is None else int(step))
-                    written.append(write_quicklook(store, folder / "quicklook.png", analysis["map"]))
+                    analysis = _analyse_cube(rt, checked, store, cube, block_rows)
+                    written.append(folder / "quicklook.png")
+                    write_quicklook(store, written[-1], analysis["map"])
                 attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
             finally:
                 store.close()
@@ -171,3 +166,13 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                                               "warnings": warnings})
     return SimulationRun(sc.name, folder, tuple(written), attrs=attrs, analysis=analysis,
                          pixels=cube.rows * cube.cols, seconds=seconds)
+
+
+def _analyse_cube(rt: Any, checked: Any, store: Any, cube: Any, block_rows: int | None) -> dict[str, Any]:
+    """The scene's [analysis] on the image in ``store``, by blocks of as many input rows as the simulation's."""
+    from s2cl.app.image_analysis import analyse_image
+
+    sc, bands = checked.scene, list(checked.analysis_bands)
+    factor = max(sc.sensor.band(b).gsd_m for b in bands) / (sc.spec.surface.gsd_m or 1.0)
+    step = None if block_rows is None else max(1, int(block_rows // factor))
+    return analyse_image(rt, sc, store, cube, bands, checked.analysis, block_rows=step)

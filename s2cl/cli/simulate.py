@@ -26,6 +26,9 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     the scene's analysis, warnings), and prints the summary (radiance, SNR measured against the
     model, clipping, calibration error). Its files never replace a sweep's (results.parquet,
     summary.json). Memory stays bounded whatever surface.copies: images are written chunk by chunk.
+    An image cube is written in row blocks that fit --max-memory; with an [analysis], its map, status and
+    (where the scene knows the truth, as cube-fields does) error go into simulation.nc, and
+    OUTPUT/quicklook.png shows them.
     """
     from s2cl.app.simulate_scene import simulate_scene
 

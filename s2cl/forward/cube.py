@@ -175,9 +175,13 @@ class SceneCube:
     truth_params: dict[str, np.ndarray] = field(default_factory=dict)
     parcels: np.ndarray | None = None
 
+    def knows(self, name: str) -> bool:
+        """Whether the cube knows the true ``name`` of its pixels."""
+        return self.labels is not None and name in self.truth_params
+
     def truth(self, name: str, rows: slice = slice(None)) -> np.ndarray | None:
         """The true ``name`` of each pixel of ``rows`` ``(n_rows, cols)``, or None when the cube does not know it."""
-        if self.labels is None or name not in self.truth_params:
+        if not self.knows(name):
             return None
         return self.truth_params[name][self.labels.reshape(self.rows, self.cols)[rows]]
 
