@@ -308,3 +308,23 @@ def test_a_cube_file_of_the_same_spectra_gives_the_same_images_and_a_map_without
         assert "analysis_index" in ds and "analysis_status" in ds and "cab_map" not in ds
     assert "rms" not in run.analysis and run.analysis["pixels"] == 12 * 15
     assert (run.folder / "quicklook.png").exists()
+
+
+def test_an_index_on_bands_of_one_gsd_maps_lai_at_that_gsd(rt) -> None:
+    """NDVI (B8, B4: both 10 m) against the LAI truth: the common grid is the bands' own (no averaging), bare
+    parcels have a truth too (LAI 0) and enter the calibration."""
+    scene = Scene.from_dict({
+        "scene": {"name": "ndvi-image"},
+        "surface": {"cube": "builtin:fields:40x40", "gsd_m": 10, "quantity": "reflectance"},
+        "sensor": {"bands": ["B2", "B3", "B4", "B8"]},
+        "effects": {"atmosphere": True, "noise": True, "seed": 2, "quantise": True, "calibrate": True,
+                    "correct": True},
+        "analysis": {"kind": "ndvi", "parameter": "lai"},
+    })
+    ds, a, cube, _ = _run(rt, scene)
+    assert a["gsd_m"] == 10 and ds["lai_map"].dims == ("y_10m", "x_10m")
+    b8, b4 = ds["reflectance_B8"].values.astype(np.float64), ds["reflectance_B4"].values.astype(np.float64)
+    np.testing.assert_allclose(ds["analysis_index"].values, (b8 - b4) / (b8 + b4), atol=1e-6)
+    np.testing.assert_array_equal(ds["lai_truth"].values, cube.truth("lai"))
+    assert a["calibration_pixels"] == a["scored_pixels"] == 1600  # every pixel is pure at 10 m, and has a truth
+    assert a["r2"] > 0.5 and a["rms"] == pytest.approx(a["calibration_rms"], rel=1e-6)
