@@ -5,7 +5,10 @@ atmosphere when on) → optional Gaussian PSF → box average over ``GSD_band / 
 pixels → noise → quantisation → calibration at the band's own GSD (the SNR table refers to
 pixels of that size). Trailing rows/columns that do not fill a whole output pixel are dropped.
 Noise of band ``k`` at output pixel ``(y, x)`` keys on pixel index ``y · ncols + x`` of that
-band's grid.
+band's grid. The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the PSF's
+halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
+(:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
+radiance.
 """
 
 from __future__ import annotations
