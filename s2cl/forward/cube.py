@@ -11,11 +11,16 @@ No-data (NaN or file-marked values, bad bands: :mod:`s2cl.io.cubes`) never refus
 any no-data sample is NODATA and an output pixel whose footprint touches one is NODATA too
 (:mod:`s2cl.forward.nodata` says why), flagged in every band's ``flags_<band>`` variable
 (:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
+
+The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the PSF's
+halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
+(:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
+radiance.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
@@ -26,10 +31,13 @@ from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows, psf_radius
+from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.cubes import CubeFile, cube_size, load_cube
+from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
+from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
 from s2cl.status import PixelFlag
@@ -79,28 +87,29 @@ def _zero_nodata(flat: np.ndarray, owned: bool) -> tuple[np.ndarray, np.ndarray]
 def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> np.ndarray:
     """Box average of ``factor × factor`` blocks (after an optional Gaussian PSF of FWHM
     ``psf_fwhm`` output pixels); trailing partial blocks are dropped."""
-    if psf_fwhm:
-        image = gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")
-    if factor == 1:
-        return image
-    rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
-    if rows == 0 or cols == 0:
+    image = _psf(image, factor, psf_fwhm)
+    if image.shape[0] < factor or image.shape[1] < factor:
         raise InputError(
             f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
-    blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
-    return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
+    return box_mean(image, factor)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SceneCube:
-    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, finite (zero at
-    NODATA pixels), and the NODATA mask ``(rows·cols,)``."""
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, finite (zero at NODATA
+    pixels), and the NODATA mask ``(rows·cols,)``; or (a generated cube, :mod:`s2cl.libraries.fields`) its
+    distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming each pixel's spectrum;
+    ``truth_params``: the parameters of each distinct spectrum where the cube knows them, and ``parcels``
+    ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file)."""
 
     spectra: np.ndarray
     rows: int
     cols: int
     source: str
     nodata: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    truth_params: dict[str, np.ndarray] = field(default_factory=dict)
+    parcels: np.ndarray | None = None
 
     @property
     def nodata_image(self) -> np.ndarray:
@@ -108,6 +117,27 @@ class SceneCube:
         if self.nodata is None:
             return np.zeros((self.rows, self.cols), bool)
         return self.nodata.reshape(self.rows, self.cols)
+
+    def knows(self, name: str) -> bool:
+        """Whether the cube knows the true ``name`` of its pixels."""
+        return self.labels is not None and name in self.truth_params
+
+    def truth(self, name: str, rows: slice = slice(None)) -> np.ndarray | None:
+        """The true ``name`` of each pixel of ``rows`` ``(n_rows, cols)``, or None when the cube does not know it."""
+        if not self.knows(name):
+            return None
+        return self.truth_params[name][self.labels.reshape(self.rows, self.cols)[rows]]
+
+
+def scene_cube_size(scene: Scene) -> tuple[int, int]:
+    """(pixels, wavelengths held per pixel) of the scene's cube from its metadata only: a generated cube holds
+    no spectrum per pixel (0)."""
+    cube = scene.spec.surface.cube
+    assert cube is not None
+    if is_builtin_cube(cube):
+        rows, cols = fields_shape(cube, source=scene.source)
+        return rows * cols, 0
+    return cube_size(scene.resolve(cube))
 
 
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
@@ -117,20 +147,27 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
     creates the folder."""
     s = scene.spec
     source = scene.source
-    owned = False
+    generated, owned, nodata = None, False, None
     if cube is None:
         if s.surface.cube is None:
             raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
-        source = str(scene.resolve(s.surface.cube))
-        read: CubeFile = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
-        cube, wavelengths_nm, owned = read.values, read.wavelengths_nm, True
-        if read.bad_nm.size:
-            weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
-            check_bad_band_gaps([b.name for b in scene.sensor.bands],
-                                gap_weights(weights, scene.grid, read.wavelengths_nm, read.bad_nm),
-                                s.surface.quantity, source)
-    rows, cols = np.asarray(cube).shape[:2]
-    spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source, owned=owned)
+        if is_builtin_cube(s.surface.cube):
+            rows, cols = fields_shape(s.surface.cube, source=source)
+            generated = fields_image(scene.grid, rows, cols, scene.run.seed)
+        else:
+            source = str(scene.resolve(s.surface.cube))
+            read: CubeFile = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
+            cube, wavelengths_nm, owned = read.values, read.wavelengths_nm, True
+            if read.bad_nm.size:
+                weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
+                check_bad_band_gaps([b.name for b in scene.sensor.bands],
+                                    gap_weights(weights, scene.grid, read.wavelengths_nm, read.bad_nm),
+                                    s.surface.quantity, source)
+    if generated is not None:
+        spectra = generated.library.spectra
+    else:
+        rows, cols = np.asarray(cube).shape[:2]
+        spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source, owned=owned)
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
@@ -140,36 +177,50 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
-    return SceneCube(spectra, rows, cols, source, nodata if nodata.any() else None)
+    if generated is not None:
+        lib = generated.library
+        return SceneCube(spectra, rows, cols, source, labels=generated.labels.reshape(-1),
+                         truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
+    return SceneCube(spectra, rows, cols, source, nodata if nodata is not None and nodata.any() else None)
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
-                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None) -> xr.Dataset:
+                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None,
+                  store: ImageStore | None = None, block_rows: int | None = None) -> xr.Dataset | None:
     """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
-    already loaded by :func:`load_scene_cube`) on ``rt``."""
+    already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
+    written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
+    default all), read with the PSF's halo, so the result does not depend on it."""
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
-    rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
+    rows, cols = prepared.rows, prepared.cols
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
-    if progress:
-        progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
-    ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
-                           "effects": scene.effects.describe(), "seed": scene.run.seed,
-                           "input_gsd_m": gsd_in, "psf": s.spatial.psf,
-                           "nodata_input_pixels": int(prepared.nodata_image.sum())})
-    bands = scene.sensor.bands
-    for gsd in sorted({b.gsd_m for b in bands}):
-        ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        factor = _factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source)
-        images = np.stack([aggregate(radiance[k], factor, psf) for k in ids])
-        nodata = footprint_nodata(prepared.nodata_image, factor, psf_radius(factor, psf, FWHM_TO_SIGMA))
-        images[:, nodata] = np.nan
-        _add_group(ds, scene, sim, ids, images, gsd, nodata)
-    return ds
+    out = store if store is not None else MemoryStore()
+    out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
+                      "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
+                      "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum())})
+    nodata = prepared.nodata_image
+    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out, nodata, psf)
+              for gsd in sorted({b.gsd_m for b in scene.sensor.bands})]
+    halo = max(gaussian_radius(psf * g.factor * FWHM_TO_SIGMA) for g in groups) if psf else 0
+    distinct = sim.band_radiance(prepared.spectra) if prepared.labels is not None else None
+    labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
+    for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
+        lo, hi = block.read_start, block.read_stop
+        if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
+            radiance = distinct[:, labels[lo:hi]]
+        else:
+            radiance = sim.band_radiance(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+        for g in groups:
+            g.add(block, radiance, psf)
+        if progress:
+            progress((block.stop - block.start) * cols)
+    for g in groups:
+        g.finish()
+    return out.dataset() if store is None else None
 
 
 def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
@@ -181,46 +232,89 @@ def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
     return factor
 
 
-def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], images: np.ndarray,
-               gsd: float, nodata: np.ndarray) -> None:
-    """Sense one GSD group's band images (NaN at the ``nodata`` pixels) and add their variables to ``ds``;
-    every band gets ``flags_<band>`` (the radiometric stage's when it quantises, else NODATA alone)."""
-    bands = scene.sensor.bands
-    ny, nx = images.shape[1:]
-    ydim, xdim = f"y_{gsd:g}m", f"x_{gsd:g}m"
-    ds.coords[ydim] = (ydim, (np.arange(ny) + 0.5) * gsd, {"units": "m"})
-    ds.coords[xdim] = (xdim, (np.arange(nx) + 0.5) * gsd, {"units": "m"})
-    flat = images.reshape(len(ids), ny * nx)
-    result = None
-    if scene.effects.senses:
-        group_bands = [bands[k] for k in ids]
-        correction = None
-        if sim.correction is not None:
-            c = sim.correction
-            correction = BandAtmosphere(c.path_radiance[ids], c.ground_term[ids], c.spherical_albedo[ids])
-        sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
-                          correction=correction)
-        result = sensing(flat, seed=scene.run.seed, frame=scene.run.frame)
-    flags = result.flags if result is not None else None
-    if flags is None:
-        flags = np.where(nodata.reshape(1, -1), np.uint8(PixelFlag.NODATA), np.uint8(0)).repeat(len(ids), axis=0)
-    for j, k in enumerate(ids):
-        attrs = band_attrs(bands[k], scene.sensor.bits)
-        name = bands[k].name
-        ds[f"radiance_{name}"] = ((ydim, xdim), images[j],
-                                  {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
-        ds[f"flags_{name}"] = ((ydim, xdim), flags[j].reshape(ny, nx),
-                               {**attrs, **pixel_attrs("flags", "1", "radiometric pixel flags")})
-        if result is None:
-            continue
-        for var, units, long_name in PIXEL_VARIABLES:
-            arr = getattr(result, var)
-            if arr is not None and var != "flags":
-                ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx),
-                                       {**attrs, **pixel_attrs(var, units, long_name)})
-        if result.flags is not None:  # no-data pixels are counted as such, not as clipped below Lmin
-            f = result.flags[j]
-            ds[f"radiance_{name}"].attrs.update(
-                clipped_below_lmin=int(np.count_nonzero(f & PixelFlag.LOW)),
-                clipped_above_lmax=int(np.count_nonzero(f & PixelFlag.HIGH)),
-                nodata_pixels=int(np.count_nonzero(f & PixelFlag.NODATA)))
+class _Group:
+    """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
+
+    def __init__(self, scene: Scene, sim: Simulator, gsd: float, gsd_in: float, rows: int, cols: int,
+                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, psf: float | None):
+        bands = scene.sensor.bands
+        self.scene, self.store, self.gsd = scene, store, gsd
+        self.ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
+        self.factor = _factor(gsd, gsd_in, [bands[k].name for k in self.ids], scene.source)
+        ny, nx = rows // self.factor, cols // self.factor
+        self.nx = nx
+        self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
+        store.dimension(self.dims[0], (np.arange(ny) + 0.5) * gsd, {"units": "m"})
+        store.dimension(self.dims[1], (np.arange(nx) + 0.5) * gsd, {"units": "m"})
+        self.sensing = None
+        if scene.effects.senses:
+            correction = None
+            if sim.correction is not None:
+                c, i = sim.correction, self.ids
+                correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
+            self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
+                                   scene.effects, sim.precision, correction=correction)
+        #: output pixels whose footprint holds a NODATA input pixel (:func:`s2cl.forward.nodata.footprint_nodata`)
+        self.nodata = footprint_nodata(nodata, self.factor, psf_radius(self.factor, psf, FWHM_TO_SIGMA))[:, :nx]
+        #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
+        self.counts = np.zeros((3, len(self.ids)), np.int64)
+
+    def add(self, block: RowBlock, radiance: np.ndarray, psf: float | None) -> None:
+        """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)``."""
+        f, out_rows = self.factor, block.output_rows(self.factor)
+        ny = out_rows.stop - out_rows.start
+        if ny <= 0:
+            return
+        top = block.start - block.read_start
+        images = np.stack([box_mean(_psf(radiance[k], f, psf)[top : top + ny * f], f) for k in self.ids])
+        images = images[:, :, : self.nx]
+        nodata = self.nodata[out_rows]
+        images[:, nodata] = np.nan
+        result = None
+        if self.sensing is not None:
+            result = self.sensing(images.reshape(len(self.ids), -1), seed=self.scene.run.seed,
+                                  frame=self.scene.run.frame, pixel_offset=out_rows.start * self.nx)
+        flags = result.flags if result is not None and result.flags is not None else None
+        if flags is not None:
+            self.counts[0] += np.count_nonzero(flags & PixelFlag.LOW, axis=1)
+            self.counts[1] += np.count_nonzero(flags & PixelFlag.HIGH, axis=1)
+        else:  # no radiometric stage: the flags say NODATA alone
+            flags = np.where(nodata.reshape(1, -1), np.uint8(PixelFlag.NODATA), np.uint8(0)).repeat(len(self.ids), 0)
+        self.counts[2] += np.count_nonzero(flags & PixelFlag.NODATA, axis=1)
+        bands = self.scene.sensor.bands
+        for j, k in enumerate(self.ids):
+            attrs = band_attrs(bands[k], self.scene.sensor.bits)
+            name = bands[k].name
+            self._put(f"radiance_{name}", out_rows, images[j],
+                      {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
+            self._put(f"flags_{name}", out_rows, flags[j].reshape(ny, self.nx),
+                      {**attrs, **pixel_attrs("flags", "1", "radiometric pixel flags")})
+            if result is None:
+                continue
+            for var, units, long_name in PIXEL_VARIABLES:
+                arr = getattr(result, var)
+                if arr is not None and var != "flags":
+                    self._put(f"{var}_{name}", out_rows, arr[j].reshape(ny, self.nx),
+                              {**attrs, **pixel_attrs(var, units, long_name)})
+
+    def _put(self, name: str, rows: slice, data: np.ndarray, attrs: dict) -> None:
+        if name not in self.store:
+            self.store.create(name, self.dims, data.dtype, attrs)
+        self.store.write(name, rows, data)
+
+    def finish(self) -> None:
+        """The clipping and no-data counts, once every block is in (no-data pixels are counted as such, not as
+        clipped below Lmin)."""
+        quantised = self.sensing is not None and self.scene.effects.quantise
+        for j, k in enumerate(self.ids):
+            counts = {"nodata_pixels": int(self.counts[2, j])}
+            if quantised:
+                counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
+            self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)
+
+
+def _psf(image: np.ndarray, factor: int, psf_fwhm: float | None) -> np.ndarray:
+    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), or the image itself."""
+    if not psf_fwhm:
+        return image
+    return gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")

@@ -43,9 +43,10 @@ class SceneMeta(Section):
 
 class SurfaceSpec(Section):
     library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) / s2cl .npz library file")
-    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr); no-data values, "
-                             "scale factors and bad band lists of the file are honoured (pixels with no data are "
-                             "flagged NODATA, never used as data)")
+    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr), whose no-data values, "
+                             "scale factors and bad band lists are honoured (pixels with no data are flagged NODATA, "
+                             "never used as data); or builtin:fields[:ROWSxCOLS], parcels generated with a known "
+                             "truth (cab, lai)")
     variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
     gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
     quantity: Literal["reflectance", "radiance"] = Field(
