@@ -17,15 +17,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import random
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-from bench.common import RESULTS, check, write_json
+from bench.common import RESULTS, check, load_average, load_note, machine_info, write_json
 from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.lut_axes import LUTAxes
 from s2cl.atmos.lut_build import build_lut
@@ -97,6 +94,7 @@ def main() -> None:
     args = parser.parse_args()
 
     lut = AtmosphereLUT.load()
+    start = load_average()
     worst = check_correctness(lut, args.workers)
     slice_axes = LUTAxes(
         profiles=("midlatitude_summer",),
@@ -117,7 +115,7 @@ def main() -> None:
 
     result = {
         "benchmark": "atmosphere LUT build: separable vs brute force",
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "python": sys.version.split()[0]},
+        "machine": machine_info(),
         "sixs": describe(),
         "workers": args.workers,
         "correctness_max_rel_error_vs_6s": worst,
@@ -140,6 +138,7 @@ def main() -> None:
             "ratio_brute_over_separable": brute_full / shipped["seconds"],
         },
     }
+    result["load_note"] = load_note(start, load_average())
     write_json(args.output.resolve(), result)
     print(json.dumps(result, indent=2))
     print(

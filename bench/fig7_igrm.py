@@ -49,7 +49,8 @@ def fit_windows(spectra: np.ndarray, cab: np.ndarray) -> tuple[list[dict], list[
         fits.append((lo, hi, r, score))
         rows.append({"window_nm": [lo, hi], "n_bands": int(wl.size), "r2": score.r2, "rms_ug_cm2": score.rms,
                      "median_abs_error": score.median_abs_error, "lp_range_nm": [float(r.lp.min()),
-                     float(r.lp.max())], "status_counts": r.counts()})
+                     float(r.lp.max())], "l0_range_nm": [float(r.l0.min()), float(r.l0.max())],
+                     "s_range_nm": [float(r.s.min()), float(r.s.max())], "status_counts": r.counts()})
         print(f"  {lo}-{hi} nm ({wl.size} bands): {score.summary('ug/cm2')}  [paper: R2 0.98, RMS 3.8]")
     return rows, fits
 

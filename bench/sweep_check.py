@@ -43,7 +43,7 @@ def _rms(job: Any, raw: Any) -> float:
 
     a = job.analysis
     return float(regression_metrics(raw.index, raw.status, raw.bounds, job.tables.target, regress=a.regress,
-                                    condition=raw.condition if a.kind == "igrm" else None)["rms"][0])
+                                    condition=raw.condition if a.family.has_condition else None)["rms"][0])
 
 
 def _quantiles(d: np.ndarray) -> dict[str, float]:
@@ -81,8 +81,8 @@ def validate_sweep(job: Any, kernel: Callable[[int, int], Any] | None = None) ->
     measured (JSON), or raises :class:`bench.common.BenchValidationError`."""
     from s2cl.sweep.engine import kernel_evaluator as evaluator
 
-    if job.analysis.kind == "sam":
-        raise ValueError("validate_sweep compares RMS: it needs a regression sweep (igrm, gvmi)")
+    if not job.analysis.regression:
+        raise ValueError("validate_sweep compares RMS: it needs a regression sweep (igrm, gvmi, formula)")
     run, configs = kernel or evaluator(job), spread(job.n_configs, CONFIGS)
     same_class, same, diff, rms_got, rms_ref = zip(*(_one(job, run, c) for c in configs), strict=True)
     out = {"configurations": configs, "same_status_class_fraction": float(np.mean(same_class)),

@@ -1,15 +1,15 @@
 <%doc>
-formula.cl.mako: a retrieval written as a formula of band reflectances (s2cl.retrieve.formula), T.lanes pixels
+formula.cl.mako: a retrieval written as a formula of band reflectances (s2cl.retrieve.families.formula), T.lanes pixels
 per work-item, e.g. S2REP (Frampton et al. 2013): 705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5).
 
 Template variables
   T        s2cl.cl.vectypes.VecTypes (precision, lanes)
-  formula  s2cl.retrieve.formula.Formula (its bands, in order, are the rows of refl)
+  formula  s2cl.retrieve.families.formula.Formula (its bands, in order, are the rows of refl)
   max_abs  |reflectance| above which (or NaN/inf) a pixel is invalid
 The value and its validity rule: s2_formula_<T.suffix> from Formula.device_source (the numpy twin is
 Formula.evaluate): status S2_OK, or S2_INVALID with value 0 for NaN/inf or |rho| > max_abs in a band, a zero
 denominator, sqrt of a negative or log of a non-positive number, or an intermediate beyond 1e30 in magnitude.
-Kernel arguments (s2cl.retrieve.formula_kernel.ARGS; outputs first; SoA, pixel index fastest)
+Kernel arguments (s2cl.retrieve.families.formula.ARGS; outputs first; SoA, pixel index fastest)
   value   out [pitch] real    the formula's value (0 where invalid)
   status  out [pitch] uchar
   refl    in  [n_bands][pitch] real  band reflectance, row i = formula.bands[i]

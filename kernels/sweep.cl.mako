@@ -9,7 +9,7 @@ gets the same verdict on both paths (tests/test_one_rule.py). The spectral integ
 ran once per (variant, spectrum) on the host.
 
 Template variables
-  T          s2cl.cl.vectypes.VecTypes (precision, lanes);  T1: the same with one lane
+  T          s2cl.cl.vectypes.VecTypes (precision, lanes)
   n_slots    number of band slots;  counts[k], strides[k]: mixed-radix decoding of the
              configuration number (last slot fastest): v_k = (cfg / strides[k]) % counts[k]
   row0[k]    first row of slot k in radiance/sigma (rows: variants, columns: spectra)
@@ -18,11 +18,8 @@ Template variables
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
   lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
   noise, quantise            bools
-  kind       "igrm" | "sam" | "formula" | an index of s2cl.retrieve.indices;  nd (that index: offsets),
-             slot_a, slot_b (its bands' slots); formula_source, formula_slots (formula: its device function,
-             s2cl.retrieve.formula, and the slot of each band it names, in its argument order); n_classes, cos_min (sam; below -1:
-             no angle threshold);  c, exp_coef, exp_consts (igrm: see igrm.cl.mako)
-  max_abs    |reflectance| above which a pixel is invalid (s2cl.status.MAX_ABS_REFLECTANCE)
+  analysis_functions, analysis_body   the analysis family's OpenCL C (s2cl.retrieve.family.Family.sweep_code):
+             its device functions, and the body that reads rho[k], x[k] (and cfg) and sets value, st, bd, code
 Arguments (s2cl.sweep.kernel.ARGS)
   index     out [n_configs][pitch] real   igrm: lp (nm); index: its value; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
@@ -36,13 +33,8 @@ Arguments (s2cl.sweep.kernel.ARGS)
   refs      in  [variants][n_classes] real  (sam) class reference reflectances
   config_start uint, n_configs uint
 Global size: (pitch / T.lanes, n_configs).
-IGRM: the bands of a configuration are sorted by centre before the fit (a stable sorting network on
-the scalar centres), as the direct API (s2cl.retrieve.igrm.IgrmFitter) requires increasing wavelengths.
 No builtin math in the hot path (PoCL does not inline it: kernels/common/vecmath.mako).
 </%doc>
-<%namespace name="vm" file="common/vecmath.mako"/>
-<%namespace name="lm" file="common/igrm_lm.mako"/>
-<%namespace name="vp" file="common/igrm_varpro.mako"/>
 <%namespace name="st" file="common/stages.mako"/>
 <%
     V, R, L = T.V, T.R, T.lanes
@@ -61,20 +53,6 @@ No builtin math in the hot path (PoCL does not inline it: kernels/common/vecmath
 % if T.double:
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 % endif
-% if kind == "igrm":
-  % if c.exp == "poly":
-${vm.exp_neg(T, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts["ln2_lo"], exp_consts["magic"])}
-    % if c.init == "grid" and T.lanes != 1:
-${vm.exp_neg(T1, exp_coef, exp_consts["emin"], exp_consts["ln2_hi"], exp_consts["ln2_lo"], exp_consts["magic"])}
-    % endif
-  % endif
-  % if c.loss == "soft_l1":
-${vm.rsqrt(T)}
-  % endif
-${vm.ldl4_solve(T, c.pivot_rel)}
-${(vp if c.solver == "varpro" else lm).igrm_fit(T, c, "sweep", T1)}
-% endif
-
 % if noise:
 ${st.noise(T)}
 % endif
@@ -83,13 +61,7 @@ ${st.quantise(T)}
 ${st.calibrate(T)}
 % endif
 ${st.correct(T)}
-% if nd is not None:
-${st.normalised_difference(T, nd, max_abs)}
-% elif formula_source is not None:
-${formula_source}
-% elif kind == "sam":
-${st.sam(T, n_slots, n_classes, max_abs)}
-% endif
+${analysis_functions}
 
 __kernel void sweep_configs(
     ${signature(args, T)})
@@ -127,64 +99,13 @@ __kernel void sweep_configs(
     }
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
-% if nd is not None or formula_source is not None:
-    ${T.M} st;
-  % if nd is not None:
-    ${vstore(f"s2_{nd.kind}_{T.suffix}(rho[{slot_a}], rho[{slot_b}], &st)", "(index + at)")}
-  % else:
-    ${vstore(f"s2_formula_{T.suffix}(" + ", ".join(f"rho[{k}]" for k in formula_slots) + ", &st)", "(index + at)")}
-  % endif
-  % for l in range(L):
-    status[at + ${l}] = (uchar)${lane("st", l)};
-    bounds[at + ${l}] = 0;
-    condition[at + ${l}] = 0;
-  % endfor
-% elif kind == "sam":
-    /* the configuration's class references, scaled to unit length (the same for every lane) */
-    ${R} ref[${n_classes * n_slots}];
-  % for j in range(n_classes):
-    {
-        ${R} n2 = ${T.lit(0.0)};
-    % for k in range(n_slots):
-        ref[${j * n_slots + k}] = refs[(${var0[k]}u + (cfg / ${strides[k]}u) % ${counts[k]}u) * ${n_classes}u + ${j}u];
-        n2 += ref[${j * n_slots + k}] * ref[${j * n_slots + k}];
-    % endfor
-        const ${R} inv = n2 > ${T.lit(0.0)} ? ${T.lit(1.0)} / sqrt(n2) : ${T.lit(0.0)};
-    % for k in range(n_slots):
-        ref[${j * n_slots + k}] *= inv;
-    % endfor
+    {   /* the analysis: its family's body (s2cl.retrieve.family.Family.sweep_code) */
+${analysis_body}
+        ${vstore("value", "(index + at)")}
+% for l in range(L):
+        status[at + ${l}] = (uchar)${lane("st", l)};
+        bounds[at + ${l}] = (uchar)${lane("bd", l)};
+        condition[at + ${l}] = (uchar)${lane("code", l)};
+% endfor
     }
-  % endfor
-    ${T.M} best, st;
-    ${V} dot, norm2;
-    s2_sam_${T.suffix}_${n_slots}_${n_classes}(rho, ref, ${T.lit(cos_min)}, &best, &dot, &norm2, &st);
-    const ${T.M} ok = st == ((${T.M})(S2_OK));
-    ${vstore(f"ok ? {T.convert(T.R) if L > 1 else '(' + R + ')'}(best) : ({V})({T.lit(float(n_classes))})", "(index + at)")}
-  % for l in range(L):
-    status[at + ${l}] = (uchar)${lane("st", l)};
-    bounds[at + ${l}] = 0;
-    condition[at + ${l}] = 0;
-  % endfor
-% else:
-    /* sort the slots by band centre (stable; the centres are the same for every lane) */
-  % for i in range(n_slots):
-    % for j in range(n_slots - 1 - i):
-    if (x[${j}] > x[${j + 1}]) {
-        const ${R} tx = x[${j}]; x[${j}] = x[${j + 1}]; x[${j + 1}] = tx;
-        const ${V} tr = rho[${j}]; rho[${j}] = rho[${j + 1}]; rho[${j + 1}] = tr;
-    }
-    % endfor
-  % endfor
-    ${V} out[7];
-    ${T.M} st, it, bd;
-    s2_igrm_fit_sweep(rho, x, out, &st, &it, &bd);
-    ${vstore("out[4]", "(index + at)")}
-    /* condition code: round(20 log10 cond), at most 240 (the estimate's cap of 12 decades) */
-    const ${V} code = out[6] * ${T.lit(20.0)} + ${T.lit(0.5)};
-  % for l in range(L):
-    status[at + ${l}] = (uchar)${lane("st", l)};
-    bounds[at + ${l}] = (uchar)${lane("bd", l)};
-    condition[at + ${l}] = (uchar)${lane("code", l)};
-  % endfor
-% endif
 }

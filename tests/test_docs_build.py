@@ -37,7 +37,7 @@ def test_strict_build(site: Path) -> None:
     ("api/app.html", ["s2cl.app.optimise.optimise", "s2cl.app.optimise.OptimiseResult",
                       "s2cl.app.simulate_scene.simulate_scene", "s2cl.app.plan.plan_sweep"]),
     ("api/retrieve.html", ["s2cl.retrieve.igrm.IgrmFitter", "s2cl.retrieve.index_kernel.IndexKernel",
-                           "s2cl.retrieve.sam.SamClassifier", "s2cl.retrieve.formula.Formula"]),
+                           "s2cl.retrieve.sam.SamClassifier", "s2cl.retrieve.families.formula.Formula"]),
     ("api/sweep.html", ["s2cl.sweep.engine.run_sweep"]),
     ("api/cl.html", ["s2cl.cl.runtime.get_runtime", "s2cl.cl.devices", "s2cl.cl.probe"]),
 ])

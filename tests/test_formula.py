@@ -16,9 +16,8 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.retrieve.formula import Formula
-from s2cl.retrieve.formula_kernel import FormulaKernel, formula_values
-from s2cl.retrieve.formula_syntax import (
+from s2cl.retrieve.families.formula import Formula, FormulaKernel, formula_values
+from s2cl.retrieve.families.formula_syntax import (
     FUNCTIONS,
     MAX_DEPTH,
     MAX_LENGTH,

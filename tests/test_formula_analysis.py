@@ -68,8 +68,7 @@ def test_coincident_subtracted_bands_are_underdetermined_everywhere(tmp_path) ->
     scene = _scene()
     checked = check_sweep(scene)
     assert underdetermined_count(checked.space, checked.analysis) == 2  # 740/15 and 740/20 in B5 and B6
-    problem = design_problem("formula", ["B4", "B5", "B6", "B7"], [665, 740, 740, 783], [30, 15, 15, 20],
-                             pairs=checked.analysis.pairs)
+    problem = design_problem(checked.analysis, ["B4", "B5", "B6", "B7"], [665, 740, 740, 783], [30, 15, 15, 20])
     assert problem == ("underdetermined: the formula compares B6 with B5 (a difference or a ratio, 0 or 1 for one "
                        "band), and they are the same band (740/15 nm)")
     job = plan_sweep(scene)
@@ -109,7 +108,7 @@ def test_an_expression_belongs_to_the_formula_kind_only() -> None:
             "effects": {"atmosphere": True, "correct": True}}
     from s2cl.app.analysis import analysis_design
 
-    for analysis, said in (({"kind": "formula", "parameter": "cab"}, "needs one"),
+    for analysis, said in (({"kind": "formula", "parameter": "cab"}, "needs an expression"),
                            ({"kind": "igrm", "parameter": "cab", "expression": "B5 - B4"}, "only kind = 'formula'")):
         with pytest.raises(InputError, match=said):
             analysis_design(Scene.from_dict({**base, "analysis": analysis}))
@@ -126,7 +125,7 @@ def test_the_shipped_formula_scenes_rank_their_designs(tmp_path, scene: str) -> 
 
 @pytest.mark.parametrize("text", ["-" * 498 + "B4", " + ".join(["B4"] * 100)])
 def test_deeply_nested_expressions_are_one_line_errors_not_recursion(text: str) -> None:
-    from s2cl.retrieve.formula import Formula
+    from s2cl.retrieve.families.formula import Formula
 
     with pytest.raises(InputError, match=r"nests \d+ operations in one another; at most 64"):
         Formula.parse(text, ["B4", "B5"])

@@ -12,33 +12,26 @@ import numpy as np
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.simulate import LibrarySimulation
-from s2cl.retrieve.analysis import AnalysisSettings, index_bands
+from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import check_design
-from s2cl.retrieve.indices import INDICES
-from s2cl.retrieve.metrics import classification_metrics, condition_code, regression_metrics
+from s2cl.retrieve.family import family_of
+from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.scene.scene import Scene
-
-RED_EDGE = ["B4", "B5", "B6", "B7"]
+from s2cl.status import Status
 
 
 def analysis_bands(scene: Scene) -> list[str]:
+    """The bands ``s2cl simulate`` analyses: the scene's ``analysis.bands``, else the swept bands, else its
+    family's default (:meth:`s2cl.retrieve.family.Family.default_bands`)."""
     a = scene.spec.analysis
     if a.bands:
         return a.bands
     if scene.spec.sweep is not None:
         return list(scene.spec.sweep.bands)
-    if a.kind == "igrm":
-        return RED_EDGE
-    if a.kind in INDICES:
-        return index_bands(a.kind, a.roles)
-    if a.kind == "formula" and a.expression is not None:
-        from s2cl.retrieve.formula import Formula
-
-        try:
-            return list(Formula.parse(a.expression, scene.sensor.band_names).bands)
-        except InputError as err:
-            raise InputError(err.detail, source=scene.source, key="analysis.expression") from None
-    return list(scene.sensor.band_names)
+    try:
+        return family_of(a.kind, scene.source).default_bands(a, scene.sensor.band_names)
+    except InputError as err:
+        raise InputError(err.detail, source=scene.source, key=err.key) from None
 
 
 def analysis_design(scene: Scene, bands: list[str] | None = None,
@@ -49,8 +42,8 @@ def analysis_design(scene: Scene, bands: list[str] | None = None,
     bands = bands if bands is not None else analysis_bands(scene)
     settings = settings or AnalysisSettings.from_scene(scene, bands)
     shapes = [scene.sensor.band(b) for b in bands]
-    check_design(settings.kind, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
-                 source=scene.source, key="analysis.bands", slots=settings.slots, pairs=settings.pairs)
+    check_design(settings, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
+                 source=scene.source, key="analysis.bands")
     return bands, settings
 
 
@@ -59,8 +52,8 @@ class PixelResults:
     """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
     (:class:`s2cl.sweep.raw.RawChunk`): ``index`` (λp nm, the index, or SAM class with
     ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
-    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
-    the simulated pixels analysed (SAM: those of the chosen classes)."""
+    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth`` (empty for an image without
+    one); ``pixels`` selects the simulated pixels analysed (SAM: those of the chosen classes)."""
 
     settings: AnalysisSettings
     bands: list[str]
@@ -73,50 +66,65 @@ class PixelResults:
     classes: list[str] | None = None
 
 
+def check_image_analysis(scene: Scene, settings: AnalysisSettings) -> None:
+    """Refuse, in one line, an [analysis] an image cube cannot carry: a classification needs class references
+    from a library, which an image does not have."""
+    if not settings.regression:
+        raise InputError(f"{settings.kind} on an image cube needs class references from a spectral library; an "
+                         "image's analysis maps a retrieval (igrm, an index or a formula)", source=scene.source,
+                         key="analysis.kind")
+
+
+def retrieve_pixels(rt: Runtime, scene: Scene, bands: list[str], settings: AnalysisSettings, refl: np.ndarray, *,
+                    target: np.ndarray | None = None, references: np.ndarray | None = None,
+                    classes: list[str] | None = None) -> PixelResults:
+    """The scene's retrieval on band reflectance ``refl`` ``(len(bands), pixels)`` (a library's copies or an
+    image's pixels), on ``rt``, in the scene's precision, with the same stage functions the sweep kernel runs
+    (so one design gets one verdict). A pixel with a non-finite reflectance in any band is INVALID (index NaN).
+    SAM needs the ``references`` ``(len(classes), len(bands))`` of its ``classes``."""
+    real_t, lanes = scene.run.precision, scene.run.lanes
+    refl = np.asarray(refl)
+    target = np.empty(0) if target is None else target
+    family = settings.family
+    if family.metric == "classification" and (references is None or classes is None):
+        raise InputError(f"{settings.kind} needs class references from a spectral library", source=scene.source,
+                         key="analysis.kind")
+    centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
+    r = family.run(rt, settings, bands, refl, centres, real_t=real_t, lanes=lanes, references=references)
+    out = PixelResults(settings, bands, r.index, r.status, r.bounds, r.condition, target,
+                       np.ones(refl.shape[1], dtype=bool), classes)
+    return _invalid_where_not_finite(out, refl)
+
+
+def _invalid_where_not_finite(r: PixelResults, refl: np.ndarray) -> PixelResults:
+    """Pixels with a non-finite reflectance in any band: status INVALID, index NaN, no bound."""
+    bad = ~np.isfinite(refl).all(axis=0)
+    if bad.any():
+        r.index = np.where(bad, np.nan, r.index)
+        r.status = np.where(bad, np.uint8(Status.INVALID), r.status).astype(r.status.dtype)
+        r.bounds = np.where(bad, 0, r.bounds).astype(r.bounds.dtype)
+    return r
+
+
 def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelResults:
-    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, on ``rt``, in the scene's
-    precision, with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
+    """Run the scene's [analysis] on ``sim``'s corrected band reflectance (:func:`retrieve_pixels`)."""
     if sim.reflectance is None:
         raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
                          source=scene.source, key="effects.correct")
     bands, settings = analysis_design(scene)
-    real_t, lanes = scene.run.precision, scene.run.lanes
     rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
     refl = sim.reflectance[rows].reshape(len(rows), -1)
     lib = sim.library
-    if settings.kind == "sam":
-        from s2cl.retrieve.sam import SamClassifier
-
+    if settings.family.metric == "classification":
         classes = scene.spec.analysis.classes or sorted(set(lib.groups))
         pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
         truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
-        threshold = settings.angle_threshold_deg
-        r = SamClassifier(rt, _class_references(scene, lib, bands, classes), real_t=real_t, lanes=lanes,
-                          threshold_rad=None if threshold is None else np.deg2rad(threshold)).classify(refl[:, pixels])
-        index = np.where(r.label >= 0, r.label, len(classes)).astype(np.float64)
-        return PixelResults(settings, bands, index, r.status, np.zeros_like(r.status), None, truth[pixels], pixels,
-                            classes)
+        r = retrieve_pixels(rt, scene, bands, settings, refl[:, pixels], target=truth[pixels],
+                            references=_class_references(scene, lib, bands, classes), classes=classes)
+        r.pixels = pixels
+        return r
     target = np.repeat(np.asarray(lib.params[settings.parameter], dtype=np.float64), sim.copies)
-    everything = np.ones(refl.shape[1], dtype=bool)
-    if settings.kind == "igrm":
-        from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings
-
-        centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
-        order = np.argsort(centres, kind="stable")
-        fit = IgrmFitter(rt, len(bands), IgrmSettings.from_mapping(dict(settings.igrm), source=scene.source),
-                         real_t=real_t, lanes=lanes)
-        r = fit.fit(refl[order], centres[order])
-        return PixelResults(settings, bands, r.lp, r.status, r.bounds, condition_code(r.log10_condition), target,
-                            everything)
-    if settings.kind == "formula":
-        from s2cl.retrieve.formula_kernel import FormulaKernel
-
-        g = FormulaKernel(rt, settings.formula(bands), real_t=real_t, lanes=lanes)(refl, rows=list(settings.slots))
-        return PixelResults(settings, bands, g.value, g.status, np.zeros_like(g.status), None, target, everything)
-    from s2cl.retrieve.index_kernel import IndexKernel
-
-    g = IndexKernel(rt, settings.kind, real_t=real_t, lanes=lanes)(refl, *settings.slots)
-    return PixelResults(settings, bands, g.index, g.status, np.zeros_like(g.status), None, target, everything)
+    return retrieve_pixels(rt, scene, bands, settings, refl, target=target)
 
 
 def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:
@@ -124,7 +132,7 @@ def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]
     columns a sweep row has."""
     r = pixel_results(rt, scene, sim)
     out: dict[str, Any] = {"kind": r.settings.kind, "bands": r.bands}
-    if r.settings.kind == "sam":
+    if r.settings.family.metric == "classification":
         m = classification_metrics(r.index.astype(np.int64)[None], r.status[None], r.target, len(r.classes))
         out.update(classes=r.classes, confusion=m.pop("confusion")[0].tolist())
     else:
@@ -132,6 +140,7 @@ def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]
                                condition=None if r.condition is None else r.condition[None])
         out["parameter"] = r.settings.parameter
     out.update({k: np.asarray(v)[0].item() for k, v in m.items()})
+    out["summary"] = r.settings.family.summary_line(out)
     return out
 
 

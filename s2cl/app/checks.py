@@ -11,18 +11,18 @@ key; a scene with a broken [sweep] section is refused by ``simulate`` too (it is
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from s2cl.errors import InputError, key_token, token
+from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
+from s2cl.libraries.fields import is_builtin_cube
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
+from s2cl.retrieve.family import registry
 from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats, srf_caveats
 from s2cl.scene.scene import Scene
-from s2cl.scene.schema import ANALYSIS_KINDS
 from s2cl.sensor.variants import SweepSpace
 
 
@@ -45,12 +45,14 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     sized from its metadata against ``budget`` before it is read."""
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
-    if scene.spec.analysis is not None and scene.spec.surface.cube is None:
-        from s2cl.app.analysis import analysis_bands, analysis_design
+    if scene.spec.analysis is not None:
+        from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
 
         bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
         analysis = _analysis(scene, bands, library)
         analysis_design(scene, bands, analysis)  # the design rule, as simulate's analysis applies it
+        if scene.spec.surface.cube is not None:
+            check_image_analysis(scene, analysis)
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
@@ -80,11 +82,10 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
     """Refuse a sweep in which no configuration can be fitted (:mod:`s2cl.retrieve.design`; e.g. a fixed design
     with two IGRM bands on one centre), in one line naming the bands."""
-    bad = count_underdetermined(analysis.kind, space, slots=analysis.slots, pairs=analysis.pairs)
+    bad = count_underdetermined(analysis, space)
     if bad is not None and bad == space.size:
         first = space.shapes(0, 1)[0]
-        check_design(analysis.kind, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep",
-                     slots=analysis.slots, pairs=analysis.pairs)
+        check_design(analysis, space.bands, first[:, 0], first[:, 1], source=scene.source, key="sweep")
 
 
 def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
@@ -93,6 +94,8 @@ def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
 
         cube = scene.spec.surface.cube
         assert cube is not None  # the scene has one of them (s2cl.scene.scene)
+        if is_builtin_cube(cube):  # generated: its name was checked with the scene
+            return None
         input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
     from s2cl.forward.simulate import scene_library
@@ -122,29 +125,9 @@ def _known_bands(scene: Scene, bands: list[str], key: str) -> list[str]:
 
 def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -> AnalysisSettings:
     settings = AnalysisSettings.from_scene(scene, bands)
-    if settings.kind == "igrm":
-        igrm_settings(scene)
     if library is not None:
         analysis_targets(scene, library, settings)
     return settings
-
-
-def igrm_settings(scene: Scene) -> Any:
-    """The scene's ``analysis.igrm`` table as IGRM fit settings; errors name ``analysis.igrm.KEY``."""
-    from s2cl.retrieve.igrm import IgrmSettings
-
-    values = dict(scene.spec.analysis.igrm)
-    known = [f.name for f in dataclasses.fields(IgrmSettings)]
-    unknown = sorted(set(values) - set(known))
-    if unknown:
-        raise InputError(f"unknown key; allowed keys here: {', '.join(known)}", source=scene.source,
-                         key=f"analysis.igrm.{key_token(unknown[0])}")
-    try:
-        return IgrmSettings(**values)
-    except InputError as err:
-        raise InputError(err.detail, source=scene.source, key=f"analysis.{err.key or 'igrm'}") from None
-    except (TypeError, ValueError) as err:
-        raise InputError(f"invalid settings ({type(err).__name__})", source=scene.source, key="analysis.igrm") from None
 
 
 def _atmosphere(scene: Scene) -> None:
@@ -171,7 +154,7 @@ def check_sweep_sections(scene: Scene) -> None:
         raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
                          source=scene.source, key="sweep")
     if scene.spec.analysis is None:
-        raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(ANALYSIS_KINDS)})",
+        raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(registry())})",
                          source=scene.source, key="analysis")
     if not (scene.effects.atmosphere and scene.effects.correct):
         raise InputError("a sweep runs the whole chain: set effects.atmosphere = true and effects.correct = true",

@@ -42,8 +42,8 @@ PER_PIXEL_SLOT = 12
 PER_PIXEL = 16
 #: float64 scratch per configuration-pixel of the metrics kernel (kernels/metrics.cl.mako: the median's copy)
 METRICS_SCRATCH_BYTES = 8
-#: a chunk's work arrays at most (auto chunk): larger chunks run faster (table3-lib2-b4568a: 1.5 ms per
-#: configuration in chunks of 444, 1.05 in chunks of 1,776; python -m bench.bench_sweep --table3-run)
+#: a chunk's work arrays at most (auto chunk): larger chunks run faster (the time per configuration against the
+#: chunk: bench/results/sweep-chunks-*.json, python -m bench.bench_sweep --skip-dask --chunks A,B,C)
 AUTO_CHUNK_BYTES = 1e9
 MAX_AUTO_CHUNK = 16384
 #: a heatmap figure of at most 60 × 40 cells while matplotlib draws and writes it (measured about 150 MB)

@@ -13,7 +13,6 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from s2cl.errors import InputError, key_token, token
-from s2cl.retrieve.indices import INDICES, ROLE_KEYS
 from s2cl.scene.section import Section
 from s2cl.scene.study_schema import (  # noqa: F401  (re-exported: the [study] section's model and limits)
     MAX_GAS_FACTOR,
@@ -44,7 +43,10 @@ class SceneMeta(Section):
 
 class SurfaceSpec(Section):
     library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) / s2cl .npz library file")
-    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr)")
+    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr), whose no-data values, "
+                             "scale factors and bad band lists are honoured (pixels with no data are flagged NODATA, "
+                             "never used as data); or builtin:fields[:ROWSxCOLS], parcels generated with a known "
+                             "truth (cab, lai)")
     variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
     gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
     quantity: Literal["reflectance", "radiance"] = Field(
@@ -159,6 +161,9 @@ class SweepSpec(Section):
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
+    within_noise_top: int = Field(100, ge=0, le=10_000, description="the best designs re-scored per pixel to find "
+                                  "those within noise of #1 (a paired bootstrap over library spectra, "
+                                  "s2cl.sweep.within_noise); 0: none")
     add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
                                 "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
     search: Literal["exhaustive", "halving"] = Field(
@@ -180,15 +185,11 @@ class SweepSpec(Section):
                              "noise is effects.seed's); the same seed gives the same search")
 
 
-#: every [analysis] kind: the IGRM fit, each normalised-difference index (s2cl.retrieve.indices), a user's formula
-#: (s2cl.retrieve.formula), SAM
-ANALYSIS_KINDS = ("igrm", *INDICES, "formula", "sam")
-
-
 class AnalysisSpec(Section):
-    kind: Literal[ANALYSIS_KINDS] = Field(  # type: ignore[valid-type]
-        description="the retrieval: the IGRM fit, a normalised-difference index, your own formula, or SAM "
-        "classification")
+    kind: str = Field(
+        description="the retrieval, an analysis family (s2cl.retrieve.families): `igrm` (the IGRM red-edge fit), a "
+        "normalised-difference index (`gvmi`, `ndvi`), `formula` (your own) or `sam` (SAM classes); another kind is "
+        "refused with the list of registered ones")
     bands: list[str] | None = Field(None, min_length=2, description="bands analysed by `s2cl simulate` (default: the "
                                     "swept bands, else B4 B5 B6 B7 for igrm, an index's role bands, all for sam)")
     parameter: str | None = Field(None, description="library parameter regressed on the index (igrm: cab, gvmi: ewt)")
@@ -197,7 +198,8 @@ class AnalysisSpec(Section):
                                    "names, numbers, + - * /, parentheses, sqrt log exp abs min max; a pixel whose "
                                    "denominator is zero or whose value is not finite is INVALID")
     roles: dict[str, str] = Field(default_factory=dict, description="an index's band of each role, written as keys of "
-                                  "[analysis] (gvmi: nir = 'B8', swir = 'B11'; s2cl.retrieve.indices)")
+                                  "[analysis] (gvmi: nir = 'B8', swir = 'B11'; s2cl.retrieve.indices); the family "
+                                  "refuses a key that is not one of its roles")
     classes: list[str] | None = Field(None, description="sam: library groups to tell apart (default: all)")
     angle_threshold_deg: float | None = Field(None, gt=0, le=90, description="sam: larger angles are unclassified")
     igrm: dict[str, Any] = Field(default_factory=dict, description="IGRM fit settings (see s2cl.retrieve.igrm)")
@@ -209,10 +211,13 @@ class AnalysisSpec(Section):
     @model_validator(mode="before")
     @classmethod
     def _gather_roles(cls, data: Any) -> Any:
-        """Band-role keys (``nir = "B8"``) of any registered index go into :attr:`roles`."""
-        if isinstance(data, dict) and any(k in data for k in ROLE_KEYS):
-            data = dict(data)
-            data["roles"] = {k: data.pop(k) for k in ROLE_KEYS if k in data}
+        """Keys that are not fields and hold a band name (``nir = "B8"``) go into :attr:`roles`: the analysis family
+        checks them against its band roles (:meth:`s2cl.retrieve.family.Family.roles`)."""
+        if isinstance(data, dict):
+            extra = [k for k, v in data.items() if k not in cls.model_fields and isinstance(v, str)]
+            if extra:
+                data = dict(data)
+                data["roles"] = {**data.get("roles", {}), **{k: data.pop(k) for k in extra}}
         return data
 
 
@@ -324,7 +329,7 @@ def _allowed_keys(loc: list[str]) -> list[str]:
     if not loc:
         return list(SceneSpec.model_fields)
     if loc == ["analysis"]:
-        return [k for k in AnalysisSpec.model_fields if k != "roles"] + list(ROLE_KEYS)
+        return [k for k in AnalysisSpec.model_fields if k != "roles"] + ["an index's band roles (nir, swir, ...)"]
     _, model = _walk(loc)
     fields = getattr(_unwrap_optional(model), "model_fields", None)
     return list(fields) if fields else []

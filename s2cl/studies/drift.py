@@ -58,12 +58,11 @@ class Application:
     @property
     def metric(self) -> str:
         """What the error is: RMS of the regressed parameter, or SAM's mean omission error."""
-        a = self.analysis
-        return "omission error" if a.kind == "sam" else f"RMS of {a.parameter}"
+        return self.analysis.family.score_label(self.analysis)
 
     @property
     def unit(self) -> str:
-        if self.analysis.kind == "sam":
+        if self.analysis.family.metric == "classification":
             return "%"
         return PARAMETER_UNITS.get(str(self.analysis.parameter), "")
 
@@ -184,7 +183,7 @@ def drift_errors(app: Application, tables: SweepTables, evaluate: ChunkEvaluator
     fit = None
     for i, c in enumerate(configs):
         raw = evaluate(int(c), int(c) + 1)
-        if a.kind == "sam":
+        if a.family.metric == "classification":
             m = classification_metrics(raw.index.astype(np.int64), raw.status, target.astype(np.int64),
                                        len(tables.class_names))
             error[i] = recal[i] = m["omission_error_pct"][0]

@@ -26,7 +26,7 @@ from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.params import PARAMETER_UNITS
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design
-from s2cl.retrieve.indices import INDICES
+from s2cl.retrieve.family import family_of, registry
 from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import SweepSpace
 from s2cl.sweep.space import ADD_KEY
@@ -48,7 +48,7 @@ class AdditionBase:
 
 def score_column(analysis: AnalysisSettings) -> str:
     """The results column a gain is taken on: ``rms`` for regressions, ``omission_error_pct`` for SAM."""
-    return "rms" if analysis.regression else "omission_error_pct"
+    return analysis.family.score_column
 
 
 def check_base(scene: Scene, space: SweepSpace, library: SpectralLibrary | None) -> AdditionBase | None:
@@ -64,18 +64,18 @@ def check_base(scene: Scene, space: SweepSpace, library: SpectralLibrary | None)
     base = SweepSpace(space.ranges[:-1])
     names = base.bands
     kind = scene.spec.analysis.kind if scene.spec.analysis is not None else None
-    if kind in INDICES or kind == "formula":
-        # an index (a formula) reads the bands it names: it either leaves the added band out (every candidate
-        # scores the base: no gain to measure) or names it (then the base set alone has no index): no gain either way
-        what = "index" if kind in INDICES else "formula"
-        raise InputError(f"a band addition needs an analysis that uses every band (igrm or sam); the {kind} {what} "
-                         "reads the bands it names, so the added band would either not enter it or leave the base "
-                         "set without one", source=scene.source, key=ADD_KEY)
+    if kind is not None and not family_of(kind, scene.source).uses_every_band:
+        # such a family (an index, a formula) reads the bands it names: it either leaves the added band out (every
+        # candidate scores the base: no gain to measure) or names it (then the base set alone has no value)
+        users = ", ".join(k for k, f in registry().items() if f.uses_every_band)
+        raise InputError(f"a band addition needs an analysis that uses every band ({users}); {kind} reads the bands "
+                         "it names, so the added band would either not enter it or leave the base set without one",
+                         source=scene.source, key=ADD_KEY)
     what = f"the base set {', '.join(names)} alone cannot be scored by {kind}, so no gain"
     try:
         analysis = AnalysisSettings.from_scene(scene, names)
         shape = base.shapes(0, 1)[0]
-        check_design(analysis.kind, names, shape[:, 0], shape[:, 1], slots=analysis.slots, pairs=analysis.pairs)
+        check_design(analysis, names, shape[:, 0], shape[:, 1])
         if library is not None:
             analysis_targets(scene, library, analysis)
     except InputError as err:

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.retrieve.family import registry
+
 BATCH_ROWS = 65_536
 TOP = 10
 #: most centre rows and width columns a heatmap draws; beyond them consecutive values are grouped
@@ -30,8 +32,12 @@ BYTES_PER_VARIANT = 96
 BATCH_BYTES_PER_COLUMN = 4 * 8 * BATCH_ROWS
 
 
-def metric_of(columns: list[str]) -> str:
-    """The ranking metric of a results table."""
+def metric_of(columns: list[str], meta: dict[str, str] | None = None) -> str:
+    """The ranking metric of a results table: its analysis family's score column (``meta``: the table's metadata,
+    whose ``analysis`` is the kind), else the metric column it holds."""
+    family = registry().get((meta or {}).get("analysis", ""))
+    if family is not None and family.score_column in columns:
+        return family.score_column
     return "omission_error_pct" if "omission_error_pct" in columns else "rms"
 
 
@@ -114,7 +120,7 @@ class Digest:
 
     @property
     def metric(self) -> str:
-        return self.metric_column or metric_of(self.columns)
+        return self.metric_column or metric_of(self.columns, self.meta)
 
     @property
     def bands(self) -> list[str]:
@@ -220,6 +226,22 @@ class Digest:
         values = np.full((-(-centres.size // gc), -(-widths.size // gw)), np.nan)
         np.fmin.at(values, (ci.ravel() // gc, wi.ravel() // gw), pairs.best)
         return _labels(centres, gc), _labels(widths, gw), values, (gc, gw)
+
+
+    def binned_cells(self, band: str, pairs: list[tuple[float, float]], max_centres: int = HEATMAP_CENTRES,
+                     max_widths: int = HEATMAP_WIDTHS) -> np.ndarray:
+        """Boolean mask of :meth:`binned_grid`'s cells of ``band`` that hold one of the (centre, width)
+        ``pairs`` (nm); pairs that are not variants of ``band`` mark nothing."""
+        grid = self.pairs[band]
+        grid.merge()
+        centres, widths = np.unique(grid.keys.real), np.unique(grid.keys.imag)
+        gc, gw = -(-centres.size // max_centres), -(-widths.size // max_widths)
+        mask = np.zeros((-(-centres.size // gc), -(-widths.size // gw)), bool)
+        for c, w in pairs:
+            i, j = int(np.searchsorted(centres, c)), int(np.searchsorted(widths, w))
+            if i < centres.size and j < widths.size and centres[i] == c and widths[j] == w:
+                mask[i // gc, j // gw] = True
+        return mask
 
 
 def _labels(values: np.ndarray, group: int) -> list[str]:

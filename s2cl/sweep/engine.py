@@ -135,7 +135,7 @@ def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = No
         rows[f"{b}_centre_nm"] = centres[:, k]
         rows[f"{b}_width_nm"] = widths[:, k]
     a = job.analysis
-    rows["underdetermined"] = underdetermined(a.kind, centres, widths, slots=a.slots, pairs=a.pairs)
+    rows["underdetermined"] = underdetermined(a, centres, widths)
     # the kernel computes its metrics on the device where it can; any other evaluator gives per-pixel results
     metrics = getattr(ev, "metrics", None)
     m = metrics(start, stop) if metrics else host_metrics(a, ev(start, stop), t.target, len(t.class_names))
@@ -301,15 +301,19 @@ Progress = Callable[[int], None]
 
 def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
               overwrite: bool = False, device: str | None = None, progress: Progress | None = None,
-              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None) -> Path:
+              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None,
+              resources_checked: bool = False) -> Path:
     """Run (or resume) a sweep into folder ``out``; returns the path of ``results.parquet``.
 
     :param device: the OpenCL device of every chunk, here and on Dask workers (each builds its own context).
     :param on_start: called with (configurations to compute, configurations already done).
     :param evaluator: a picklable chunk evaluator instead of the kernel (tests and bench: the numpy twin).
+    :param resources_checked: the caller has checked disk and memory already (:func:`s2cl.app.optimise.optimise`
+        does, before it builds anything); else :func:`check_resources` checks them here.
     """
     out = Path(out)
-    check_resources(job, out)
+    if not resources_checked:
+        check_resources(job, out)
     todo = prepare_folder(job, out, overwrite=overwrite)
     done = job.n_configs - sum(hi - lo for lo, hi in todo)
     if on_start:

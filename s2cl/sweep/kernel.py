@@ -7,10 +7,9 @@ import numpy as np
 from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
-from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError
 from s2cl.retrieve.analysis import AnalysisSettings
-from s2cl.retrieve.indices import INDICES
+from s2cl.retrieve.family import SweepContext
 from s2cl.status import MAX_ABS_REFLECTANCE
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
@@ -54,40 +53,18 @@ class SweepKernel:
         # a design list (diagonal tables): every slot takes variant cfg
         strides = [1] * len(counts) if t.diagonal else [int(np.prod(counts[k + 1:])) for k in range(len(counts))]
         row0 = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
-        variables = dict(T=self.T, T1=VecTypes(precision, 1), n_slots=t.n_slots, counts=counts, strides=strides,
-                         row0=row0, var0=row0, n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
+        ctx = SweepContext(tuple(t.bands), tuple(counts), tuple(strides), tuple(row0), len(t.class_names),
+                           MAX_ABS_REFLECTANCE)
+        functions, body = analysis.family.sweep_code(analysis, self.T, ctx)
+        variables = dict(T=self.T, n_slots=t.n_slots, counts=counts, strides=strides, row0=row0, var0=row0,
+                         n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
-                         noise=t.noise, quantise=t.quantise, kind=analysis.kind, nd=INDICES.get(analysis.kind),
-                         slot_a=analysis.slots[0], slot_b=analysis.slots[-1], n_classes=len(t.class_names),
-                         formula_source=self._formula_source(), formula_slots=analysis.slots,
-                         cos_min=self._cos_min(),
-                         max_abs=MAX_ABS_REFLECTANCE, args=ARGS, signature=signature)
-        variables.update(self._igrm_variables(precision))
+                         noise=t.noise, quantise=t.quantise, analysis_functions=functions, analysis_body=body,
+                         args=ARGS, signature=signature)
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
         self._metrics = None  # the metrics kernel, built on first use
-
-    def _formula_source(self) -> str | None:
-        """The device function of a formula analysis (:meth:`s2cl.retrieve.formula.Formula.device_source`)."""
-        if self.analysis.kind != "formula":
-            return None
-        return self.analysis.formula(self.tables.bands).device_source(self.T, MAX_ABS_REFLECTANCE)
-
-    def _cos_min(self) -> float:
-        """cos of the SAM angle threshold; -2 (below -1) for none."""
-        a = self.analysis.angle_threshold_deg
-        return -2.0 if a is None else float(np.cos(np.deg2rad(a)))
-
-    def _igrm_variables(self, precision: str) -> dict:
-        if self.analysis.kind != "igrm":
-            return {"c": None, "exp_coef": None, "exp_consts": None}
-        from s2cl.cl.vecmath import EXP_DEGREE, exp_template_vars
-        from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
-
-        settings = IgrmSettings.from_mapping(dict(self.analysis.igrm))
-        c = kernel_config(settings, self.tables.n_slots, precision, "poly")
-        return {"c": c, **exp_template_vars(precision, EXP_DEGREE[precision])}
 
     def _upload(self) -> None:
         t, dtype, rt = self.tables, self.T.dtype, self.rt

@@ -42,9 +42,9 @@ class MetricsKernel:
     def __init__(self, rt: Runtime, T: VecTypes, analysis: AnalysisSettings, target: np.ndarray, pitch: int,
                  n_classes: int = 0):
         self.rt, self.T, self.analysis, self.pitch = rt, T, analysis, pitch
-        self.classify = analysis.kind == "sam"
+        self.classify = analysis.family.metric == "classification"
         self.names = CLASSIFICATION if self.classify else REGRESSION
-        self.condition = analysis.kind == "igrm"
+        self.condition = analysis.family.has_condition
         self.n_pixels = int(np.asarray(target).size)
         self.n_classes = n_classes
         source = render(TEMPLATE, T=T, kind="classification" if self.classify else "regression", names=self.names,
@@ -92,10 +92,10 @@ class MetricsKernel:
 def host_metrics(analysis: AnalysisSettings, raw: RawChunk, target: np.ndarray, n_classes: int
                  ) -> dict[str, np.ndarray]:
     """Per-configuration metrics of ``raw`` in numpy (:mod:`s2cl.retrieve.metrics`)."""
-    if analysis.kind == "sam":
+    if analysis.family.metric == "classification":
         m = classification_metrics(raw.index.astype(np.int64), raw.status, np.asarray(target).astype(np.int64),
                                    n_classes)
         m.pop("confusion")
         return m
     return regression_metrics(raw.index, raw.status, raw.bounds, target, regress=analysis.regress,
-                              condition=raw.condition if analysis.kind == "igrm" else None)
+                              condition=raw.condition if analysis.family.has_condition else None)

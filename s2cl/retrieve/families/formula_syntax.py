@@ -1,4 +1,4 @@
-"""The syntax of formula retrievals (:mod:`s2cl.retrieve.formula`): a tokenizer and a recursive-descent parser
+"""The syntax of formula retrievals (:mod:`s2cl.retrieve.families.formula`): a tokenizer and a recursive-descent parser
 that turn the text into a small AST. Python never evaluates the text (no ``eval``, no ``ast``)::
 
     expr    := term (('+' | '-') term)*
