@@ -21,6 +21,7 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.instrument import Instrument, smile_radiance
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
@@ -205,19 +206,25 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
+    atmosphere = scene_atmosphere(scene)
+    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
+    instrument = Instrument.of(scene)
+    if instrument.spec.smile:
+        radiance = smile_radiance(sim.rt, scene, spectra, rows, cols, atmosphere)
+    else:
+        radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
     if progress:
         progress(rows * cols)
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
     ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
                            "effects": scene.effects.describe(), "seed": scene.run.seed,
-                           "input_gsd_m": gsd_in, "psf": s.spatial.psf})
+                           "input_gsd_m": gsd_in, "psf": s.spatial.psf, "instrument": instrument.spec.describe()})
     bands = scene.sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
         ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
         factor = _factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source)
-        images = np.stack([aggregate(radiance[k], factor, psf) for k in ids])
+        images = np.stack([aggregate(instrument.spatial(radiance[k], k, factor), factor, psf) for k in ids])
+        images = instrument.columns(images, ids)
         _add_group(ds, scene, sim, ids, images, gsd)
     return ds
 
