@@ -29,6 +29,7 @@ LUT_BUILD_JSON = RESULTS / "lut_build.json"
 LUT_ACCURACY_JSON = RESULTS / "lut_accuracy.json"
 RESIDUALS_JSON = RESULTS / "correction_residuals.json"
 BENCH_PAGE_JSON = RESULTS / "amd-epyc-2c-2026-11-24.json"  # the full `python -m bench` run docs/bench.md shows
+INSTRUMENT_JSON = RESULTS / "instrument_costs.json"
 Result = dict[str, Any]
 
 
@@ -567,6 +568,31 @@ def bench_page() -> str:
     return report.markdown(_load(BENCH_PAGE_JSON), figures, docs=True)
 
 
+# -- docs/instrument.md -----------------------------------------------------------------------------
+
+def instrument_costs() -> str:
+    """``python -m bench.instrument_costs``: each instrument effect alone against the ideal instrument."""
+    r = _load(INSTRUMENT_JSON)
+    ideal = r["rows"][0]["seconds"]
+    rows = []
+    for row in r["rows"]:
+        worst = max(row["rms_effect"], key=row["rms_effect"].get)
+        rows.append((row["instrument"], row["rms_effect_mean"],
+                     "–" if row["instrument"] == "ideal" else f"{worst} {cell(row['rms_effect'][worst])}",
+                     row["rms_vs_truth_mean"], row["score"].get("ndvi_rms"), row["seconds"],
+                     f"{row['seconds'] / ideal:.2f}×"))
+    spatial = r["spatial_step_seconds"]
+    runs = {row["instrument"]: row["seconds"] for row in r["rows"]}
+    share = ", ".join(f"{e} {spatial[e]:.3g} s of its {runs[e]:.3g} s run ({100 * spatial[e] / runs[e]:.0f} %)"
+                      for e in spatial)
+    return (md_table(("instrument", "effect alone: RMS Δρ, mean of bands", "worst band", "product vs truth: RMS Δρ",
+                      "NDVI map RMS vs truth", "s per run", "× ideal"), rows)
+            + f"\n\n{r['pixels']:,} pixels at {r['input_gsd_m']:g} m ({r['scene']}, parcels of "
+            f"{r['parcel_pixels']} × {r['parcel_pixels']} pixels), {r['product']} (L2 band reflectance) of the "
+            f"{len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's FFT): {share}. From "
+            f"`{_rel(INSTRUMENT_JSON)}` (written by `{r['command']}`; {_machine(r)}; {r['load']}).")
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -603,6 +629,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "soils.fe-band-depth": soil_fe_band_depth,
     "cellulose.co2": cellulose_co2,
     "retrieve.igrm-hyperspectral": igrm_hyperspectral,
+    "instrument.costs": instrument_costs,
 }
 
 # pages generated whole (path relative to the repository → its text)

@@ -227,3 +227,40 @@ def test_instrument_scene_errors() -> None:
                          "instrument": {"nonuniformity": True}})
     with pytest.raises(InputError, match=r"instrument\.coregistration_shifts"):
         _scene({"coregistration": True, "coregistration_shifts": {"B4": [3.0, 0.0]}})
+
+
+# -- what each effect costs ------------------------------------------------------------------------------------
+
+def test_effect_costs_on_a_small_parcel_image(rt) -> None:
+    """bench.instrument_costs on 24 × 24 pixels: the ideal row has no effect and the noise floor against the truth;
+    each effect differs from the ideal; the plugged score is computed for every row."""
+    from bench import instrument_costs as bench
+    from s2cl.app.instrument_costs import EFFECTS, effect_costs
+
+    s = bench.scene(2)
+    cube = bench.parcel_cube(24, 2)
+    calls: list[int] = []
+
+    def score(ds) -> dict[str, float]:
+        calls.append(1)
+        return bench.ndvi_score(bench.true_ndvi(s, cube))(ds)
+
+    rows = effect_costs(rt, s, cube, DEFAULT_GRID.wavelengths, score=score)
+    assert [r.instrument for r in rows] == ["ideal", *EFFECTS]
+    assert len(calls) == len(rows)
+    ideal = rows[0]
+    assert all(v == 0.0 for v in ideal.rms_effect.values())
+    assert 0.0 < ideal.as_dict()["rms_vs_truth_mean"] < 0.05
+    for r in rows[1:]:
+        assert r.as_dict()["rms_effect_mean"] > 1e-5, r.instrument
+        assert r.source and r.seconds > 0
+    assert 0.0 <= ideal.score["ndvi_rms"] < rows[1].score["ndvi_rms"]  # the MTF blurs parcel edges
+
+
+def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
+    """A scene with every effect on still gets an ideal row that is ideal, and its magnitudes are used."""
+    from s2cl.app.instrument_costs import with_instrument
+
+    s = _scene({"mtf": True, "mtf_nyquist": 0.3, "smile": True})
+    ideal = with_instrument(s, {**s.spec.instrument.model_dump(), "mtf": False, "smile": False})
+    assert ideal.spec.instrument.describe() == "ideal" and ideal.spec.instrument.mtf_nyquist == 0.3

@@ -1,13 +1,15 @@
 """What each instrument effect costs on an image: each [instrument] effect switched on alone at its specified
-magnitude (the scene's own values, by default those of :data:`s2cl.scene.instrument_schema.SOURCES`), the
-product compared with the ideal instrument's, and the time it takes.
+magnitude (the scene's own values, by default those of :data:`s2cl.scene.instrument_schema.SOURCES`), compared
+with the ideal instrument, and the time it takes.
 
-Every run of one comparison uses the same seed, so the noise of a pixel is drawn from the same numbers in every
-run and the difference to the ideal run is the effect's alone (``rms_vs_ideal``); ``rms_vs_truth`` compares with
-the ideal instrument without noise (the noise floor in the ideal row). The compared product is the L2 band
-reflectance when the scene corrects the atmosphere, else calibrated radiance, else band radiance. ``score``
-plugs in a map-level figure: a function of the simulated dataset (e.g. a retrieval map's RMS against the scene's
-truth map) whose numbers enter each row.
+Each instrument runs twice: as the scene asks (noise, quantisation, calibration, correction: the product a user
+gets, timed) and clean (no noise, no quantisation: the effect alone). ``rms_effect`` is the clean product's RMS
+difference to the clean ideal one — the effect's own size, free of noise and of the re-rounding to DN that any
+sub-DN change brings; ``rms_vs_truth`` is the product's RMS difference to the clean ideal one (for the ideal row:
+the noise and quantisation floor). The compared product is the L2 band reflectance when the scene corrects the
+atmosphere, else band radiance (calibrated in the product). ``score`` plugs in a map-level figure: a function of
+the simulated product dataset (e.g. a retrieval map's RMS against the scene's truth map) whose numbers enter each
+row.
 """
 
 from __future__ import annotations
@@ -31,13 +33,13 @@ Score = Callable[[xr.Dataset], dict[str, float]]
 
 @dataclass
 class EffectCost:
-    """One row: the instrument (``ideal`` or one effect on), its seconds per run and its product's RMS
-    difference per band to the ideal instrument and to the noise-free ideal one (units of the product)."""
+    """One row: the instrument (``ideal`` or one effect on), its seconds per product run, and per band the RMS
+    differences described in the module docstring (units of the product)."""
 
     instrument: str
     source: str
     seconds: float
-    rms_vs_ideal: dict[str, float]
+    rms_effect: dict[str, float]
     rms_vs_truth: dict[str, float]
     score: dict[str, float] = field(default_factory=dict)
 
@@ -46,8 +48,8 @@ class EffectCost:
             return float(np.mean(list(d.values()))) if d else float("nan")
 
         return {"instrument": self.instrument, "source": self.source, "seconds": self.seconds,
-                "rms_vs_ideal_mean": mean(self.rms_vs_ideal), "rms_vs_truth_mean": mean(self.rms_vs_truth),
-                "rms_vs_ideal": self.rms_vs_ideal, "rms_vs_truth": self.rms_vs_truth, "score": self.score}
+                "rms_effect_mean": mean(self.rms_effect), "rms_vs_truth_mean": mean(self.rms_vs_truth),
+                "rms_effect": self.rms_effect, "rms_vs_truth": self.rms_vs_truth, "score": self.score}
 
 
 def with_instrument(scene: Scene, instrument: dict[str, Any], effects: dict[str, Any] | None = None) -> Scene:
@@ -67,11 +69,15 @@ def product_variable(scene: Scene) -> str:
     return "reflectance" if e.correct else "calibrated" if e.calibrate else "noisy" if e.noise else "radiance"
 
 
-def band_rms(a: xr.Dataset, b: xr.Dataset, prefix: str, names: list[str]) -> dict[str, float]:
+#: the clean run: no noise, no quantisation (so no calibration either)
+CLEAN = {"noise": False, "quantise": False, "calibrate": False}
+
+
+def band_rms(a: xr.Dataset, b: xr.Dataset, names: list[str], prefix_a: str, prefix_b: str) -> dict[str, float]:
     """Per band, the RMS of ``a − b`` over pixels finite in both (float64)."""
     out = {}
     for n in names:
-        x, y = a[f"{prefix}_{n}"].values.astype(np.float64), b[f"{prefix}_{n}"].values.astype(np.float64)
+        x, y = a[f"{prefix_a}_{n}"].values.astype(np.float64), b[f"{prefix_b}_{n}"].values.astype(np.float64)
         ok = np.isfinite(x) & np.isfinite(y)
         out[n] = float(np.sqrt(np.mean((x[ok] - y[ok]) ** 2))) if ok.any() else float("nan")
     return out
@@ -94,22 +100,19 @@ def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wave
     """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory): one
     :class:`EffectCost` per instrument, the ideal first. The scene's own [instrument] values set each effect's
     magnitude (its on/off switches are ignored)."""
-    base = scene.spec.instrument.model_dump()
-    for name in EFFECTS:
-        base[name] = False
+    base = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False)}
     ideal_scene = with_instrument(scene, base)
     prepared = load_scene_cube(ideal_scene, cube, wavelengths_nm)
-    prefix = product_variable(ideal_scene)
     names = ideal_scene.sensor.band_names
-    truth_scene = with_instrument(scene, base, effects={"noise": False})
-    truth = simulate_cube(rt, truth_scene, prepared)
-    ideal, seconds = _timed(rt, ideal_scene, prepared, repeats)
-    rows = [EffectCost("ideal", "no instrument effect (noise and quantisation only)", seconds,
-                       band_rms(ideal, ideal, prefix, names), band_rms(ideal, truth, prefix, names),
-                       score(ideal) if score else {})]
-    for name in effects:
-        variant = with_instrument(scene, {**base, name: True})
-        ds, seconds = _timed(rt, variant, prepared, repeats)
-        rows.append(EffectCost(name, SOURCES[name], seconds, band_rms(ds, ideal, prefix, names),
-                               band_rms(ds, truth, prefix, names), score(ds) if score else {}))
+    product = product_variable(ideal_scene)
+    clean = "reflectance" if ideal_scene.effects.correct else "radiance"
+    truth = simulate_cube(rt, with_instrument(scene, base, effects=CLEAN), prepared)
+    rows = []
+    for name in ("ideal", *effects):
+        spec = base if name == "ideal" else {**base, name: True}
+        ds, seconds = _timed(rt, with_instrument(scene, spec), prepared, repeats)
+        own = truth if name == "ideal" else simulate_cube(rt, with_instrument(scene, spec, effects=CLEAN), prepared)
+        source = "no instrument effect (noise and quantisation only)" if name == "ideal" else SOURCES[name]
+        rows.append(EffectCost(name, source, seconds, band_rms(own, truth, names, clean, clean),
+                               band_rms(ds, truth, names, product, clean), score(ds) if score else {}))
     return rows
