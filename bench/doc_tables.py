@@ -29,7 +29,7 @@ LUT_BUILD_JSON = RESULTS / "lut_build.json"
 LUT_ACCURACY_JSON = RESULTS / "lut_accuracy.json"
 RESIDUALS_JSON = RESULTS / "correction_residuals.json"
 BENCH_PAGE_JSON = RESULTS / "amd-epyc-2c-2026-11-24.json"  # the full `python -m bench` run docs/bench.md shows
-INSTRUMENT_JSON = RESULTS / "instrument_costs.json"
+INSTRUMENT_JSON = DOCS / "studies" / "instrument" / "instrument.json"
 Result = dict[str, Any]
 
 
@@ -571,8 +571,9 @@ def bench_page() -> str:
 # -- docs/instrument.md -----------------------------------------------------------------------------
 
 def instrument_costs() -> str:
-    """``python -m bench.instrument_costs``: each instrument effect alone against the ideal instrument."""
-    r = _load(INSTRUMENT_JSON)
+    """``s2cl study instrument``: each instrument effect alone against the ideal instrument."""
+    saved = _load(INSTRUMENT_JSON)
+    r = saved["data"]
     ideal = r["rows"][0]["seconds"]
     rows = []
     for row in r["rows"]:
@@ -585,12 +586,19 @@ def instrument_costs() -> str:
     runs = {row["instrument"]: row["seconds"] for row in r["rows"]}
     share = ", ".join(f"{e} {spatial[e]:.3g} s of its {runs[e]:.3g} s run ({100 * spatial[e] / runs[e]:.0f} %)"
                       for e in spatial)
+    m = r["machine"]
+    loads = m["load_average_1min"]
+    busy = max(loads) > 1.25 * m["cores"]
+    load = (f"1-minute load average {loads[0]:.1f} before and {loads[1]:.1f} after the run: "
+            + ("other jobs shared the machine, so the times are upper bounds; read ratios" if busy
+               else "the machine was otherwise quiet"))
     return (md_table(("instrument", "effect alone: RMS Δρ, mean of bands", "worst band", "product vs truth: RMS Δρ",
                       "NDVI map RMS vs truth", "s per run", "× ideal"), rows)
-            + f"\n\n{r['pixels']:,} pixels at {r['input_gsd_m']:g} m ({r['scene']}, parcels of "
-            f"{r['parcel_pixels']} × {r['parcel_pixels']} pixels), {r['product']} (L2 band reflectance) of the "
-            f"{len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's FFT): {share}. From "
-            f"`{_rel(INSTRUMENT_JSON)}` (written by `{r['command']}`; {_machine(r)}; {r['load']}).")
+            + f"\n\n{r['pixels']:,} pixels at {r['input_gsd_m']:g} m (parcels of {r['parcel_pixels']} × "
+            f"{r['parcel_pixels']} pixels from {', '.join(r['targets'].values())}), {r['product']} (L2 band "
+            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's "
+            f"FFT): {share}. From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
+            f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 
 BLOCKS: dict[str, Callable[[], str]] = {

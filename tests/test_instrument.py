@@ -83,6 +83,23 @@ def test_integer_shift_is_a_roll_and_fraction_moves_a_sine() -> None:
                        atol=2e-3)
 
 
+def test_nodata_pixels_stay_local() -> None:
+    """A NaN pixel does not spread through the FFT: away from it the result is the one of the image with that pixel
+    filled in; at its shifted place it is NaN."""
+    img = _cube(30, 30)[:, :, 400].astype(np.float64)
+    holed = img.copy()
+    holed[10, 12] = np.nan
+    out = spatial_response(holed, 1.0, 2.0, 0.0)
+    ref = spatial_response(img, 1.0, 2.0, 0.0)
+    assert np.isnan(out[10, 14]) or abs(out[10, 14] - ref[10, 14]) < 0.2 * abs(ref[10, 14])
+    far = np.ones_like(img, bool)
+    far[4:17, 6:22] = False
+    assert np.isfinite(out[far]).all()
+    assert np.allclose(out[far], ref[far], rtol=1e-3)
+    shifted = spatial_response(holed, 0.0, 2.0, 0.0)
+    assert np.isnan(shifted[10, 14]) and np.isfinite(np.delete(shifted.ravel(), 10 * 30 + 14)).all()
+
+
 def test_shifts_from_seed_have_the_given_magnitude() -> None:
     a = Instrument.of(_scene({"coregistration": True}))
     shifts = [a.shift(k) for k in range(len(a.band_names))]
@@ -232,20 +249,23 @@ def test_instrument_scene_errors() -> None:
 # -- what each effect costs ------------------------------------------------------------------------------------
 
 def test_effect_costs_on_a_small_parcel_image(rt) -> None:
-    """bench.instrument_costs on 24 × 24 pixels: the ideal row has no effect and the noise floor against the truth;
-    each effect differs from the ideal; the plugged score is computed for every row."""
-    from bench import instrument_costs as bench
+    """The instrument study's parts on 24 × 24 pixels: the ideal row has no effect and the noise floor against the
+    truth; each effect differs from the ideal; the plugged map score is computed for every row."""
     from s2cl.app.instrument_costs import EFFECTS, effect_costs
+    from s2cl.libraries.registry import load_library
+    from s2cl.studies import instrument as study
 
-    s = bench.scene(2)
-    cube = bench.parcel_cube(24, 2)
+    scene = study.cube_scene(Scene.load("study-instrument"))
+    spectra = np.concatenate([load_library(f"builtin:{n}", scene.grid).spectra for n in ("lib1", "iron-backgrounds")])
+    cube = study.parcel_cube(spectra, 24, 6, 2)
     calls: list[int] = []
+    ndvi = study.ndvi_score(study.true_ndvi(scene, cube))
 
     def score(ds) -> dict[str, float]:
         calls.append(1)
-        return bench.ndvi_score(bench.true_ndvi(s, cube))(ds)
+        return ndvi(ds)
 
-    rows = effect_costs(rt, s, cube, DEFAULT_GRID.wavelengths, score=score)
+    rows = effect_costs(rt, scene, cube, scene.grid.wavelengths, score=score)
     assert [r.instrument for r in rows] == ["ideal", *EFFECTS]
     assert len(calls) == len(rows)
     ideal = rows[0]

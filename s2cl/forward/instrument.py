@@ -50,12 +50,9 @@ def gaussian_sigma(mtf_nyquist: float) -> float:
     return math.sqrt(-2.0 * math.log(mtf_nyquist / BOX_MTF_NYQUIST)) / math.pi
 
 
-def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
-    """``image`` (rows, cols) blurred by a Gaussian of ``sigma`` and moved by ``(dx, dy)`` (content at x goes to
-    x + dx), all in input pixels, by one real FFT (float64) of the image mirrored into a 2 × 2 tile: that tile's
-    periodic extension is continuous, so the FFT's wrap-around adds no step, and the borders behave as a
-    half-sample mirror (``scipy.ndimage`` mode ``reflect``)."""
-    img = np.asarray(image, dtype=np.float64)
+def _filter(img: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """One real FFT of ``img`` mirrored into a 2 × 2 tile, times the Gaussian's transfer function and the shift's
+    phase ramp (float64)."""
     tile = np.block([[img, img[:, ::-1]], [img[::-1], img[::-1, ::-1]]])
     ny, nx = tile.shape
     fy = sfft.fftfreq(ny)[:, None]
@@ -63,6 +60,24 @@ def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> n
     transfer = np.exp(-2.0 * math.pi**2 * sigma**2 * (fx**2 + fy**2) - 2j * math.pi * (fx * dx + fy * dy))
     out = sfft.irfft2(sfft.rfft2(tile) * transfer, s=(ny, nx))
     return out[: img.shape[0], : img.shape[1]]
+
+
+def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """``image`` (rows, cols) blurred by a Gaussian of ``sigma`` and moved by ``(dx, dy)`` (content at x goes to
+    x + dx), all in input pixels, by one real FFT (float64) of the image mirrored into a 2 × 2 tile: that tile's
+    periodic extension is continuous, so the FFT's wrap-around adds no step, and the borders behave as a
+    half-sample mirror (``scipy.ndimage`` mode ``reflect``).
+
+    No-data (non-finite) pixels are left out: the image with them at 0 is divided by the same response of the
+    valid-pixel mask (normalised convolution), and a pixel whose response is less than half valid is NaN."""
+    img = np.asarray(image, dtype=np.float64)
+    valid = np.isfinite(img)
+    if valid.all():
+        return _filter(img, sigma, dx, dy)
+    weight = _filter(valid.astype(np.float64), sigma, dx, dy)
+    out = _filter(np.where(valid, img, 0.0), sigma, dx, dy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(weight >= 0.5, out / weight, np.nan)
 
 
 def lagrange(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
