@@ -118,6 +118,7 @@ def test_shifted_band_in_the_cube(rt) -> None:
     ideal = simulate_cube(rt, _scene(effects={"noise": False, "quantise": False, "calibrate": False}), cube)
     moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {"B4": [1.0, 0.0]}},
                                      effects={"noise": False, "quantise": False, "calibrate": False}), cube)
+    assert moved["radiance_B4"].attrs["shift_x_px"] == 1.0 and "shift_x_px" not in ideal["radiance_B4"].attrs
     a, b = ideal["radiance_B4"].values, moved["radiance_B4"].values
     assert np.allclose(b[:, 1:], a[:, :-1], rtol=1e-5)
     # bands without a given shift keep their seeded one (0.15 px): changed, but not by a whole pixel

@@ -226,6 +226,8 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
         images = np.stack([aggregate(instrument.spatial(radiance[k], k, factor), factor, psf) for k in ids])
         images = instrument.columns(images, ids)
         _add_group(ds, scene, sim, ids, images, gsd)
+    for k, band in enumerate(bands):
+        ds[f"radiance_{band.name}"].attrs.update(instrument.band_attrs(k))
     return ds
 
 

@@ -247,6 +247,20 @@ class Instrument:
         delta = s.residual_offset_pct / 100.0 * lref * z[3]
         return 1.0 / (1.0 + eps), -delta / (g * (1.0 + eps))
 
+    def band_attrs(self, k: int) -> dict[str, float | str]:
+        """What the instrument did to band ``k``, as attributes of its variables (empty when ideal)."""
+        attrs: dict[str, float | str] = {}
+        sigma, shift = self.mtf_sigma(k), self.shift(k)
+        if sigma is not None:
+            m = self._lookup(self.spec.mtf_nyquist_bands, k)
+            attrs.update(mtf_nyquist=float(self.spec.mtf_nyquist if m is None else m), psf_sigma_px=sigma)
+        if shift is not None:
+            attrs.update(shift_x_px=shift[0], shift_y_px=shift[1])
+        if self.spec.smile:
+            attrs.update(smile_centre_nm=", ".join(f"{c:g}" for c in self.spec.smile_centre_nm),
+                         smile_width_pct=", ".join(f"{c:g}" for c in self.spec.smile_width_pct))
+        return attrs
+
     def columns(self, images: np.ndarray, ids: list[int]) -> np.ndarray:
         """Band images ``(len(ids), rows, cols)`` with their per-column response; returned untouched when off."""
         if not self.spec.nonuniformity:
