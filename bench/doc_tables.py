@@ -596,8 +596,8 @@ def instrument_costs() -> str:
                       "NDVI map RMS vs truth", "s per run", "× ideal"), rows)
             + f"\n\n{r['pixels']:,} pixels at {r['input_gsd_m']:g} m (parcels of {r['parcel_pixels']} × "
             f"{r['parcel_pixels']} pixels from {', '.join(r['targets'].values())}), {r['product']} (L2 band "
-            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's "
-            f"FFT): {share}. From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
+            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's PSF "
+            f"and shift): {share}. From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 

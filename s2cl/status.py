@@ -32,7 +32,7 @@ class PixelFlag(enum.IntFlag):
     NONE = 0
     LOW = 1  #: radiance below Lmin: DN 0
     HIGH = 2  #: radiance above Lmax: saturated DN
-    NODATA = 4  #: radiance NaN: DN 0, calibrated radiance and reflectance NaN
+    NODATA = 4  #: radiance NaN (an image cube's no-data pixels too): DN 0, calibrated radiance and reflectance NaN
 
 
 #: |reflectance| above which a pixel is invalid input, in every retrieval (reflectance, not DN, is expected).

@@ -163,7 +163,8 @@ def test_envi_cube_headers_are_checked_key_by_key(tmp_path, header: dict[str, st
     hdr = _envi_cube(tmp_path, **header)
     if message is None:
         assert cube_size(hdr) == (6, 22)
-        cube, wl = load_cube(hdr)
+        read = load_cube(hdr)
+        cube, wl = read.values, read.wavelengths_nm
         assert cube.shape == (3, 2, 22) and wl[0] == 400.0
         return
     for read in (cube_size, load_cube):  # sized from the header before loading, and loaded: the same verdict

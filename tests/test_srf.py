@@ -109,3 +109,45 @@ def test_measured_sentinel2a_b1() -> None:
     assert 438 < centroid < 448
     with pytest.raises(InputError):
         measured_sentinel2_srf("S2C", "B1")
+
+
+def test_small_negative_responses_are_clipped_with_a_warning(tmp_path, caplog) -> None:
+    """Measured tables carry noise in the wings (Py6S's OLI B4: -0.00034 at 625 nm): clipped to 0, logged."""
+    path = tmp_path / "srf.csv"
+    wl = np.arange(600, 731, 1.0)
+    r = np.exp(-0.5 * ((wl - 665) / 10) ** 2)
+    r[25] = -0.00034  # 625 nm, -0.034 % of the peak
+    r[120] = -0.009  # 720 nm, -0.9 %: still noise
+    path.write_text("wavelength_nm,B4\n" + "\n".join(f"{a},{b}" for a, b in zip(wl, r, strict=True)) + "\n")
+    with caplog.at_level("WARNING", logger="s2cl"):
+        table = load_srf_csv(str(path))
+    assert table["B4"].response.min() == 0.0 and table["B4"].response[25] == 0.0
+    assert np.array_equal(table["B4"].response[r >= 0], r[r >= 0])
+    (record,) = [rec for rec in caplog.records if "negative response" in rec.getMessage()]
+    assert "B4" in record.getMessage() and "720 nm" in record.getMessage() and "2 negative" in record.getMessage()
+
+
+@pytest.mark.parametrize(("value", "message"), [(-0.02, r"B4: .*got -0\.02 at 625 nm, below the noise allowance"),
+                                                ("nan", r"B4: responses must be finite.*got nan at 625 nm")])
+def test_garbage_responses_are_refused_in_one_line(tmp_path, value, message: str) -> None:
+    path = tmp_path / "srf.csv"
+    wl = np.arange(600, 731, 1.0)
+    cells = [f"{b}" for b in np.exp(-0.5 * ((wl - 665) / 10) ** 2)]
+    cells[25] = str(value)
+    path.write_text("wavelength_nm,B4\n" + "\n".join(f"{a},{c}" for a, c in zip(wl, cells, strict=True)) + "\n")
+    with pytest.raises(InputError, match=message) as err:
+        load_srf_csv(str(path))
+    assert "\n" not in str(err.value)
+
+
+def test_py6s_oli_b4_table_loads_with_its_wing_noise_clipped(tmp_path, caplog) -> None:
+    """The measured table that motivated the rule: Py6S's Landsat 8 OLI B4 holds -0.000342 at 625 nm."""
+    p6 = pytest.importorskip("Py6S")
+    _, start_um, _, values = p6.PredefinedWavelengths.LANDSAT_OLI_B4
+    wl = 1000.0 * (start_um + 0.0025 * np.arange(len(values)))
+    path = tmp_path / "oli.csv"
+    path.write_text("wavelength_nm,B4\n" + "\n".join(f"{a:.4f},{b}" for a, b in zip(wl, values, strict=True)) + "\n")
+    with caplog.at_level("WARNING", logger="s2cl"):
+        table = load_srf_csv(str(path))
+    assert table["B4"].response.min() == 0.0
+    assert any("B4" in r.getMessage() and "at 625 nm" in r.getMessage() for r in caplog.records)

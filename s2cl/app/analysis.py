@@ -17,6 +17,7 @@ from s2cl.retrieve.design import check_design
 from s2cl.retrieve.family import family_of
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.scene.scene import Scene
+from s2cl.status import Status
 
 
 def analysis_bands(scene: Scene) -> list[str]:
@@ -51,8 +52,8 @@ class PixelResults:
     """Per-pixel outcome of the scene's analysis on a simulation, in the sweep kernel's terms
     (:class:`s2cl.sweep.raw.RawChunk`): ``index`` (λp nm, the index, or SAM class with
     ``len(classes)`` for none), ``status`` (:class:`s2cl.status.Status`), ``bounds``, ``condition``
-    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth``; ``pixels`` selects
-    the simulated pixels analysed (SAM: those of the chosen classes)."""
+    (IGRM codes, else None), and the regression ``target`` or the SAM ``truth`` (empty for an image without
+    one); ``pixels`` selects the simulated pixels analysed (SAM: those of the chosen classes)."""
 
     settings: AnalysisSettings
     bands: list[str]
@@ -65,30 +66,65 @@ class PixelResults:
     classes: list[str] | None = None
 
 
+def check_image_analysis(scene: Scene, settings: AnalysisSettings) -> None:
+    """Refuse, in one line, an [analysis] an image cube cannot carry: a classification needs class references
+    from a library, which an image does not have."""
+    if not settings.regression:
+        raise InputError(f"{settings.kind} on an image cube needs class references from a spectral library; an "
+                         "image's analysis maps a retrieval (igrm, an index or a formula)", source=scene.source,
+                         key="analysis.kind")
+
+
+def retrieve_pixels(rt: Runtime, scene: Scene, bands: list[str], settings: AnalysisSettings, refl: np.ndarray, *,
+                    target: np.ndarray | None = None, references: np.ndarray | None = None,
+                    classes: list[str] | None = None) -> PixelResults:
+    """The scene's retrieval on band reflectance ``refl`` ``(len(bands), pixels)`` (a library's copies or an
+    image's pixels), on ``rt``, in the scene's precision, with the same stage functions the sweep kernel runs
+    (so one design gets one verdict). A pixel with a non-finite reflectance in any band is INVALID (index NaN).
+    SAM needs the ``references`` ``(len(classes), len(bands))`` of its ``classes``."""
+    real_t, lanes = scene.run.precision, scene.run.lanes
+    refl = np.asarray(refl)
+    target = np.empty(0) if target is None else target
+    family = settings.family
+    if family.metric == "classification" and (references is None or classes is None):
+        raise InputError(f"{settings.kind} needs class references from a spectral library", source=scene.source,
+                         key="analysis.kind")
+    centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
+    r = family.run(rt, settings, bands, refl, centres, real_t=real_t, lanes=lanes, references=references)
+    out = PixelResults(settings, bands, r.index, r.status, r.bounds, r.condition, target,
+                       np.ones(refl.shape[1], dtype=bool), classes)
+    return _invalid_where_not_finite(out, refl)
+
+
+def _invalid_where_not_finite(r: PixelResults, refl: np.ndarray) -> PixelResults:
+    """Pixels with a non-finite reflectance in any band: status INVALID, index NaN, no bound."""
+    bad = ~np.isfinite(refl).all(axis=0)
+    if bad.any():
+        r.index = np.where(bad, np.nan, r.index)
+        r.status = np.where(bad, np.uint8(Status.INVALID), r.status).astype(r.status.dtype)
+        r.bounds = np.where(bad, 0, r.bounds).astype(r.bounds.dtype)
+    return r
+
+
 def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelResults:
-    """Run the scene's [analysis] on ``sim``'s corrected band reflectance, on ``rt``, in the scene's
-    precision, with the same stage functions the sweep kernel runs (so one design gets one verdict)."""
+    """Run the scene's [analysis] on ``sim``'s corrected band reflectance (:func:`retrieve_pixels`)."""
     if sim.reflectance is None:
         raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct",
                          source=scene.source, key="effects.correct")
     bands, settings = analysis_design(scene)
-    real_t, lanes = scene.run.precision, scene.run.lanes
     rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
     refl = sim.reflectance[rows].reshape(len(rows), -1)
     lib = sim.library
-    centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
-    family = settings.family
-    if family.metric == "classification":
+    if settings.family.metric == "classification":
         classes = scene.spec.analysis.classes or sorted(set(lib.groups))
         pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
         truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
-        r = family.run(rt, settings, bands, refl[:, pixels], centres, real_t=real_t, lanes=lanes,
-                       references=_class_references(scene, lib, bands, classes))
-        return PixelResults(settings, bands, r.index, r.status, r.bounds, r.condition, truth[pixels], pixels, classes)
+        r = retrieve_pixels(rt, scene, bands, settings, refl[:, pixels], target=truth[pixels],
+                            references=_class_references(scene, lib, bands, classes), classes=classes)
+        r.pixels = pixels
+        return r
     target = np.repeat(np.asarray(lib.params[settings.parameter], dtype=np.float64), sim.copies)
-    r = family.run(rt, settings, bands, refl, centres, real_t=real_t, lanes=lanes)
-    return PixelResults(settings, bands, r.index, r.status, r.bounds, r.condition, target,
-                        np.ones(refl.shape[1], dtype=bool))
+    return retrieve_pixels(rt, scene, bands, settings, refl, target=target)
 
 
 def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]:

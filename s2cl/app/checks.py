@@ -16,6 +16,7 @@ from typing import Any
 
 from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
+from s2cl.libraries.fields import is_builtin_cube
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
@@ -44,12 +45,14 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     sized from its metadata against ``budget`` before it is read."""
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
-    if scene.spec.analysis is not None and scene.spec.surface.cube is None:
-        from s2cl.app.analysis import analysis_bands, analysis_design
+    if scene.spec.analysis is not None:
+        from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
 
         bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
         analysis = _analysis(scene, bands, library)
         analysis_design(scene, bands, analysis)  # the design rule, as simulate's analysis applies it
+        if scene.spec.surface.cube is not None:
+            check_image_analysis(scene, analysis)
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
@@ -91,6 +94,8 @@ def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
 
         cube = scene.spec.surface.cube
         assert cube is not None  # the scene has one of them (s2cl.scene.scene)
+        if is_builtin_cube(cube):  # generated: its name was checked with the scene
+            return None
         input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
     from s2cl.forward.simulate import scene_library

@@ -55,10 +55,15 @@ class OptimiseResult:
         return pd.DataFrame(rows)
 
     def table(self) -> pd.DataFrame:
-        """Every configuration, one row each (``results.parquet``)."""
+        """Every configuration, one row each (``results.parquet``), with ``within_noise`` (of #1: True or False
+        for the designs tested, :mod:`s2cl.sweep.within_noise`; missing for the others)."""
         import pandas as pd
 
-        return pd.read_parquet(self.folder / "results.parquet")
+        from s2cl.sweep.within_noise import within_column
+
+        df = pd.read_parquet(self.folder / "results.parquet")
+        df["within_noise"] = within_column(self.summary, df["config"].to_numpy())
+        return df
 
 
 def optimise(scene: str | Path | Scene = "default", out: str | Path | None = None, *, workers: int | None = None,
@@ -75,14 +80,16 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     todo, done)`` once before the first chunk (``job``: the planned :class:`~s2cl.sweep.engine.SweepJob`).
     """
     from s2cl.app.checks import check_sweep
-    from s2cl.app.plan import plan_sweep, reference_row
+    from s2cl.app.plan import plan_sweep, reference_pixels, reference_row
     from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
     from s2cl.cl.runtime import get_runtime
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
     from s2cl.scene.caveats import report
+    from s2cl.sweep.digest import TOP
     from s2cl.sweep.engine import check_folder, kernel_evaluator, reach_scheduler, resumable_chunk, run_sweep
     from s2cl.sweep.report import Digest, open_results, paper_match, summarise
+    from s2cl.sweep.within_noise import mark_top, within_noise
 
     if workers and scheduler:
         raise InputError("give workers or a scheduler, not both", key="--scheduler")
@@ -117,8 +124,16 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
                             overwrite=overwrite, device=device, resources_checked=True)
         path, meta = open_results(results)
         reference = reference_row(sc, job, device)
-        digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)))
+        candidates = sc.spec.sweep.within_noise_top
+        digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)),
+                                top_n=max(TOP, candidates))
         summary = summarise(digest, meta, reference)
+        if candidates:
+            tested = within_noise(job, digest.top.head(candidates), digest.metric, device=device,
+                                  reference=reference_pixels(sc, job, device), ranked=digest.ranked)
+            if tested is not None:
+                summary["within_noise"] = tested
+            mark_top(summary)
         summary["seconds"] = time.perf_counter() - t0
         summary["warnings"] = warnings
         written = write_report(digest, summary, folder, summary["bands"])
@@ -206,6 +221,7 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
     ``folder`` from the results' :class:`~s2cl.sweep.digest.Digest`; the files written."""
     from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
     from s2cl.sweep.report import heatmap, heatmap_vs_paper, paper_comparison, write_summary
+    from s2cl.sweep.within_noise import within_pairs
 
     plots = []
     comparison = paper_comparison(digest, summary)
@@ -220,7 +236,8 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
         plots += gain_plots(digest, record, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
-    return written + [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png") for b in moving] + plots
+    return written + [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png", hatch=within_pairs(summary, b))
+                      for b in moving] + plots
 
 
 def report_results(results: str | Path, band: str | None = None) -> tuple[dict[str, Any], list[Path]]:
@@ -237,6 +254,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
         reference_of,
         summarise,
     )
+    from s2cl.sweep.within_noise import kept_within_noise
 
     results = Path(results)
     path, meta = open_results(results)
@@ -253,6 +271,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
     for key in ("seconds", "warnings"):
         if key in kept:
             summary[key] = kept[key]
+    kept_within_noise(summary, kept)
     with claim(folder):
         written = write_report(digest, summary, folder, bands)
     return summary, written

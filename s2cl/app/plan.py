@@ -17,7 +17,8 @@ from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
-from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.engine import SweepJob, evaluate_chunk, kernel_evaluator
+from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.space import addition_scene
 from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
 
@@ -66,13 +67,12 @@ def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dic
     band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`)."""
     if job.base_row is not None:
         return base_reference(job.base_row, job.addition["band"])
-    shapes = [(scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm) for b in job.tables.bands]
+    shapes = _own_shapes(scene, job)
     config = configuration_of(job.tables, shapes)
     if config is not None:  # the sensor's own design is one of the sweep's: its tables and kernel serve
         rows = evaluate_chunk(job, config, config + 1, device)
         return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
-    fixed = SweepSpace(tuple(BandRange.fixed(b, c, w) for b, (c, w) in zip(job.tables.bands, shapes, strict=True)))
-    return fixed_row(scene, job, fixed.validate(scene.source), job.analysis, device=device)
+    return fixed_row(scene, job, _own_bands(scene, job), job.analysis, device=device)
 
 
 def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> int | None:
@@ -87,13 +87,42 @@ def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> 
     return config
 
 
+def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None) -> RawChunk | None:
+    """Per-pixel results of the sensor's own band set (:func:`reference_row`'s design) on the sweep's pixels and
+    noise deviates, by the sweep kernel on ``device``; None for a band-addition sweep (its base set is another
+    analysis)."""
+    if job.base_row is not None:
+        return None
+    config = configuration_of(job.tables, _own_shapes(scene, job))
+    if config is not None:
+        return kernel_evaluator(job, device)(config, config + 1)
+    one = _one_job(scene, job, _own_bands(scene, job), job.analysis)
+    return kernel_evaluator(one, device)(0, 1)
+
+
+def _own_shapes(scene: Scene, job: SweepJob) -> list[tuple[float, float]]:
+    """(centre, width) in nm of the sensor's own band in each of the sweep's slots."""
+    return [(scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm) for b in job.tables.bands]
+
+
+def _own_bands(scene: Scene, job: SweepJob) -> SweepSpace:
+    """The sweep's bands fixed at the sensor's own shapes."""
+    return SweepSpace(tuple(BandRange.fixed(b, c, w) for b, (c, w) in zip(job.tables.bands, _own_shapes(scene, job),
+                                                                          strict=True))).validate(scene.source)
+
+
+def _one_job(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
+             library: SpectralLibrary | None = None) -> SweepJob:
+    """``job`` over the one configuration of ``space`` (fixed bands) scored by ``analysis``."""
+    tables = _tables(scene, space, analysis, library)
+    return replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None)
+
+
 def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
               library: SpectralLibrary | None = None, device: str | None = None) -> dict[str, Any]:
     """Metrics of the one configuration of ``space`` (fixed bands) scored by ``analysis``, with ``job``'s library,
     atmosphere, noise deviates (keyed by each band's index in ``scene``'s sensor), precision and device."""
-    tables = _tables(scene, space, analysis, library)
-    one = replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None)
-    rows = evaluate_chunk(one, 0, 1, device)
+    rows = evaluate_chunk(_one_job(scene, job, space, analysis, library), 0, 1, device)
     return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
 
 

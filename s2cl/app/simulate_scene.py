@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,6 +17,11 @@ SIMULATION_JSON = "simulation.json"
 #: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
 #: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
 CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
+#: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
+CUBE_BYTES_GENERATED = 16
+#: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
+#: float32, DN, flags)
+CUBE_DISK_BYTES_PER_BAND = 23
 
 
 @dataclass(frozen=True)
@@ -55,7 +61,7 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)
     if sc.spec.surface.cube is not None:
-        return _simulate_cube(sc, folder, device, budget, progress, on_start)
+        return _simulate_cube(checked, folder, device, budget, progress, on_start)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)
     get_runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
@@ -75,28 +81,98 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
                          result.attrs, result.analysis, total, seconds)
 
 
-def _simulate_cube(sc: Scene, folder: Path, device: str | None, budget: Any, progress: Callable[[int], None] | None,
-                   on_start: Callable[[str, int], None] | None) -> SimulationRun:
-    """Simulate the scene's image cube (sized from its metadata, loaded whole and checked before the folder is
-    made) into ``simulation.nc``."""
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import cube_size, load_scene_cube, simulate_cube
-    from s2cl.io.budget import BASELINE_BYTES
-    from s2cl.io.outdir import claim
-    from s2cl.io.output import write_netcdf
+def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0) -> int | None:
+    """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
+    simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
+    ``surface.cube`` when not even one block of rows fits.
 
-    pixels, wavelengths = cube_size(sc.resolve(sc.spec.surface.cube))
-    per_pixel = (CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size
-                 + CUBE_BYTES_PER_BAND * sc.sensor.size)
-    budget.require(BASELINE_BYTES + pixels * per_pixel, what=f"a cube of {pixels:,} pixels × {wavelengths} "
-                   "wavelengths", key="surface.cube", source=sc.source, fits="crop the cube or coarsen grid.step_nm")
+    What does not stream: a cube file's spectra, loaded whole onto the grid (:func:`cube_whole_bytes`), a generated
+    cube's labels and parcel ids, and the map's index, status and bounds. What does: per band and input pixel of a
+    block and of its PSF halo, the band images, the radiometric stage's outputs and the analysis
+    (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra on their way through the resampler."""
+    from s2cl.forward.cube import FWHM_TO_SIGMA
+    from s2cl.forward.row_blocks import gaussian_radius
+    from s2cl.io.budget import BASELINE_BYTES
+
+    per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + ((CUBE_BYTES_PER_GRID - 8) * sc.grid.size if wavelengths
+                                                               else 0))
+    s = sc.spec
+    factors = [round(b.gsd_m / (s.surface.gsd_m or 1.0)) for b in sc.sensor.bands]
+    halo = gaussian_radius(s.spatial.psf_fwhm * max(factors) * FWHM_TO_SIGMA) if s.spatial.psf == "gaussian" else 0
+    unit = math.lcm(*factors)
+    fixed = BASELINE_BYTES + cube_whole_bytes(sc, rows * cols, wavelengths)
+    if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:
+        return None
+    budget.require(fixed + (unit + 2 * halo) * per_row, what=f"a cube of {rows * cols:,} pixels × {wavelengths} "
+                   f"wavelengths in blocks of {unit} rows", key="surface.cube", source=sc.source,
+                   fits="crop the cube or coarsen grid.step_nm")
+    return max(unit, int((budget.memory_bytes - fixed) // per_row) - 2 * halo)
+
+
+def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
+    """Bytes a cube holds whole whatever the blocks: a file's spectra as read (:data:`CUBE_BYTES_PER_INPUT` per
+    wavelength) and on the grid (float64), or a generated cube's :data:`CUBE_BYTES_GENERATED`."""
+    return pixels * ((CUBE_BYTES_PER_INPUT * wavelengths + 8 * sc.grid.size) if wavelengths else CUBE_BYTES_GENERATED)
+
+
+def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
+                   progress: Callable[[int], None] | None,
+                   on_start: Callable[[str, int], None] | None) -> SimulationRun:
+    """Simulate the scene's image cube (sized from its metadata, checked before the folder is made) into
+    ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
+    with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
+    (:mod:`s2cl.app.image_analysis`)."""
+    from s2cl.app.image_quicklook import write_quicklook
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
+    from s2cl.io.budget import BASELINE_BYTES
+    from s2cl.io.image_store import NetcdfStore
+    from s2cl.io.outdir import claim
+    from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
+    from s2cl.scene.caveats import report
+
+    sc = checked.scene
+    pixels, wavelengths = scene_cube_size(sc)  # a file cube's whole part must fit before it is loaded
+    budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
+                   f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
+                   fits="crop the cube or coarsen grid.step_nm")
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
+    block_rows = cube_block_rows(sc, budget, cube.rows, cube.cols, wavelengths)
+    require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * CUBE_DISK_BYTES_PER_BAND * sc.sensor.size
+                 + 2e6)
+    warnings = report(checked.caveats)
     t0 = time.perf_counter()
+    nc = folder / "simulation.nc"
+    written = [nc, folder / SIMULATION_JSON]
     with claim(folder):
         if on_start:
-            on_start(f"{sc.name}: cube", 1)
-        ds = simulate_cube(rt, sc, cube=cube, progress=(lambda n: progress(1)) if progress else None)
-        write_netcdf(folder / "simulation.nc", ds)
-    return SimulationRun(sc.name, folder, (folder / "simulation.nc",), pixels=pixels,
-                         seconds=time.perf_counter() - t0)
+            on_start(f"{sc.name}: cube", cube.rows * cube.cols)
+        with atomic_path(nc) as tmp, hdf5_errors(nc):
+            store = NetcdfStore(tmp)
+            try:
+                simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
+                analysis = None
+                if checked.analysis is not None:
+                    analysis = _analyse_cube(rt, checked, store, cube, block_rows)
+                    written.append(folder / "quicklook.png")
+                    write_quicklook(store, written[-1], analysis["map"])
+                attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
+            finally:
+                store.close()
+        seconds = time.perf_counter() - t0
+        write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": cube.rows * cube.cols,
+                                              "block_rows": block_rows, "seconds": seconds, "analysis": analysis,
+                                              "warnings": warnings})
+    return SimulationRun(sc.name, folder, tuple(written), attrs=attrs, analysis=analysis,
+                         pixels=cube.rows * cube.cols, seconds=seconds)
+
+
+def _analyse_cube(rt: Any, checked: Any, store: Any, cube: Any, block_rows: int | None) -> dict[str, Any]:
+    """The scene's [analysis] on the image in ``store``, by blocks of as many input rows as the simulation's."""
+    from s2cl.app.image_analysis import analyse_image
+
+    sc, bands = checked.scene, list(checked.analysis_bands)
+    factor = max(sc.sensor.band(b).gsd_m for b in bands) / (sc.spec.surface.gsd_m or 1.0)
+    step = None if block_rows is None else max(1, int(block_rows // factor))
+    return analyse_image(rt, sc, store, cube, bands, checked.analysis, block_rows=step)

@@ -82,13 +82,30 @@ def _print_sweep(summary: dict[str, Any]) -> None:
     if metric == "rms":
         table.add_column("bound_fraction", justify="right")
         table.add_column("converged", justify="right")
+    tested = "within_noise" in summary
+    if tested:
+        table.add_column("within noise of #1", justify="center")
     label = "base" if "addition" in summary else "reference"
     rows = [(label, summary["reference"])] if "reference" in summary else []
     rows += [(f"#{i + 1}", e) for i, e in enumerate(summary["top"][:5])]
     for label, e in rows:
-        table.add_row(label, *_ranking_cells(e, bands, metric))
+        cells = _ranking_cells(e, bands, metric)
+        if tested:
+            cells.append({True: "yes", False: "no"}.get(e.get("within_noise"), ""))
+        table.add_row(label, *cells)
     rich_console().print(table)
+    _print_within_noise(summary.get("within_noise"))
     _print_ranking_notes(summary)
+
+
+def _print_within_noise(wn: dict[str, Any] | None) -> None:
+    """How many of the designs tested are within noise of #1, and how that was decided."""
+    if not wn:
+        return
+    more = "" if wn["complete"] else " (the last one tested too: more may be; raise sweep.within_noise_top)"
+    click.echo(f"within noise of #1: {wn['count']:,} of the {wn['candidates']:,} best designs{more} — a paired "
+               f"bootstrap of the {wn['metric']} difference over {wn['spectra']:,} {wn['resampled']} "
+               f"({wn['replicates']:,} replicates, {wn['level']:.0%} interval)")
 
 
 def _ranking_cells(e: dict[str, Any], bands: list[str], metric: str) -> list[str]:

@@ -26,6 +26,9 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     the scene's analysis, warnings), and prints the summary (radiance, SNR measured against the
     model, clipping, calibration error). Its files never replace a sweep's (results.parquet,
     summary.json). Memory stays bounded whatever surface.copies: images are written chunk by chunk.
+    An image cube is written in row blocks that fit --max-memory; with an [analysis], its map, status and
+    (where the scene knows the truth, as cube-fields does) error go into simulation.nc, and
+    OUTPUT/quicklook.png shows them.
     """
     from s2cl.app.simulate_scene import simulate_scene
 
@@ -36,6 +39,8 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
         _print_summary(run.rows, run.attrs, run.pixels, run.seconds)
         if run.analysis:
             _print_analysis(run.analysis)
+    elif not quiet and run.analysis:
+        _print_image_analysis(run.analysis)
     click.echo("wrote " + " and ".join(str(p) for p in run.written))
 
 
@@ -60,3 +65,14 @@ def _print_summary(rows: list[dict[str, Any]], attrs: dict[str, Any], pixels: in
 def _print_analysis(a: dict[str, Any]) -> None:
     """The scene's analysis in one line (its family's :meth:`~s2cl.retrieve.family.Family.summary_line`)."""
     click.echo(a["summary"])
+
+
+def _print_image_analysis(a: dict[str, Any]) -> None:
+    """An image's analysis in two lines: the fit accounting, then the map against the truth where there is one."""
+    click.echo(f"{a['kind'].upper()} on {' '.join(a['bands'])} at {a['gsd_m']:g} m: {a['pixels']:,} pixels, "
+               f"{a['fitted_pixels']:,} fitted, {a['degenerate_pixels']:,} degenerate, {a['invalid_pixels']:,} "
+               f"invalid, {a['bound_pixels']:,} on a bound")
+    if "rms" in a:
+        click.echo(f"{a['parameter']} map against the truth over {a['scored_pixels']:,} pixels: RMS {a['rms']:.3g}, "
+                   f"bias {a['bias']:.3g}, R² {a['r2']:.3f} (calibration on {a['calibration_pixels']:,} pure pixels: "
+                   f"RMS {a['calibration_rms']:.3g})")

@@ -6,12 +6,21 @@ pixels → noise → quantisation → calibration at the band's own GSD (the SNR
 pixels of that size). Trailing rows/columns that do not fill a whole output pixel are dropped.
 Noise of band ``k`` at output pixel ``(y, x)`` keys on pixel index ``y · ncols + x`` of that
 band's grid.
+
+No-data (NaN or file-marked values, bad bands: :mod:`s2cl.io.cubes`) never refuses a cube: a pixel with
+any no-data sample is NODATA and an output pixel whose footprint touches one is NODATA too
+(:mod:`s2cl.forward.nodata` says why), flagged in every band's ``flags_<band>`` variable
+(:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
+
+The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the PSF's
+halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
+(:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
+radiance.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
@@ -21,112 +30,31 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
-from s2cl.forward.instrument import Instrument, smile_radiance
+from s2cl.forward.instrument import Instrument, SmileResampler
+from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows, psf_radius
+from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
-from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
-from s2cl.io.inputs import input_file, parse_number
-from s2cl.libraries.library import check_finite, resample_to_grid
+from s2cl.io.cubes import CubeFile, cube_size, load_cube
+from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
+from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
+from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
+from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
 FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+__all__ = ["SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube", "to_grid"]
 
 
-def load_cube(path: str | Path, variable: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A cube ``(rows, cols, wavelengths)`` and its wavelengths (nm) from NetCDF or ENVI.
+def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str, *,
+            owned: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The cube's spectra ``(rows·cols, grid.size)`` on the grid (interpolated if needed), finite, and the
+    NODATA mask ``(rows·cols,)`` of the pixels with any non-finite sample (their spectra set to 0).
 
-    NetCDF: a 3-D variable with a ``wavelength`` dimension and coordinate (nm, or µm if its
-    ``units`` say so). ENVI: the ``.hdr`` file, wavelengths from its ``wavelength`` field.
-    """
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        return _load_envi(p)
-    try:
-        ds = xr.open_dataset(p, engine="h5netcdf")
-    except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
-    with ds:
-        candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
-        name = variable or (candidates[0] if len(candidates) == 1 else None)
-        if name is None or name not in ds:
-            raise InputError(f"choose the cube variable (surface.variable); 3-D variables with a 'wavelength' "
-                             f"dimension: {candidates or 'none'}", source=p, key="surface.variable")
-        v = ds[name]
-        if "wavelength" not in v.dims or v.ndim != 3:
-            raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
-        v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
-        _real(v.dtype, p, name)
-        wl = np.asarray(ds["wavelength"].values, dtype=np.float64)
-        if str(ds["wavelength"].attrs.get("units", "nm")).lower() in ("um", "µm", "micrometer", "micrometers"):
-            wl = wl * 1000.0
-        return np.asarray(v.values), check_wavelengths(wl, source=str(p), key="wavelength")
-
-
-def cube_size(path: str | Path) -> tuple[int, int]:
-    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
-    (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
-
-    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
-        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        meta = read_envi_header(p)
-        layout = envi_layout(meta, p, envi_data_file(p))
-        _envi_wavelengths(meta, layout.bands, p)
-        return layout.samples * layout.lines, layout.bands
-    try:
-        with xr.open_dataset(p, engine="h5netcdf") as ds:
-            cubes = [v for v in ds.data_vars.values() if v.ndim == 3 and "wavelength" in v.dims]
-            if not cubes:
-                return 0, 0
-            v = max(cubes, key=lambda c: c.size)
-            return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
-    except Exception:  # a bad file is reported by load_cube, with its reason
-        return 0, 0
-
-
-def _real(dtype: np.dtype, p: Path, key: str) -> None:
-    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
-    if np.dtype(dtype).kind not in "fiu":
-        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
-                         source=p, key=key)
-
-
-def _envi_wavelengths(meta: dict, bands: int, p: Path) -> np.ndarray:
-    """The header's ``wavelength`` list as numbers, one per band."""
-    wl = meta.get("wavelength")
-    if not wl:
-        raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")
-    if len(wl) != bands:
-        raise InputError(f"lists {len(wl)} values for bands = {bands}", source=p, key="wavelength")
-    try:
-        return np.array([parse_number(str(x).strip()) for x in wl])
-    except ValueError:
-        raise InputError("holds a value that is not a number", source=p, key="wavelength") from None
-
-
-def _load_envi(p: Path) -> tuple[np.ndarray, np.ndarray]:
-    import spectral.io.envi as envi
-
-    meta = read_envi_header(p)
-    data = envi_data_file(p)
-    layout = envi_layout(meta, p, data)
-    w = _envi_wavelengths(meta, layout.bands, p)
-    try:
-        img = envi.open(str(p), str(data))
-        cube = np.asarray(img.load())
-    except Exception as err:  # SPy raises many types for a bad header or data file
-        raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
-    _real(cube.dtype, p, "data type")
-    if str(meta.get("wavelength units", "nm")).lower().startswith(("micro", "um", "µm")):
-        w *= 1000.0
-    return cube, check_wavelengths(w, source=str(p), key="wavelength")
-
-
-def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str) -> np.ndarray:
-    """The cube's spectra ``(rows·cols, grid.size)`` on the grid (interpolated if needed)."""
+    :param owned: ``cube`` may be changed in place (a cube just read from a file); else it is copied first
+        when a pixel must be zeroed."""
     cube = np.asarray(cube)
     if cube.ndim != 3:
         raise InputError(f"a cube needs shape (rows, cols, wavelengths), got {cube.shape}", source=source)
@@ -136,55 +64,111 @@ def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralG
         if nw != grid.size:
             raise InputError(f"cube has {nw} wavelengths but the grid {grid.describe()} has {grid.size}; "
                              "give the cube's wavelengths or match the grid", source=source)
-        check_finite(flat, source=source)
-        return flat
-    w = check_wavelengths(wavelengths_nm, source=source)
-    if w.size != nw:
-        raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
-    check_finite(flat, source=source)
+        w = grid.wavelengths
+    else:
+        w = check_wavelengths(wavelengths_nm, source=source)
+        if w.size != nw:
+            raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
+    nodata, flat = _zero_nodata(flat, owned)
     if w.size == grid.size and np.allclose(w, grid.wavelengths, atol=1e-6):
-        return flat
-    return resample_to_grid(w, flat, grid, source=source)
+        return flat, nodata
+    return resample_to_grid(w, flat, grid, source=source), nodata
+
+
+def _zero_nodata(flat: np.ndarray, owned: bool) -> tuple[np.ndarray, np.ndarray]:
+    """NODATA mask of ``flat`` and ``flat`` with those rows zeroed (a copy unless ``owned``)."""
+    nodata = nodata_rows(flat)
+    if nodata.any():
+        if not owned:
+            flat = flat.copy()
+        flat[nodata] = 0
+    return nodata, flat
 
 
 def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> np.ndarray:
     """Box average of ``factor × factor`` blocks (after an optional Gaussian PSF of FWHM
     ``psf_fwhm`` output pixels); trailing partial blocks are dropped."""
-    if psf_fwhm:
-        image = gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")
-    if factor == 1:
-        return image
-    rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
-    if rows == 0 or cols == 0:
+    image = _psf(image, factor, psf_fwhm)
+    if image.shape[0] < factor or image.shape[1] < factor:
         raise InputError(
             f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
-    blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
-    return blocks.mean(axis=(1, 3), dtype=np.float64).astype(image.dtype)
+    return box_mean(image, factor)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SceneCube:
-    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``."""
+    """A scene's cube, checked and on the scene's grid: spectra ``(rows·cols, grid.size)``, finite (zero at NODATA
+    pixels), and the NODATA mask ``(rows·cols,)``; or (a generated cube, :mod:`s2cl.libraries.fields`) its
+    distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming each pixel's spectrum;
+    ``truth_params``: the parameters of each distinct spectrum where the cube knows them, and ``parcels``
+    ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file)."""
 
     spectra: np.ndarray
     rows: int
     cols: int
     source: str
+    nodata: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    truth_params: dict[str, np.ndarray] = field(default_factory=dict)
+    parcels: np.ndarray | None = None
+
+    @property
+    def nodata_image(self) -> np.ndarray:
+        """NODATA mask ``(rows, cols)`` (all False when the cube has none)."""
+        if self.nodata is None:
+            return np.zeros((self.rows, self.cols), bool)
+        return self.nodata.reshape(self.rows, self.cols)
+
+    def knows(self, name: str) -> bool:
+        """Whether the cube knows the true ``name`` of its pixels."""
+        return self.labels is not None and name in self.truth_params
+
+    def truth(self, name: str, rows: slice = slice(None)) -> np.ndarray | None:
+        """The true ``name`` of each pixel of ``rows`` ``(n_rows, cols)``, or None when the cube does not know it."""
+        if not self.knows(name):
+            return None
+        return self.truth_params[name][self.labels.reshape(self.rows, self.cols)[rows]]
+
+
+def scene_cube_size(scene: Scene) -> tuple[int, int]:
+    """(pixels, wavelengths held per pixel) of the scene's cube from its metadata only: a generated cube holds
+    no spectrum per pixel (0)."""
+    cube = scene.spec.surface.cube
+    assert cube is not None
+    if is_builtin_cube(cube):
+        rows, cols = fields_shape(cube, source=scene.source)
+        return rows * cols, 0
+    return cube_size(scene.resolve(cube))
 
 
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                     wavelengths_nm: np.ndarray | None = None) -> SceneCube:
-    """The scene's ``surface.cube`` file (or ``cube`` given in memory) loaded onto the scene's grid, with
-    every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it creates the folder."""
+    """The scene's ``surface.cube`` file (or ``cube`` given in memory: NaN marks no data) loaded onto the
+    scene's grid, with every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it
+    creates the folder."""
     s = scene.spec
     source = scene.source
+    generated, owned, nodata = None, False, None
     if cube is None:
         if s.surface.cube is None:
             raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
-        cube, wavelengths_nm = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
-        source = str(scene.resolve(s.surface.cube))
-    rows, cols = np.asarray(cube).shape[:2]
-    spectra = to_grid(cube, wavelengths_nm, scene.grid, source)
+        if is_builtin_cube(s.surface.cube):
+            rows, cols = fields_shape(s.surface.cube, source=source)
+            generated = fields_image(scene.grid, rows, cols, scene.run.seed)
+        else:
+            source = str(scene.resolve(s.surface.cube))
+            read: CubeFile = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
+            cube, wavelengths_nm, owned = read.values, read.wavelengths_nm, True
+            if read.bad_nm.size:
+                weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
+                check_bad_band_gaps([b.name for b in scene.sensor.bands],
+                                    gap_weights(weights, scene.grid, read.wavelengths_nm, read.bad_nm),
+                                    s.surface.quantity, source)
+    if generated is not None:
+        spectra = generated.library.spectra
+    else:
+        rows, cols = np.asarray(cube).shape[:2]
+        spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source, owned=owned)
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
@@ -194,41 +178,58 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
-    return SceneCube(spectra, rows, cols, source)
+    if generated is not None:
+        lib = generated.library
+        return SceneCube(spectra, rows, cols, source, labels=generated.labels.reshape(-1),
+                         truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
+    return SceneCube(spectra, rows, cols, source, nodata if nodata is not None and nodata.any() else None)
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
-                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None) -> xr.Dataset:
+                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None,
+                  store: ImageStore | None = None, block_rows: int | None = None) -> xr.Dataset | None:
     """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
-    already loaded by :func:`load_scene_cube`) on ``rt``."""
+    already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
+    written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
+    default all), read with the PSF's halo, so the result does not depend on it."""
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
-    rows, cols, spectra = prepared.rows, prepared.cols, prepared.spectra
+    rows, cols = prepared.rows, prepared.cols
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     atmosphere = scene_atmosphere(scene)
     sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
     instrument = Instrument.of(scene)
-    if instrument.spec.smile:
-        radiance = smile_radiance(sim.rt, scene, spectra, rows, cols, atmosphere)
-    else:
-        radiance = sim.band_radiance(spectra).reshape(scene.sensor.size, rows, cols)
-    if progress:
-        progress(rows * cols)
+    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.spec.smile else None
+    band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
-    ds = xr.Dataset(attrs={**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
-                           "effects": scene.effects.describe(), "seed": scene.run.seed,
-                           "input_gsd_m": gsd_in, "psf": s.spatial.psf, "instrument": instrument.spec.describe()})
-    bands = scene.sensor.bands
-    for gsd in sorted({b.gsd_m for b in bands}):
-        ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        factor = _factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source)
-        images = np.stack([aggregate(instrument.spatial(radiance[k], k, factor), factor, psf) for k in ids])
-        images = instrument.columns(images, ids)
-        _add_group(ds, scene, sim, ids, images, gsd)
-    for k, band in enumerate(bands):
-        ds[f"radiance_{band.name}"].attrs.update(instrument.band_attrs(k))
-    return ds
+    out = store if store is not None else MemoryStore()
+    out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
+                      "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
+                      "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum()),
+                      "instrument": instrument.spec.describe()})
+    nodata = prepared.nodata_image
+    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out, nodata, psf, instrument)
+              for gsd in sorted({b.gsd_m for b in scene.sensor.bands})]
+    halo = max(gaussian_radius(psf * g.factor * FWHM_TO_SIGMA) for g in groups) if psf else 0
+    halo = max([halo] + [instrument.halo(g.ids, g.factor) for g in groups])
+    distinct = band_values(prepared.spectra) if prepared.labels is not None else None
+    labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
+    for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
+        lo, hi = block.read_start, block.read_stop
+        if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
+            radiance = distinct[:, labels[lo:hi]]
+        else:
+            radiance = band_values(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+        if smile is not None:  # each column's bands from the smile's node bands
+            radiance = smile.combine(radiance)
+        for g in groups:
+            g.add(block, radiance, psf)
+        if progress:
+            progress((block.stop - block.start) * cols)
+    for g in groups:
+        g.finish()
+    return out.dataset() if store is None else None
 
 
 def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
@@ -240,37 +241,91 @@ def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
     return factor
 
 
-def _add_group(ds: xr.Dataset, scene: Scene, sim: Simulator, ids: list[int], images: np.ndarray,
-               gsd: float) -> None:
-    """Sense one GSD group's band images and add their variables to ``ds``."""
-    bands = scene.sensor.bands
-    ny, nx = images.shape[1:]
-    ydim, xdim = f"y_{gsd:g}m", f"x_{gsd:g}m"
-    ds.coords[ydim] = (ydim, (np.arange(ny) + 0.5) * gsd, {"units": "m"})
-    ds.coords[xdim] = (xdim, (np.arange(nx) + 0.5) * gsd, {"units": "m"})
-    flat = images.reshape(len(ids), ny * nx)
-    result = None
-    if scene.effects.senses:
-        group_bands = [bands[k] for k in ids]
-        correction = None
-        if sim.correction is not None:
-            c = sim.correction
-            correction = BandAtmosphere(c.path_radiance[ids], c.ground_term[ids], c.spherical_albedo[ids])
-        sensing = Sensing(sim.rt, Radiometry.of(group_bands, scene.sensor.bits, ids), scene.effects, sim.precision,
-                          correction=correction)
-        result = sensing(flat, seed=scene.run.seed, frame=scene.run.frame)
-    for j, k in enumerate(ids):
-        attrs = band_attrs(bands[k], scene.sensor.bits)
-        name = bands[k].name
-        ds[f"radiance_{name}"] = ((ydim, xdim), images[j],
-                                  {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
-        if result is None:
-            continue
-        for var, units, long_name in PIXEL_VARIABLES:
-            arr = getattr(result, var)
-            if arr is not None:
-                ds[f"{var}_{name}"] = ((ydim, xdim), arr[j].reshape(ny, nx),
-                                       {**attrs, **pixel_attrs(var, units, long_name)})
-        if result.clipped is not None:
-            ds[f"radiance_{name}"].attrs.update(clipped_below_lmin=int(result.clipped[0, j]),
-                                               clipped_above_lmax=int(result.clipped[1, j]))
+class _Group:
+    """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
+
+    def __init__(self, scene: Scene, sim: Simulator, gsd: float, gsd_in: float, rows: int, cols: int,
+                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, psf: float | None, instrument: Instrument):
+        bands = scene.sensor.bands
+        self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
+        self.ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
+        self.factor = _factor(gsd, gsd_in, [bands[k].name for k in self.ids], scene.source)
+        ny, nx = rows // self.factor, cols // self.factor
+        self.nx = nx
+        self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
+        store.dimension(self.dims[0], (np.arange(ny) + 0.5) * gsd, {"units": "m"})
+        store.dimension(self.dims[1], (np.arange(nx) + 0.5) * gsd, {"units": "m"})
+        self.sensing = None
+        if scene.effects.senses:
+            correction = None
+            if sim.correction is not None:
+                c, i = sim.correction, self.ids
+                correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
+            self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
+                                   scene.effects, sim.precision, correction=correction)
+        #: output pixels whose footprint holds a NODATA input pixel (:func:`s2cl.forward.nodata.footprint_nodata`)
+        radius = max(psf_radius(self.factor, psf, FWHM_TO_SIGMA), instrument.reach(self.ids, self.factor))
+        self.nodata = footprint_nodata(nodata, self.factor, radius)[:, :nx]
+        #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
+        self.counts = np.zeros((3, len(self.ids)), np.int64)
+
+    def add(self, block: RowBlock, radiance: np.ndarray, psf: float | None) -> None:
+        """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)``."""
+        f, out_rows = self.factor, block.output_rows(self.factor)
+        ny = out_rows.stop - out_rows.start
+        if ny <= 0:
+            return
+        top = block.start - block.read_start
+        spatial = self.instrument.spatial
+        images = np.stack([box_mean(_psf(spatial(radiance[k], k, f), f, psf)[top : top + ny * f], f) for k in self.ids])
+        images = self.instrument.columns(images[:, :, : self.nx], self.ids)
+        nodata = self.nodata[out_rows]
+        images[:, nodata] = np.nan
+        result = None
+        if self.sensing is not None:
+            result = self.sensing(images.reshape(len(self.ids), -1), seed=self.scene.run.seed,
+                                  frame=self.scene.run.frame, pixel_offset=out_rows.start * self.nx)
+        flags = result.flags if result is not None and result.flags is not None else None
+        if flags is not None:
+            self.counts[0] += np.count_nonzero(flags & PixelFlag.LOW, axis=1)
+            self.counts[1] += np.count_nonzero(flags & PixelFlag.HIGH, axis=1)
+        else:  # no radiometric stage: the flags say NODATA alone
+            flags = np.where(nodata.reshape(1, -1), np.uint8(PixelFlag.NODATA), np.uint8(0)).repeat(len(self.ids), 0)
+        self.counts[2] += np.count_nonzero(flags & PixelFlag.NODATA, axis=1)
+        bands = self.scene.sensor.bands
+        for j, k in enumerate(self.ids):
+            attrs = band_attrs(bands[k], self.scene.sensor.bits)
+            name = bands[k].name
+            self._put(f"radiance_{name}", out_rows, images[j],
+                      {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
+            self._put(f"flags_{name}", out_rows, flags[j].reshape(ny, self.nx),
+                      {**attrs, **pixel_attrs("flags", "1", "radiometric pixel flags")})
+            if result is None:
+                continue
+            for var, units, long_name in PIXEL_VARIABLES:
+                arr = getattr(result, var)
+                if arr is not None and var != "flags":
+                    self._put(f"{var}_{name}", out_rows, arr[j].reshape(ny, self.nx),
+                              {**attrs, **pixel_attrs(var, units, long_name)})
+
+    def _put(self, name: str, rows: slice, data: np.ndarray, attrs: dict) -> None:
+        if name not in self.store:
+            self.store.create(name, self.dims, data.dtype, attrs)
+        self.store.write(name, rows, data)
+
+    def finish(self) -> None:
+        """The clipping and no-data counts, once every block is in (no-data pixels are counted as such, not as
+        clipped below Lmin)."""
+        quantised = self.sensing is not None and self.scene.effects.quantise
+        for j, k in enumerate(self.ids):
+            counts: dict = {"nodata_pixels": int(self.counts[2, j]), **self.instrument.band_attrs(k)}
+            if quantised:
+                counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
+            self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)
+
+
+def _psf(image: np.ndarray, factor: int, psf_fwhm: float | None) -> np.ndarray:
+    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), or the image itself."""
+    if not psf_fwhm:
+        return image
+    return gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")

@@ -8,12 +8,14 @@ Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
   three node SRFs spanning the smile's range (three per axis: nine when width varies too) in one pass, and each
   column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`). Its error against
   the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
-* **mtf** and **coregistration** — on the input grid before the box average: FFTs along each axis multiply the
-  band's image by a Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at
+* **mtf** and **coregistration** — on the input grid before the box average: the band's image is multiplied, in
+  frequency, by a Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at
   Nyquist, :func:`gaussian_sigma`) and by the phase ramp of the band's sub-pixel shift (a Fourier shift: it moves
   the image without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at half a
-  pixel). Each line is mirrored first, so the FFT sees no step at its wrap-around (borders act as a mirror).
-  Off: the band's image is returned as it is, no FFT runs.
+  pixel): along rows by an FFT of each mirrored row (no step at its wrap-around; borders act as a mirror), along
+  columns by the same transfer function as a finite filter (its inverse DFT, tapered at its ends), so that an
+  image simulated in blocks of rows gives the same bands as the whole image. The twin :func:`spatial_twin` uses
+  FFTs along both axes. Off: the band's image is returned as it is, no filter runs.
 * **nonuniformity** — on each band's grid after the box average: per-column gain ``g`` and offset ``o``; a relative
   calibration estimates them with errors ``ε`` (relative) and ``δ``, so the product holds
   ``(g·L + o − (o + δ)) / (g·(1 + ε))`` (or ``g·L + o`` without equalisation). Drawn from the scene's seed.
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import fft as sfft
+from scipy.ndimage import correlate1d
 
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
@@ -38,6 +41,11 @@ from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
 #: node SRFs per varying smile axis (cubic interpolation): against the per-column integral, the default smile's
 #: largest relative error is ~1e-7 with 4 nodes, ~1e-5 with 3 (tests/test_instrument.py measures it)
 SMILE_NODES = 4
+#: how far the Gaussian is taken to reach (σ), as scipy.ndimage truncates it
+GAUSSIAN_TRUNCATE = 4.0
+#: taps of the along-column filter beyond the Gaussian's reach and the shift: room for the shift's (sinc)
+#: interpolation, under a cosine taper
+HALO_MARGIN = 8
 #: random-stream tags (the second word of each generator's seed), one per effect
 _COREG_TAG, _NU_TAG = 0x636F7267, 0x6E756E69
 
@@ -50,33 +58,70 @@ def gaussian_sigma(mtf_nyquist: float) -> float:
     return math.sqrt(-2.0 * math.log(mtf_nyquist / BOX_MTF_NYQUIST)) / math.pi
 
 
-def _filter_axis(a: np.ndarray, sigma: float, d: float, axis: int) -> np.ndarray:
-    """One axis of :func:`_filter`: a real FFT along ``axis`` of ``a`` mirrored along it, times the Gaussian's
-    transfer function and the shift's phase ramp."""
+def _transfer(f: np.ndarray, sigma: float, d: float) -> np.ndarray:
+    """The Gaussian's transfer function times the shift's phase ramp at frequencies ``f`` (cycles per pixel)."""
+    return np.exp(-2.0 * math.pi**2 * sigma**2 * f**2 - 2j * math.pi * f * d)
+
+
+def _fft_axis(a: np.ndarray, sigma: float, d: float, axis: int) -> np.ndarray:
+    """``a`` filtered along ``axis`` by a real FFT of ``a`` mirrored along it (the mirrored line's periodic
+    extension is continuous, so the wrap-around adds no step; borders act as a half-sample mirror)."""
     if sigma == 0.0 and d == 0.0:
         return a
     n = a.shape[axis]
     tile = np.concatenate([a, np.flip(a, axis=axis)], axis=axis)
-    f = sfft.rfftfreq(2 * n)
-    transfer = np.exp(-2.0 * math.pi**2 * sigma**2 * f**2 - 2j * math.pi * f * d)
     shape = [1, 1]
     shape[axis] = -1
-    out = sfft.irfft(sfft.rfft(tile, axis=axis) * transfer.reshape(shape), n=2 * n, axis=axis)
+    out = sfft.irfft(sfft.rfft(tile, axis=axis) * _transfer(sfft.rfftfreq(2 * n), sigma, d).reshape(shape),
+                     n=2 * n, axis=axis)
     return out[:, :n] if axis == 1 else out[:n]
 
 
+def fir_radius(sigma: float, d: float) -> int:
+    """Half-length (pixels) of the along-column filter of a Gaussian of ``sigma`` and a shift ``d`` (pixels): the
+    Gaussian to :data:`GAUSSIAN_TRUNCATE` σ, the shift, and :data:`HALO_MARGIN` for the shift's interpolation."""
+    return math.ceil(GAUSSIAN_TRUNCATE * sigma + abs(d)) + HALO_MARGIN
+
+
+def fir_kernel(sigma: float, d: float) -> np.ndarray:
+    """Taps ``h[-R … R]`` (R = :func:`fir_radius`) of the same transfer function as :func:`_fft_axis`: its inverse
+    DFT on a fine grid, kept whole over the Gaussian's reach around the shifted centre and tapered by a cosine over
+    the :data:`HALO_MARGIN` taps beyond, normalised to a sum of 1."""
+    radius = fir_radius(sigma, d)
+    core = radius - HALO_MARGIN
+    n = max(4096, 8 * radius)
+    full = np.real(np.fft.ifft(_transfer(np.fft.fftfreq(n), sigma, d)))
+    taps = np.arange(-radius, radius + 1)
+    beyond = np.clip(np.abs(taps - d) - core, 0.0, None)  # the window: 1 over the core, a cosine over the margin
+    h = full[taps % n] * 0.5 * (1.0 + np.cos(np.pi * np.minimum(beyond / (HALO_MARGIN + 1), 1.0)))
+    return h / h.sum()
+
+
+def _fir_rows(a: np.ndarray, sigma: float, d: float) -> np.ndarray:
+    """``a`` filtered along its columns (axis 0) by :func:`fir_kernel`, borders as a half-sample mirror."""
+    if sigma == 0.0 and d == 0.0:
+        return a
+    return correlate1d(a, fir_kernel(sigma, d)[::-1], axis=0, mode="reflect")
+
+
 def _filter(img: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
-    """``img`` through the Gaussian and the shift, axis by axis (both are separable): the same as one 2-D FFT of the
-    image mirrored into a 2 × 2 tile, at about half the work, and an axis with neither blur nor shift is skipped
-    (float64)."""
-    return _filter_axis(_filter_axis(img, sigma, dx, 1), sigma, dy, 0)
+    """``img`` through the Gaussian and the shift, axis by axis (both are separable; an axis with neither is
+    skipped): along rows by FFT, along columns by the finite filter :func:`fir_kernel`, which reaches only
+    :func:`fir_radius` rows, so an image simulated in blocks of rows read with that halo gives the same result as
+    the whole image (float64)."""
+    return _fir_rows(_fft_axis(img, sigma, dx, 1), sigma, dy)
+
+
+def spatial_twin(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """float64 twin of :func:`spatial_response` (finite images): FFTs along both axes, no finite filter."""
+    img = np.asarray(image, dtype=np.float64)
+    return _fft_axis(_fft_axis(img, sigma, dx, 1), sigma, dy, 0)
 
 
 def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
     """``image`` (rows, cols) blurred by a Gaussian of ``sigma`` and moved by ``(dx, dy)`` (content at x goes to
-    x + dx), all in input pixels, by real FFTs (float64) along each axis of the image mirrored along it: the
-    mirrored line's periodic extension is continuous, so the FFT's wrap-around adds no step, and the borders
-    behave as a half-sample mirror (``scipy.ndimage`` mode ``reflect``).
+    x + dx), all in input pixels (:func:`_filter`; borders act as a half-sample mirror, ``scipy.ndimage`` mode
+    ``reflect``).
 
     No-data (non-finite) pixels are left out: the image with them at 0 is divided by the same response of the
     valid-pixel mask (normalised convolution), and a pixel whose response is less than half valid is NaN."""
@@ -159,13 +204,32 @@ class Smile:
         return np.einsum("knrc,nc->krc", v.astype(np.float64), coef).astype(nodes.dtype)
 
 
+class SmileResampler:
+    """The smile's node bands compiled once for an image ``cols`` wide: :meth:`nodes` resamples spectra to every
+    band's node values, :meth:`combine` interpolates each column's bands from them."""
+
+    def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None):
+        self.smile = Smile.of(scene.spec.instrument, cols)
+        self.n_bands, self.cols = scene.sensor.size, cols
+        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere=atmosphere)
+
+    def nodes(self, spectra: np.ndarray) -> np.ndarray:
+        """Node band values ``(n_bands · n_nodes, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        return self.resampler(spectra)
+
+    def combine(self, nodes: np.ndarray) -> np.ndarray:
+        """Band radiance ``(n_bands, rows, cols)`` from node values of whole rows (any shape holding
+        ``n_bands · n_nodes × rows × cols`` values in that order)."""
+        rows = nodes.size // (nodes.shape[0] * self.cols)
+        return self.smile.combine(nodes.reshape(nodes.shape[0], rows * self.cols), self.n_bands, rows, self.cols)
+
+
 def smile_radiance(rt: Runtime, scene: Scene, spectra: np.ndarray, rows: int, cols: int,
                    atmosphere: AtmosphereArrays | None) -> np.ndarray:
     """Band radiance ``(n_bands, rows, cols)`` of the spectra ``(rows · cols, n_wavelengths)`` with the scene's
     smile: one resampling pass over the node SRFs, then per-column interpolation."""
-    smile = Smile.of(scene.spec.instrument, cols)
-    resampler = Resampler(rt, smile.plan(scene), scene.run.precision, atmosphere=atmosphere)
-    return smile.combine(resampler(spectra), scene.sensor.size, rows, cols)
+    smile = SmileResampler(rt, scene, cols, atmosphere)
+    return smile.combine(smile.nodes(spectra))
 
 
 def smile_twin(scene: Scene, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
@@ -220,6 +284,26 @@ class Instrument:
     @property
     def spatial_on(self) -> bool:
         return self.spec.mtf or self.spec.coregistration
+
+    def reach(self, ids: list[int], factor: int) -> int:
+        """Input pixels the PSF and shift of bands ``ids`` (``factor`` input pixels per band pixel) reach on each
+        side: the Gaussian to :data:`GAUSSIAN_TRUNCATE` σ plus the shift (0 when both are off). An output pixel
+        is NODATA when a NODATA input pixel lies this close to its box."""
+        if not self.spatial_on:
+            return 0
+        out = 0.0
+        for k in ids:
+            sigma, shift = self.mtf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
+            out = max(out, (GAUSSIAN_TRUNCATE * sigma + max(abs(shift[0]), abs(shift[1]))) * factor)
+        return math.ceil(out)
+
+    def halo(self, ids: list[int], factor: int) -> int:
+        """Rows a block of the image is read with beyond its own for bands ``ids``: the longest along-column
+        filter's half-length (:func:`fir_radius`; 0 when the spatial effects are off)."""
+        if not self.spatial_on:
+            return 0
+        return max(fir_radius((self.mtf_sigma(k) or 0.0) * factor, (self.shift(k) or (0.0, 0.0))[1] * factor)
+                   for k in ids)
 
     def spatial(self, image: np.ndarray, k: int, factor: int) -> np.ndarray:
         """Band ``k``'s image on the input grid through its PSF and shift (``factor`` input pixels per band

@@ -22,8 +22,9 @@ from s2cl.io.inputs import input_file
 
 #: bytes per value of the ENVI data types s2cl reads (real numbers; 6 and 9 are complex)
 ENVI_ITEM_BYTES = {"1": 1, "2": 2, "3": 4, "4": 4, "5": 8, "12": 2, "13": 4, "14": 8, "15": 8}
-#: data-file extensions SPy looks for beside a header (lower and upper case, and none)
-DATA_EXTENSIONS = ("", ".img", ".dat", ".sli", ".hyspex", ".raw", ".bin")
+#: data-file extensions looked for beside a header (lower and upper case, and none): SPy's, and the interleave
+#: names image cubes ship with (EnMAP, PRISMA and AVIRIS exports: ``NAME.bsq``)
+DATA_EXTENSIONS = ("", ".img", ".dat", ".bsq", ".bil", ".bip", ".sli", ".hyspex", ".raw", ".bin")
 
 
 @dataclass(frozen=True)
@@ -95,12 +96,12 @@ def envi_layout(meta: dict[str, Any], hdr: Path, data: Path, *, max_bytes: float
 
 
 def envi_data_file(hdr: Path) -> Path:
-    """The data file beside ``hdr`` that SPy would open (same name, no or a known extension), checked to be
-    a regular file."""
+    """The data file beside ``hdr`` (same name, no or a known extension: :data:`DATA_EXTENSIONS`), checked to
+    be a regular file."""
     stem = hdr.with_suffix("")
     names = [stem.name + ext for ext in DATA_EXTENSIONS] + [stem.name + ext.upper() for ext in DATA_EXTENSIONS[1:]]
     for name in names:
         candidate = hdr.with_name(name)
         if candidate.exists() or candidate.is_symlink():
             return input_file(candidate, what="ENVI data file")
-    raise InputError(f"ENVI data file not found (looked for {', '.join(names[1:4])}, ...)", source=hdr)
+    raise InputError(f"ENVI data file not found (looked for {', '.join(names[:6])}, ...)", source=hdr)

@@ -22,6 +22,8 @@ threshold or without a valid pixel) and the failed fraction (invalid input or ze
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from s2cl.status import Status
@@ -114,7 +116,33 @@ def median_code(codes: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(count > 0, median, np.nan)
 
 
-def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = True) -> dict[str, np.ndarray]:
+@dataclass(frozen=True)
+class Poly2:
+    """The conditioned second-order polynomial :func:`regression_metrics` fits: ``target ≈ c0 + c1 u + c2 u²`` with
+    ``u = (index − x0) / xs``."""
+
+    x0: float
+    xs: float
+    coef: tuple[float, float, float]
+
+    def __call__(self, index: np.ndarray) -> np.ndarray:
+        """The parameter of each ``index`` (float64; NaN where the index is)."""
+        u = (np.asarray(index, dtype=np.float64) - self.x0) / self.xs
+        c0, c1, c2 = self.coef
+        return c0 + c1 * u + c2 * u * u
+
+
+def poly2_fit(index: np.ndarray, valid: np.ndarray, target: np.ndarray) -> Poly2:
+    """The polynomial of ``target`` in ``index`` (both ``(n_pixels,)``) over the ``valid`` pixels, fitted exactly
+    as :func:`regression_metrics` fits it (its RMS is that of this polynomial's residuals)."""
+    x = np.where(valid, np.asarray(index, dtype=np.float64), 0.0)[None]
+    part = _poly2(x, np.asarray(valid, dtype=bool)[None], np.where(valid, target, 0.0), robust=False,
+                  coefficients=True)
+    return Poly2(float(part["x0"][0]), float(part["xs"][0]), tuple(float(c) for c in part["coef"][0]))
+
+
+def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = True,
+           coefficients: bool = False) -> dict[str, np.ndarray]:
     """Conditioned second-order polynomial regression of ``target`` on the valid ``x`` of each row.
 
     Moments are row reductions (no 3-D temporaries): this runs once per sweep chunk over (configurations ×
@@ -133,7 +161,8 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
         u[~valid] = 0.0
     xs = np.sqrt((u * u).sum(axis=1) / safe_n)
     constant = xs <= 1e-12 * np.maximum(np.abs(x0), 1.0)
-    u /= np.where(constant, 1.0, xs)[:, None]
+    xs = np.where(constant, 1.0, xs)
+    u /= xs[:, None]
     u2 = u * u
     m = np.empty((x.shape[0], 3, 3))
     m[:, 0, 0] = n
@@ -157,7 +186,8 @@ def _poly2(x: np.ndarray, valid: np.ndarray, target: np.ndarray, robust: bool = 
     with np.errstate(invalid="ignore", divide="ignore"):
         r2 = np.where(ss_tot > 0, 1.0 - ss_res / ss_tot, 0.0)
     rms = np.sqrt(ss_res / safe_n)
-    return {
+    fitted = {"x0": x0, "xs": xs, "coef": coef} if coefficients else {}
+    return {**fitted,
         "rms": np.where(n > 0, rms, np.nan),
         "r2": np.where(n > 0, r2, np.nan),
         "robust_rms": _robust(np.abs(residual, out=residual), valid, n) if robust else np.full(n.size, np.nan),

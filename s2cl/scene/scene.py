@@ -20,6 +20,7 @@ from pydantic import ValidationError
 from s2cl.errors import InputError, token
 from s2cl.grid import SpectralGrid
 from s2cl.io.inputs import input_file
+from s2cl.libraries.fields import fields_shape, is_builtin_cube
 from s2cl.resources import scene_dir
 from s2cl.scene.config import RunConfig, resolve_run
 from s2cl.scene.effects import EffectSet
@@ -222,6 +223,8 @@ def _check_surface(spec: SceneSpec, source: str) -> None:
     if s.cube is not None and s.select:
         raise InputError("surface.select picks library spectra by parameter; an image cube has none",
                          source=source, key="surface.select")
+    if s.cube is not None and is_builtin_cube(s.cube):
+        fields_shape(s.cube, source=source)
     if s.cube is not None and s.gsd_m is None:
         raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
                          source=source, key="surface.gsd_m")

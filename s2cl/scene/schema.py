@@ -44,7 +44,10 @@ class SceneMeta(Section):
 
 class SurfaceSpec(Section):
     library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) / s2cl .npz library file")
-    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr)")
+    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr), whose no-data values, "
+                             "scale factors and bad band lists are honoured (pixels with no data are flagged NODATA, "
+                             "never used as data); or builtin:fields[:ROWSxCOLS], parcels generated with a known "
+                             "truth (cab, lai)")
     variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
     gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
     quantity: Literal["reflectance", "radiance"] = Field(
@@ -159,6 +162,9 @@ class SweepSpec(Section):
     underdetermined: Literal["exclude", "keep"] = Field(
         "exclude", description="designs the analysis cannot fit (e.g. two IGRM bands on one centre, "
         "s2cl.retrieve.design): left out of the ranking, or kept in it, flagged; results.parquet flags them either way")
+    within_noise_top: int = Field(100, ge=0, le=10_000, description="the best designs re-scored per pixel to find "
+                                  "those within noise of #1 (a paired bootstrap over library spectra, "
+                                  "s2cl.sweep.within_noise); 0: none")
     add: AddSpec | None = Field(None, description="band-addition sweep: the one added band; every configuration is "
                                 "scored by its gain over the fixed base set alone (s2cl.sweep.addition)")
 

@@ -16,6 +16,7 @@ shape plus a floor of ±0.23 FWHM on each side, and the floor contributes ≤ 0.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,10 @@ XE = 6.0
 DEFAULT_SUPPORT = 1.0
 #: largest response a tabulated SRF may hold (relative units: 0-1, or percent; more is not an SRF)
 MAX_RESPONSE = 1000.0
+#: negative responses down to this fraction of a band's peak are measurement noise: clipped to 0 with a warning
+NEGATIVE_NOISE_FRACTION = 0.01
+
+_log = logging.getLogger(__name__)
 
 
 def super_gaussian(wavelengths_nm: np.ndarray, centre_nm: float, fwhm_nm: float) -> np.ndarray:
@@ -152,7 +157,8 @@ def _check_inside(grid: SpectralGrid, lo: float, hi: float, name: str, source: s
 def load_srf_csv(path: str, band_names: list[str] | None = None) -> dict[str, TabulatedResponse]:
     """Tabulated SRFs from a CSV: a ``wavelength_nm`` column then one column per band.
 
-    Lines starting with ``#`` are comments. Responses must be finite and within 0-:data:`MAX_RESPONSE`;
+    Lines starting with ``#`` are comments. Responses must be finite and within 0-:data:`MAX_RESPONSE`
+    (small negative noise is clipped, :func:`clip_response_noise`);
     band names follow :data:`s2cl.sensor.names.BAND_NAME`; numbers are ASCII decimal notation.
     """
     header, rows = read_csv_table(path)
@@ -174,14 +180,40 @@ def load_srf_csv(path: str, band_names: list[str] | None = None) -> dict[str, Ta
     for j, name in enumerate(names, start=1):
         if band_names is not None and name not in band_names:
             continue
-        r = data[:, j]
-        if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r > MAX_RESPONSE):
-            raise InputError(f"responses must be finite, >= 0 and <= {MAX_RESPONSE:g} (relative units: 0-1, or "
-                             "percent)", source=path, key=name)
+        r = clip_response_noise(wl, data[:, j], source=path, key=name)
         if not np.any(r > 0):
             raise InputError("response is zero everywhere", source=path, key=name)
         out[name] = TabulatedResponse(wl, r, origin=f"{path}:{name}")
     return out
+
+
+def clip_response_noise(wavelengths_nm: np.ndarray, response: np.ndarray, *, source: str, key: str) -> np.ndarray:
+    """``response`` with small negative values (measurement noise: down to
+    :data:`NEGATIVE_NOISE_FRACTION` of the band's peak) set to zero, each clip logged as a warning naming the
+    band and the most negative wavelength; responses that are non-finite, more negative, or above
+    :data:`MAX_RESPONSE` are an :class:`InputError` naming the value and its wavelength.
+
+    Measured tables carry such noise in the out-of-band wings (Py6S's Landsat 8 OLI B4: −0.00034 at
+    625 nm); a negative weight has no physical meaning, and zero is the measured value within its noise.
+    """
+    r = np.asarray(response, dtype=np.float64)
+    limits = f"responses must be finite, >= 0 and <= {MAX_RESPONSE:g} (relative units: 0-1, or percent)"
+    bad = ~np.isfinite(r) | (r > MAX_RESPONSE)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{limits}; got {r[i]:g} at {wavelengths_nm[i]:g} nm", source=source, key=key)
+    negative = r < 0
+    if not negative.any():
+        return r
+    peak = float(r.max())
+    i = int(np.argmin(r))
+    if peak <= 0 or r[i] < -NEGATIVE_NOISE_FRACTION * peak:
+        raise InputError(f"{limits}; got {r[i]:g} at {wavelengths_nm[i]:g} nm, below the noise allowance of "
+                         f"-{100 * NEGATIVE_NOISE_FRACTION:g} % of the peak {peak:g}", source=source, key=key)
+    _log.warning("%s: %s: %d negative response value(s) down to %g at %g nm (within -%g %% of the peak %g) "
+                 "set to 0", source, key, int(negative.sum()), r[i], wavelengths_nm[i],
+                 100 * NEGATIVE_NOISE_FRACTION, peak)
+    return np.where(negative, 0.0, r)
 
 
 _S2_PY6S = {
@@ -213,4 +245,4 @@ def measured_sentinel2_srf(platform: str, band: str) -> TabulatedResponse:
     if abs(wl[-1] - 1000.0 * stop_um) > 1e-6:
         raise InputError(f"unexpected Py6S table layout for {platform} {band}", key="sensor.srf")
     origin = f"Py6S {platform}_MSI_{_S2_PY6S[band]} (ESA measured)"
-    return TabulatedResponse(wl, np.clip(values, 0.0, None), origin=origin)
+    return TabulatedResponse(wl, clip_response_noise(wl, values, source=origin, key=band), origin=origin)

@@ -6,7 +6,7 @@ The image: ``image_px`` × ``image_px`` input pixels at the scene's ``surface.gs
 (``parcel_px`` on a side, sharp edges), each one spectrum drawn (with the scene's seed) from the [study]
 ``targets`` libraries. Where the sensor has B4 and B8, the map-level score is the NDVI map's RMS against the true
 NDVI: each pixel's true surface reflectance through the nominal B4 and B8 SRFs, box-averaged to 10 m (float64).
-Also timed: the spatial step alone (every band's FFT, :meth:`s2cl.forward.instrument.Instrument.spatial`) with
+Also timed: the spatial step alone (every band's PSF and shift, :meth:`s2cl.forward.instrument.Instrument.spatial`) with
 ``mtf`` and with ``coregistration`` on, against the whole run, which says whether that step is worth a device
 kernel.
 """
@@ -77,7 +77,7 @@ def ndvi_score(truth: np.ndarray) -> Score:
 
 
 def spatial_seconds(scene: Scene, size: int, effect: str) -> float:
-    """Seconds of the spatial step alone (every band's FFT on the input grid) with ``effect`` on."""
+    """Seconds of the spatial step alone (every band's PSF and shift on the input grid) with ``effect`` on."""
     spec = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False), effect: True}
     inst = Instrument.of(with_instrument(scene, spec))
     gsd = float(scene.spec.surface.gsd_m or 10.0)

@@ -218,6 +218,22 @@ class Digest:
         return _labels(centres, gc), _labels(widths, gw), values, (gc, gw)
 
 
+    def binned_cells(self, band: str, pairs: list[tuple[float, float]], max_centres: int = HEATMAP_CENTRES,
+                     max_widths: int = HEATMAP_WIDTHS) -> np.ndarray:
+        """Boolean mask of :meth:`binned_grid`'s cells of ``band`` that hold one of the (centre, width)
+        ``pairs`` (nm); pairs that are not variants of ``band`` mark nothing."""
+        grid = self.pairs[band]
+        grid.merge()
+        centres, widths = np.unique(grid.keys.real), np.unique(grid.keys.imag)
+        gc, gw = -(-centres.size // max_centres), -(-widths.size // max_widths)
+        mask = np.zeros((-(-centres.size // gc), -(-widths.size // gw)), bool)
+        for c, w in pairs:
+            i, j = int(np.searchsorted(centres, c)), int(np.searchsorted(widths, w))
+            if i < centres.size and j < widths.size and centres[i] == c and widths[j] == w:
+                mask[i // gc, j // gw] = True
+        return mask
+
+
 def _labels(values: np.ndarray, group: int) -> list[str]:
     out = []
     for a in range(0, values.size, group):

@@ -186,10 +186,11 @@ def _label(value: Any) -> str:
 
 
 def draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str, fontsize: float,
-              digits: int | None = None, best: str = "min") -> Any:
+              digits: int | None = None, best: str = "min", hatched: np.ndarray | None = None) -> Any:
     """Centre × width table ``values`` on ``ax``: cells written where there are at most 150, the
     best (``best``: the lowest, or with ``"max"`` the highest, e.g. a gain) boxed in red; its own colour scale
-    (the best end dark). Returns the image (for a colour bar)."""
+    (the best end dark); the cells of ``hatched`` (a boolean mask of ``values``' shape) hatched. Returns the
+    image (for a colour bar)."""
     plt = pyplot()
     cmap = "viridis_r" if best == "min" else "viridis"
     im = ax.imshow(values, origin="lower", aspect="auto", cmap=cmap, interpolation="nearest")
@@ -208,6 +209,9 @@ def draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str,
             dark = values[i, j] > mid if best == "min" else values[i, j] < mid
             ax.text(j, i, f"{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=fontsize - 1,
                     color="white" if dark else "black")
+    if hatched is not None:
+        for i, j in zip(*np.nonzero(hatched), strict=True):
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec=(0, 0, 0, 0.55), lw=0, hatch="///"))
     if finite.size:
         pick = np.nanargmin if best == "min" else np.nanargmax
         i, j = np.unravel_index(pick(values), values.shape)
@@ -216,20 +220,23 @@ def draw_grid(ax: Any, centres: Any, widths: Any, values: np.ndarray, band: str,
 
 
 def heatmap(data: Any, band: str, path: str | Path, *, metric: str | None = None, title: str = "",
-            unit: str = "") -> Path:
-    """Centre × width heatmap of ``band`` (best over the other bands), the best cell marked; at most
+            unit: str = "", hatch: list[tuple[float, float]] | None = None) -> Path:
+    """Centre × width heatmap of ``band`` (best over the other bands), the best cell marked, the cells holding a
+    (centre, width) pair of ``hatch`` hatched (the designs within noise of #1); at most
     :data:`~s2cl.sweep.digest.HEATMAP_CENTRES` × :data:`~s2cl.sweep.digest.HEATMAP_WIDTHS` cells (consecutive
     centres or widths grouped beyond that: :meth:`Digest.binned_grid`), so the figure's size is bounded."""
     d = digest_of(data, {"underdetermined": "keep"}, metric_column=metric)
     metric = d.metric
     centres, widths, values, (gc, gw) = d.binned_grid(band)
+    hatched = d.binned_cells(band, hatch) if hatch else None
     # cells shrink when there are many (at most 60 × 40: about 1,700 × 2,000 pixels)
     cell_w, cell_h = (0.62 if len(widths) <= 20 else 0.32), (0.42 if len(centres) <= 30 else 0.26)
     fig, ax = pyplot().subplots(figsize=(1.0 + cell_w * len(widths), 1.2 + cell_h * len(centres)), dpi=120)
-    im = draw_grid(ax, centres, widths, values, band, fontsize=8)
+    im = draw_grid(ax, centres, widths, values, band, fontsize=8, hatched=hatched)
     fig.colorbar(im, ax=ax, label=f"{metric} {unit}".strip())
     grouped = f"; cells group {gc} centres × {gw} widths" if gc * gw > 1 else ""
-    ax.set_title(title or f"{band}: {metric} (best over the other bands{grouped}; red: best)", fontsize=9)
+    marked = ";\nhatched: within noise of #1" if hatched is not None and hatched.any() else ""
+    ax.set_title(title or f"{band}: {metric} (best over the other bands{grouped}; red: best{marked})", fontsize=9)
     fig.tight_layout()
     return save_png(fig, path)
 

@@ -1,0 +1,237 @@
+"""Image-cube files (NetCDF-4 and ENVI) read into values, wavelengths (nm) and no-data, as such files ship.
+
+No-data travels as NaN: every value a file marks as missing becomes NaN here, and the forward chain
+(:mod:`s2cl.forward.cube`) turns a pixel with any NaN among its spectral samples into a NODATA pixel.
+What each format may mark:
+
+- **ENVI**: ``data ignore value`` (compared with the raw values, before scaling); ``reflectance scale
+  factor`` (values are divided by it: int16 × 10000 becomes reflectance); ``bbl`` (bad band list, 0 = bad:
+  such bands are dropped before anything else, their wavelengths reported in :attr:`CubeFile.bad_nm`);
+  ``wavelength units`` Nanometers or Micrometers (absent or Unknown: nm); any real data type, any
+  interleave (``bsq``/``bil``/``bip``, from the header), data file ``NAME``, ``NAME.img``, ``NAME.bsq`` ….
+- **NetCDF**: CF ``_FillValue``/``missing_value`` and ``scale_factor``/``add_offset`` (decoded by xarray);
+  a CF flag variable named in the cube's ``ancillary_variables`` whose ``flag_meanings`` hold a no-data
+  meaning (:data:`NODATA_MEANINGS`) marks the pixels it flags with ``flag_values`` or ``flag_masks``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from s2cl.errors import InputError, token
+from s2cl.grid import check_wavelengths
+from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
+from s2cl.io.inputs import input_file, parse_number
+
+#: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
+NODATA_MEANINGS = frozenset({"no_data", "nodata", "no_data_value", "missing", "missing_data", "missing_value",
+                             "fill", "fill_value", "invalid", "invalid_data", "no_data_nan_radiance"})
+_NANOMETRES = ("nanometers", "nanometer", "nanometres", "nanometre", "nm", "unknown", "")
+_MICROMETRES = ("micrometers", "micrometer", "micrometres", "micrometre", "microns", "micron", "um", "µm", "μm")
+
+
+@dataclass(frozen=True)
+class CubeFile:
+    """A cube ``(rows, cols, wavelengths)`` as read: floating values, NaN where the file marks no data.
+
+    :param wavelengths_nm: the kept bands' wavelengths (nm, increasing).
+    :param bad_nm: wavelengths (nm) of the bands the file's bad band list dropped (empty when none).
+    """
+
+    values: np.ndarray
+    wavelengths_nm: np.ndarray
+    bad_nm: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+
+def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
+    """The cube at ``path``: NetCDF (a 3-D variable with a ``wavelength`` dimension and coordinate) or ENVI
+    (the ``.hdr`` file). See the module docstring for the no-data conventions honoured."""
+    p = input_file(path, what="cube file")
+    if p.suffix.lower() == ".hdr":
+        return _load_envi(p)
+    try:
+        ds = xr.open_dataset(p, engine="h5netcdf")
+    except Exception as err:  # h5netcdf/h5py raise many types for a bad file
+        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
+    with ds:
+        candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
+        name = variable or (candidates[0] if len(candidates) == 1 else None)
+        if name is None or name not in ds:
+            raise InputError(f"choose the cube variable (surface.variable); 3-D variables with a 'wavelength' "
+                             f"dimension: {candidates or 'none'}", source=p, key="surface.variable")
+        v = ds[name]
+        if "wavelength" not in v.dims or v.ndim != 3:
+            raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
+        v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
+        real(v.dtype, p, name)
+        scale = wavelength_scale(ds["wavelength"].attrs.get("units"), p, "wavelength.units")
+        wl = np.asarray(ds["wavelength"].values, dtype=np.float64) * scale
+        values = _floating(np.asarray(v.values))
+        flagged = _flagged_nodata(ds, v, p, name)
+        if flagged is not None:
+            values[flagged] = np.nan
+        return CubeFile(values, check_wavelengths(wl, source=str(p), key="wavelength"))
+
+
+def cube_size(path: str | Path) -> tuple[int, int]:
+    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
+    (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
+
+    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
+        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
+    p = input_file(path, what="cube file")
+    if p.suffix.lower() == ".hdr":
+        meta = read_envi_header(p)
+        layout = envi_layout(meta, p, envi_data_file(p))
+        _envi_wavelengths(meta, layout.bands, p)
+        return layout.samples * layout.lines, layout.bands
+    try:
+        with xr.open_dataset(p, engine="h5netcdf") as ds:
+            cubes = [v for v in ds.data_vars.values() if v.ndim == 3 and "wavelength" in v.dims]
+            if not cubes:
+                return 0, 0
+            v = max(cubes, key=lambda c: c.size)
+            return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
+    except Exception:  # a bad file is reported by load_cube, with its reason
+        return 0, 0
+
+
+def real(dtype: np.dtype, p: Path, key: str) -> None:
+    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
+    if np.dtype(dtype).kind not in "fiu":
+        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
+                         source=p, key=key)
+
+
+def wavelength_scale(units: Any, p: Path, key: str) -> float:
+    """nm per unit of a file's wavelength ``units`` (1 for nanometres, 1000 for micrometres)."""
+    text = str(units if units is not None else "").strip().lower()
+    if text in _NANOMETRES:
+        return 1.0
+    if text in _MICROMETRES:
+        return 1000.0
+    raise InputError(f"wavelength units {token(str(units))} are not known; write Nanometers or Micrometers",
+                     source=p, key=key)
+
+
+def _floating(values: np.ndarray) -> np.ndarray:
+    """``values`` as a writable floating array: float32 for float32 and 8/16-bit integers (exact), else float64."""
+    small = values.dtype == np.float32 or (values.dtype.kind in "iu" and values.dtype.itemsize <= 2)
+    out = np.asarray(values, dtype=np.float32 if small else np.float64)
+    return out if out.flags.writeable else out.copy()
+
+
+def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str) -> np.ndarray | None:
+    """``(rows, cols)`` mask of the pixels a CF flag variable named in ``ancillary_variables`` marks as no data."""
+    mask = None
+    spatial = v.dims[:2]
+    for flag_name in str(v.attrs.get("ancillary_variables", "")).split():
+        if flag_name not in ds:
+            raise InputError(f"names {token(flag_name)}, which the file lacks", source=p,
+                             key=f"{name}.ancillary_variables")
+        f = ds[flag_name]
+        meanings = str(f.attrs.get("flag_meanings", "")).lower().split()
+        hits = [i for i, m in enumerate(meanings) if m in NODATA_MEANINGS]
+        if not hits:
+            continue
+        if sorted(f.dims) != sorted(spatial):
+            raise InputError(f"flags no data but has dimensions {f.dims}; the cube's pixels are {spatial}",
+                             source=p, key=flag_name)
+        flags = np.asarray(f.transpose(*spatial).values)
+        known = np.isfinite(flags) if flags.dtype.kind == "f" else np.ones(flags.shape, bool)
+        flags_int = np.where(known, flags, 0).astype(np.int64)
+        for attr in ("flag_values", "flag_masks"):
+            table = np.atleast_1d(np.asarray(f.attrs.get(attr, []), dtype=np.int64))
+            if table.size == 0:
+                continue
+            if table.size != len(meanings):
+                raise InputError(f"{attr} has {table.size} values for {len(meanings)} flag_meanings", source=p,
+                                 key=flag_name)
+            marks = table[hits]
+            hit = (np.isin(flags_int, marks) if attr == "flag_values"
+                   else (flags_int[..., None] & marks).any(axis=-1)) & known
+            mask = hit if mask is None else mask | hit
+    return mask
+
+
+def _envi_wavelengths(meta: dict, bands: int, p: Path) -> np.ndarray:
+    """The header's ``wavelength`` list as numbers, one per band (in the header's units)."""
+    wl = meta.get("wavelength")
+    if not wl:
+        raise InputError("ENVI header has no 'wavelength' field", source=p, key="wavelength")
+    if len(wl) != bands:
+        raise InputError(f"lists {len(wl)} values for bands = {bands}", source=p, key="wavelength")
+    try:
+        return np.array([parse_number(str(x).strip()) for x in wl])
+    except ValueError:
+        raise InputError("holds a value that is not a number", source=p, key="wavelength") from None
+
+
+def _header_number(meta: dict, key: str, p: Path) -> float | None:
+    """The number at ``key`` (None when absent)."""
+    text = meta.get(key)
+    if text is None:
+        return None
+    try:
+        return parse_number(str(text).strip())
+    except ValueError:
+        raise InputError(f"must be a number, got {token(str(text))}", source=p, key=key) from None
+
+
+def _bad_band_list(meta: dict, bands: int, p: Path) -> np.ndarray:
+    """``bbl`` as booleans (True: good band); all good when absent."""
+    bbl = meta.get("bbl")
+    if bbl is None:
+        return np.ones(bands, bool)
+    values = bbl if isinstance(bbl, list) else [bbl]
+    if len(values) != bands:
+        raise InputError(f"lists {len(values)} values for bands = {bands}", source=p, key="bbl")
+    try:
+        flags = np.array([parse_number(str(x).strip()) for x in values])
+    except ValueError:
+        raise InputError("holds a value that is not 0 or 1", source=p, key="bbl") from None
+    if not np.isin(flags, (0.0, 1.0)).all():
+        raise InputError(f"holds {flags[~np.isin(flags, (0.0, 1.0))][0]:g}; bad band list values are 0 (bad) or "
+                         "1 (good)", source=p, key="bbl")
+    if not flags.any():
+        raise InputError("marks every band bad", source=p, key="bbl")
+    return flags == 1.0
+
+
+def _load_envi(p: Path) -> CubeFile:
+    import spectral.io.envi as envi
+
+    meta = read_envi_header(p)
+    data = envi_data_file(p)
+    layout = envi_layout(meta, p, data)
+    w = _envi_wavelengths(meta, layout.bands, p) * wavelength_scale(meta.get("wavelength units"), p,
+                                                                     "wavelength units")
+    ignore = _header_number(meta, "data ignore value", p)
+    scale = _header_number(meta, "reflectance scale factor", p)
+    if scale is not None and not (np.isfinite(scale) and scale > 0):
+        raise InputError(f"must be a finite number > 0, got {scale:g}", source=p, key="reflectance scale factor")
+    good = _bad_band_list(meta, layout.bands, p)
+    try:
+        img = envi.open(str(p), str(data))
+        with warnings.catch_warnings():  # NaN values are no-data here, not news
+            warnings.simplefilter("ignore")
+            raw = np.asarray(img.load(dtype=img.dtype, scale=False))
+    except Exception as err:  # SPy raises many types for a bad header or data file
+        raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
+    real(raw.dtype, p, "data type")
+    if not good.all():
+        raw = raw[:, :, good]
+    values = _floating(raw)
+    if ignore is not None:
+        # a float file holds the ignore value at its own precision; an integer file compares exactly
+        values[raw == (raw.dtype.type(ignore) if raw.dtype.kind == "f" else ignore)] = np.nan
+    del raw
+    if scale is not None and scale != 1.0:
+        values /= values.dtype.type(scale)
+    return CubeFile(values, check_wavelengths(w[good], source=str(p), key="wavelength"), bad_nm=w[~good])

@@ -1,0 +1,325 @@
+"""Which designs are within noise of the best: a paired bootstrap over library spectra.
+
+A sweep ranks designs by one score (:func:`s2cl.sweep.digest.metric_of`: RMS of the regression, or SAM's mean
+omission error), computed on one draw of the simulation's noise over one library. Designs whose scores differ by
+less than that draw can move are not told apart by the simulation. The test, per candidate design ``j`` (the
+sweep's best :data:`DEFAULT_TOP` designs, re-evaluated with per-pixel results):
+
+1. per library spectrum ``s``, sufficient statistics of the score over the spectrum's pixels (its noisy copies),
+   for every candidate: the moments of the quadratic regression (:func:`regression_stats`), or the correct and
+   total pixel counts per class (:func:`classification_stats`);
+2. :data:`REPLICATES` bootstrap replicates resample the spectra with replacement (within each class for SAM),
+   the same draw for every design, so all copies of a spectrum move together and the designs stay paired; a
+   replicate's score is the score of the weighted statistics (the regression is refitted on each replicate);
+3. the difference ``score_j − score_best`` per replicate; ``j`` is *within noise of #1* when the two-sided
+   :data:`LEVEL` percentile interval of that difference reaches zero (is not all above it).
+
+Everything is seeded (:data:`SEED`): the same sweep gives the same set.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from s2cl.status import Status
+from s2cl.sweep.raw import ChunkEvaluator
+
+LEVEL = 0.95
+REPLICATES = 2000
+SEED = 20_120_000
+#: best designs re-scored per pixel when the scene does not say (``sweep.within_noise_top``)
+DEFAULT_TOP = 100
+#: designs whose bootstrap replicates are held at once (bounds the memory: designs × replicates × statistics)
+DESIGN_BLOCK = 64
+
+
+# -- per-spectrum statistics --------------------------------------------------------------------------
+
+def _per_spectrum(values: np.ndarray, copies: int) -> np.ndarray:
+    """``(n_designs, n_pixels, m)`` summed over each spectrum's ``copies`` consecutive pixels."""
+    d, p, m = values.shape
+    return values.reshape(d, p // copies, copies, m).sum(axis=2)
+
+
+def regression_stats(index: np.ndarray, status: np.ndarray, target: np.ndarray, copies: int,
+                     regress: tuple[int, ...]) -> np.ndarray:
+    """Per design and spectrum, the sums the RMS of the quadratic regression of ``target`` on ``index`` needs:
+    ``n, Σu, Σu², Σu³, Σu⁴, Σy, Σuy, Σu²y, Σy²`` over the pixels that enter it (status in ``regress``, finite
+    index). ``u``: the index centred and scaled over all of the design's regression pixels (a constant index: 0);
+    ``y``: the target minus its mean. Pixel ``p`` is a copy of spectrum ``p // copies``.
+
+    :param index: ``(n_designs, n_pixels)``, any unit; :param target: ``(n_pixels,)``.
+    :returns: ``(n_designs, n_spectra, 9)`` float64.
+    """
+    x = np.atleast_2d(np.asarray(index, dtype=np.float64))
+    status = np.atleast_2d(status)
+    valid = np.isin(status, np.asarray(regress, dtype=status.dtype)) & np.isfinite(x)
+    n = valid.sum(axis=1)
+    safe = np.maximum(n, 1)
+    x0 = np.where(valid, x, 0.0).sum(axis=1) / safe
+    u = np.where(valid, x - x0[:, None], 0.0)
+    scale = np.sqrt((u * u).sum(axis=1) / safe)
+    constant = scale <= 1e-12 * np.maximum(np.abs(x0), 1.0)
+    u = u / np.where(constant, 1.0, scale)[:, None]
+    u[constant] = 0.0
+    y = np.asarray(target, dtype=np.float64)
+    y = np.broadcast_to(y - y.mean(), x.shape)
+    w = valid.astype(np.float64)
+    u2 = u * u
+    terms = np.stack([w, u, u2, u2 * u, u2 * u2, w * y, u * y, u2 * y, w * y * y], axis=-1)
+    return _per_spectrum(terms, copies)
+
+
+def regression_score(sums: np.ndarray) -> np.ndarray:
+    """RMS of the least-squares quadratic from :func:`regression_stats` sums ``(..., 9)`` (target units; NaN
+    without a pixel). A singular fit (fewer than three distinct index values, a constant index) takes the
+    minimum-norm solution, as :func:`s2cl.retrieve.metrics.regression_metrics` does."""
+    s = np.asarray(sums, dtype=np.float64)
+    n, su, su2, su3, su4, sy, suy, su2y, syy = np.moveaxis(s, -1, 0)
+    m = np.stack([np.stack([n, su, su2], -1), np.stack([su, su2, su3], -1), np.stack([su2, su3, su4], -1)], -2)
+    b = np.stack([sy, suy, su2y], -1)
+    coef = _solve3(m.reshape(-1, 3, 3), b.reshape(-1, 3)).reshape(b.shape)
+    ss_res = np.maximum(syy - (coef * b).sum(-1), 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.sqrt(ss_res / np.where(n > 0, n, 1.0)), np.nan)
+
+
+def _solve3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched 3 × 3 solves; rows whose matrix is singular (relative to its scale) by the pseudo-inverse."""
+    out = np.empty_like(b)
+    scale = np.maximum(np.abs(m).max(axis=(1, 2)), 1e-300)
+    det = np.linalg.det(m / scale[:, None, None])
+    good = np.abs(det) > 1e-12
+    if good.any():
+        out[good] = np.linalg.solve(m[good], b[good][..., None])[..., 0]
+    if (~good).any():
+        out[~good] = np.einsum("rij,rj->ri", np.linalg.pinv(m[~good]), b[~good])
+    return out
+
+
+def classification_stats(index: np.ndarray, status: np.ndarray, target: np.ndarray, copies: int,
+                         n_classes: int) -> np.ndarray:
+    """Per design and spectrum, the correctly classified pixels and all pixels, each in the column of the
+    spectrum's class: ``(n_designs, n_spectra, 2 n_classes)`` (correct counts, then pixel counts). A pixel is
+    correct when its status is OK and its class index equals the truth ``target`` (class index per pixel)."""
+    pred = np.atleast_2d(np.asarray(index))
+    status = np.atleast_2d(status)
+    truth = np.asarray(target).astype(np.int64)
+    correct = (status == Status.OK) & (np.rint(pred).astype(np.int64) == truth[None, :])
+    onehot = np.eye(n_classes)[truth]  # (n_pixels, n_classes)
+    terms = np.concatenate([correct[..., None] * onehot[None], np.broadcast_to(onehot, (*correct.shape,
+                                                                                       n_classes))], axis=-1)
+    return _per_spectrum(terms.astype(np.float64), copies)
+
+
+def classification_score(sums: np.ndarray) -> np.ndarray:
+    """Mean omission error over the classes present (%), from :func:`classification_stats` sums ``(..., 2C)``."""
+    s = np.asarray(sums, dtype=np.float64)
+    c = s.shape[-1] // 2
+    correct, total = s[..., :c], s[..., c:]
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # no class present: NaN
+        omission = np.where(total > 0, 1.0 - correct / np.where(total > 0, total, 1.0), np.nan)
+        return 100.0 * np.nanmean(omission, axis=-1)
+
+
+@dataclass(frozen=True)
+class Family:
+    """How one ranking metric is bootstrapped: its per-spectrum statistics of a :class:`~s2cl.sweep.raw.RawChunk`
+    (given the job), the score of summed statistics, and whether spectra are resampled within their class."""
+
+    stats: Callable[[Any, Any], np.ndarray]
+    score: Callable[[np.ndarray], np.ndarray]
+    stratified: bool
+
+
+def _regression(raw: Any, job: Any) -> np.ndarray:
+    t = job.tables
+    return regression_stats(raw.index, raw.status, t.target, t.copies, tuple(int(r) for r in job.analysis.regress))
+
+
+def _classification(raw: Any, job: Any) -> np.ndarray:
+    t = job.tables
+    return classification_stats(raw.index, raw.status, t.target, t.copies, len(t.class_names))
+
+
+#: ranking metric (:func:`s2cl.sweep.digest.metric_of`) → how it is bootstrapped
+FAMILIES = {"rms": Family(_regression, regression_score, stratified=False),
+            "omission_error_pct": Family(_classification, classification_score, stratified=True)}
+
+
+# -- the bootstrap ----------------------------------------------------------------------------------------
+
+def resample_indices(n_spectra: int, replicates: int = REPLICATES, seed: int = SEED,
+                     strata: np.ndarray | None = None) -> np.ndarray:
+    """The spectra each bootstrap replicate draws, ``(replicates, n_spectra)``: with replacement, from all
+    spectra, or (``strata``: a label per spectrum) within each stratum, keeping its size. Seeded: reproducible."""
+    rng = np.random.default_rng(seed)
+    if strata is None:
+        return rng.integers(0, n_spectra, size=(replicates, n_spectra))
+    strata = np.asarray(strata)
+    out = np.empty((replicates, n_spectra), dtype=np.int64)
+    for label in np.unique(strata):
+        members = np.flatnonzero(strata == label)
+        out[:, members] = members[rng.integers(0, members.size, size=(replicates, members.size))]
+    return out
+
+
+def replicate_weights(draws: np.ndarray, n_spectra: int) -> np.ndarray:
+    """How often each spectrum is drawn per replicate, ``(replicates, n_spectra)`` float64."""
+    r = draws.shape[0]
+    flat = (np.arange(r)[:, None] * n_spectra + draws).ravel()
+    return np.bincount(flat, minlength=r * n_spectra).reshape(r, n_spectra).astype(np.float64)
+
+
+@dataclass(frozen=True)
+class Bootstrap:
+    """A paired bootstrap of candidate designs against one of them (``best``), per design: the full-sample
+    ``score``, its ``difference`` to the best, the percentile interval (``low``, ``high``) of that difference
+    at ``level``, the share of replicates in which the design scores at least as well as the best
+    (``as_good``), and ``within`` (``low`` ≤ 0: not told apart from the best)."""
+
+    score: np.ndarray
+    difference: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    as_good: np.ndarray
+    within: np.ndarray
+    level: float
+    replicates: int
+
+
+def paired_bootstrap(stats: np.ndarray, score: Callable[[np.ndarray], np.ndarray], best: int = 0, *,
+                     replicates: int = REPLICATES, seed: int = SEED, level: float = LEVEL,
+                     strata: np.ndarray | None = None) -> Bootstrap:
+    """Bootstrap the score difference of every design of ``stats`` ``(n_designs, n_spectra, m)`` to design
+    ``best``, resampling spectra (:func:`resample_indices`; the same draws for all designs). ``score`` maps
+    summed statistics ``(..., m)`` to the score (lower is better)."""
+    stats = np.asarray(stats, dtype=np.float64)
+    n_designs, n_spectra, m = stats.shape
+    weights = replicate_weights(resample_indices(n_spectra, replicates, seed, strata), n_spectra)
+    full = score(stats.sum(axis=1))
+    best_b = score(weights @ stats[best])  # (replicates,)
+    alpha = (1.0 - level) / 2.0
+    low, high, as_good = (np.empty(n_designs) for _ in range(3))
+    for a in range(0, n_designs, DESIGN_BLOCK):
+        block = stats[a:a + DESIGN_BLOCK]
+        sums = (weights @ block.transpose(1, 0, 2).reshape(n_spectra, -1)).reshape(replicates, block.shape[0], m)
+        diff = score(sums) - best_b[:, None]  # (replicates, designs)
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a design without any pixel: NaN, never within
+            low[a:a + block.shape[0]], high[a:a + block.shape[0]] = np.nanquantile(diff, [alpha, 1.0 - alpha],
+                                                                                   axis=0)
+            as_good[a:a + block.shape[0]] = np.mean(diff <= 0.0, axis=0)
+    difference = full - full[best]
+    within = np.asarray(low <= 0.0)
+    within[best] = True
+    return Bootstrap(full, difference, low, high, as_good, within, level, replicates)
+
+
+# -- a sweep's candidates ----------------------------------------------------------------------------------
+
+def design_stats(job: Any, configs: np.ndarray, family: Family, evaluator: ChunkEvaluator) -> np.ndarray:
+    """Per-spectrum statistics ``(len(configs), n_spectra, m)`` of the configurations ``configs`` of ``job``, each
+    evaluated alone with per-pixel results (``evaluator(c, c + 1)``: the sweep's own kernel gives each design
+    the same pixels as in the sweep)."""
+    return np.concatenate([family.stats(evaluator(int(c), int(c) + 1), job) for c in configs])
+
+
+def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator | None = None,
+                 device: str | None = None, reference: Any = None, ranked: int | None = None,
+                 replicates: int = REPLICATES, seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
+    """The designs of ``top`` (the sweep's best rows, best first: ``config``, band centres and widths,
+    ``metric``) within noise of the first, as ``summary.json``'s ``within_noise``; None when fewer than two
+    designs were ranked or ``metric`` has no bootstrap (:data:`FAMILIES`).
+
+    :param evaluator: per-pixel results of configurations (default: the sweep kernel of ``job`` on ``device``).
+    :param reference: per-pixel results (a :class:`~s2cl.sweep.raw.RawChunk` of one design on the same pixels)
+        of the sensor's own bands, tested against #1 too (``within_noise["reference"]``), or None.
+    :param ranked: how many designs the sweep ranked (all of them tested: the set is complete).
+    """
+    family = FAMILIES.get(metric)
+    if family is None or top is None or len(top) < 2:
+        return None
+    if evaluator is None:
+        from s2cl.sweep.engine import kernel_evaluator
+
+        evaluator = kernel_evaluator(job, device)
+    t0 = time.perf_counter()
+    t = job.tables
+    configs = top["config"].to_numpy(np.int64)
+    stats = design_stats(job, configs, family, evaluator)
+    if reference is not None:
+        stats = np.concatenate([stats, family.stats(reference, job)])
+    strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
+    boot = paired_bootstrap(stats, family.score, 0, replicates=replicates, seed=seed, level=level, strata=strata)
+    n = len(configs)
+    bands = list(t.bands)
+    designs = []
+    for i, (_, row) in enumerate(top.iterrows()):  # the candidates; the reference, if any, is design n
+        designs.append({
+            "rank": i + 1, "config": int(row["config"]),
+            "bands": {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands},
+            metric: _finite(row[metric]), "difference": _finite(boot.difference[i]),
+            "interval": [_finite(boot.low[i]), _finite(boot.high[i])], "as_good": float(boot.as_good[i]),
+            "within": bool(boot.within[i])})
+    out = {"metric": metric, "level": level, "replicates": replicates, "seed": seed,
+           "resampled": "library spectra" + (" within each class" if family.stratified else ""),
+           "spectra": t.n_spectra, "copies": t.copies, "candidates": n, "count": int(boot.within[:n].sum()),
+           # False: the last candidate is still within noise, so designs ranked below it may be too
+           "complete": not bool(boot.within[n - 1]) or n == ranked,
+           "configs": [d["config"] for d in designs if d["within"]]}
+    if reference is not None:
+        out["reference"] = {"score": _finite(boot.score[n]), "difference": _finite(boot.difference[n]),
+                            "interval": [_finite(boot.low[n]), _finite(boot.high[n])],
+                            "as_good": float(boot.as_good[n]), "within": bool(boot.within[n])}
+    return {**out, "seconds": time.perf_counter() - t0, "designs": designs}
+
+
+def _finite(value: Any) -> float | None:
+    v = float(value)
+    return v if np.isfinite(v) else None
+
+
+def mark_top(summary: dict[str, Any]) -> None:
+    """Write each ``summary["top"]`` entry's and the reference's ``within_noise`` (True, False, or None when
+    it was not tested) from ``summary["within_noise"]``."""
+    wn = summary.get("within_noise")
+    tested = {d["config"]: d["within"] for d in wn["designs"]} if wn else {}
+    for entry in summary.get("top", []):
+        entry["within_noise"] = tested.get(entry.get("config"))
+    if isinstance(summary.get("reference"), dict):
+        summary["reference"]["within_noise"] = (wn or {}).get("reference", {}).get("within")
+
+
+def within_pairs(summary: dict[str, Any], band: str) -> list[tuple[float, float]]:
+    """(centre, width) of ``band`` in each design within noise of #1 (the heatmap's hatched cells)."""
+    wn = summary.get("within_noise") or {}
+    return [tuple(d["bands"][band]) for d in wn.get("designs", []) if d["within"] and band in d["bands"]]
+
+
+def within_column(summary: dict[str, Any], configs: np.ndarray) -> Any:
+    """Per configuration of ``configs``, whether it is within noise of #1 (a pandas nullable boolean array:
+    True or False where tested, missing elsewhere)."""
+    import pandas as pd
+
+    wn = summary.get("within_noise") or {}
+    tested = {d["config"]: d["within"] for d in wn.get("designs", [])}
+    return pd.Series(np.asarray(configs)).map(tested).astype("boolean").array
+
+
+def kept_within_noise(summary: dict[str, Any], kept: dict[str, Any]) -> None:
+    """Carry a previous ``summary.json``'s within-noise set into ``summary`` (a report ranked again from the
+    results) when both rank the same design first; re-scoring it needs the sweep's tables, not only its results.
+    Marks the ranking's entries (:func:`mark_top`)."""
+    wn = kept.get("within_noise")
+    best = summary.get("best") or {}
+    if isinstance(wn, dict) and wn.get("designs") and wn["designs"][0].get("config") == best.get("config"):
+        summary["within_noise"] = wn
+    mark_top(summary)

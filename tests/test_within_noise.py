@@ -1,0 +1,272 @@
+"""Within noise of #1 (s2cl.sweep.within_noise): the per-spectrum statistics give the sweep's own scores, the
+bootstrap equals resampling the pixels directly in numpy, and the verdicts have known answers — a design that
+differs from the best only in its noise draws is within noise, a far worse one is not — on every analysis
+family and through ``s2cl optimise``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+from sweep_fixtures import SMALL_SWEEP_TOML
+
+from s2cl.reference.sweep import NumpyEvaluator
+from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.status import Status
+from s2cl.sweep.within_noise import (
+    FAMILIES,
+    classification_score,
+    classification_stats,
+    paired_bootstrap,
+    regression_score,
+    regression_stats,
+    resample_indices,
+    within_noise,
+)
+
+REGRESS = (int(Status.OK), int(Status.STALLED), int(Status.ITERATION_LIMIT))
+
+
+def _regression_case(rng: np.random.Generator, n_spectra: int = 40, copies: int = 5,
+                     noise: tuple[float, ...] = (0.5, 0.5, 2.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Index ``(designs, pixels)`` of a curved relation to the target plus per-spectrum model error (common to
+    the designs) and per-pixel noise of each design's standard deviation; statuses; the target per pixel."""
+    y = np.repeat(rng.uniform(5, 80, n_spectra), copies)
+    model = np.repeat(rng.normal(0, 1.0, n_spectra), copies)
+    base = 700 + 0.4 * y - 0.002 * y**2 + model
+    index = np.stack([base + rng.normal(0, s, y.size) for s in noise])
+    status = np.zeros(index.shape, np.uint8)
+    return index, status, y
+
+
+def test_regression_statistics_give_the_sweeps_rms() -> None:
+    """Summed over all spectra, the statistics give regression_metrics' RMS (the number the sweep ranks by),
+    with pixels left out of the regression, a non-finite index, a constant index and a design without pixels."""
+    rng = np.random.default_rng(1)
+    index, status, y = _regression_case(rng, noise=(0.5, 3.0, 0.5, 0.5, 0.5))
+    status[0, ::7] = Status.DEGENERATE
+    status[1, ::5] = Status.STALLED
+    index[2, ::11] = np.nan
+    index[3] = 712.5  # constant: the RMS about the mean
+    status[4] = Status.INVALID  # nothing to regress: NaN
+    want = regression_metrics(index, status, np.zeros(index.shape, np.uint8), y, regress=REGRESS)["rms"]
+    got = regression_score(regression_stats(index, status, y, 5, REGRESS).sum(axis=1))
+    np.testing.assert_allclose(got[:4], want[:4], rtol=1e-10)
+    assert np.isnan(got[4]) and np.isnan(want[4])
+    assert got[3] == pytest.approx(np.std(y), rel=1e-10)
+
+
+def _classification_case(rng: np.random.Generator, n_spectra: int = 45, copies: int = 4, n_classes: int = 3,
+                         error: tuple[float, ...] = (0.2, 0.2, 0.6)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Predicted classes of designs misclassifying each pixel with probability ``error`` (some unclassified);
+    per-spectrum difficulty common to the designs."""
+    truth = np.repeat(np.arange(n_spectra) % n_classes, copies)
+    hard = np.repeat(rng.uniform(0.5, 1.5, n_spectra), copies)
+    pred, status = [], []
+    for e in error:
+        wrong = rng.random(truth.size) < np.clip(e * hard, 0, 1)
+        p = np.where(wrong, (truth + rng.integers(1, n_classes, truth.size)) % n_classes, truth)
+        s = np.where(wrong & (rng.random(truth.size) < 0.2), Status.UNCLASSIFIED, Status.OK).astype(np.uint8)
+        pred.append(np.where(s == Status.OK, p, n_classes).astype(np.float64))
+        status.append(s)
+    return np.stack(pred), np.stack(status), truth
+
+
+def test_classification_statistics_give_the_sweeps_omission_error() -> None:
+    rng = np.random.default_rng(2)
+    pred, status, truth = _classification_case(rng)
+    want = classification_metrics(pred.astype(np.int64), status, truth, 3)["omission_error_pct"]
+    got = classification_score(classification_stats(pred, status, truth, 4, 3).sum(axis=1))
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_the_bootstrap_equals_resampling_the_pixels_directly() -> None:
+    """Each replicate computed from scratch: the drawn spectra's pixels gathered and the regression refitted by
+    regression_metrics; its difference to the best, the percentile interval and the share as good."""
+    rng = np.random.default_rng(3)
+    copies, n_spectra, replicates = 5, 40, 300
+    index, status, y = _regression_case(rng, n_spectra, copies)
+    boot = paired_bootstrap(regression_stats(index, status, y, copies, REGRESS), regression_score, 0,
+                            replicates=replicates, seed=11)
+    draws = resample_indices(n_spectra, replicates, 11)
+    diff = np.empty((replicates, 3))
+    for r, spectra in enumerate(draws):
+        pixels = (spectra[:, None] * copies + np.arange(copies)).ravel()
+        rms = regression_metrics(index[:, pixels], status[:, pixels], np.zeros((3, pixels.size), np.uint8), y[pixels],
+                                 regress=REGRESS)["rms"]
+        diff[r] = rms - rms[0]
+    low, high = np.quantile(diff, [0.025, 0.975], axis=0)
+    np.testing.assert_allclose(boot.low, low, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(boot.high, high, rtol=1e-8, atol=1e-10)
+    np.testing.assert_array_equal(boot.as_good[1:], np.mean(diff[:, 1:] <= 0, axis=0))
+    np.testing.assert_array_equal(boot.within, low <= 0)
+
+
+def test_the_stratified_bootstrap_equals_resampling_each_class_directly() -> None:
+    rng = np.random.default_rng(4)
+    copies, n_spectra, replicates = 4, 45, 300
+    pred, status, truth = _classification_case(rng, n_spectra, copies)
+    strata = truth[::copies]
+    boot = paired_bootstrap(classification_stats(pred, status, truth, copies, 3), classification_score, 1,
+                            replicates=replicates, seed=12, strata=strata)
+    draws = resample_indices(n_spectra, replicates, 12, strata)
+    assert all((strata[d] == strata).all() for d in draws)  # each class keeps its spectra and its size
+    diff = np.empty((replicates, 3))
+    for r, spectra in enumerate(draws):
+        pixels = (spectra[:, None] * copies + np.arange(copies)).ravel()
+        om = classification_metrics(pred[:, pixels].astype(np.int64), status[:, pixels], truth[pixels],
+                                    3)["omission_error_pct"]
+        diff[r] = om - om[1]
+    low, high = np.quantile(diff, [0.025, 0.975], axis=0)
+    np.testing.assert_allclose(boot.low, low, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(boot.high, high, rtol=1e-10, atol=1e-10)
+
+
+def test_known_answers_noise_draws_alone_are_within_noise_a_far_worse_design_is_not() -> None:
+    """Two designs alike but for their noise draws, in 200 independent libraries: the 95 % test tells them apart
+    in about 5 % of them (at most 10 %: over three binomial standard deviations); a design with four times the
+    noise is told apart in every one."""
+    rng = np.random.default_rng(5)
+    trials, apart, far = 200, 0, 0
+    for t in range(trials):
+        index, status, y = _regression_case(rng, n_spectra=80, copies=4)
+        stats = regression_stats(index, status, y, 4, REGRESS)
+        best = int(np.argmin(regression_score(stats[:2].sum(axis=1))))  # the luckier of the two alike designs
+        boot = paired_bootstrap(stats, regression_score, best, replicates=400, seed=t)
+        apart += not boot.within[1 - best]
+        far += not boot.within[2]
+    assert apart / trials <= 0.10
+    assert far == trials
+
+
+def test_same_seed_same_set() -> None:
+    rng = np.random.default_rng(6)
+    index, status, y = _regression_case(rng)
+    stats = regression_stats(index, status, y, 5, REGRESS)
+    a, b = (paired_bootstrap(stats, regression_score, 0, replicates=200, seed=9) for _ in range(2))
+    np.testing.assert_array_equal(a.low, b.low)
+    np.testing.assert_array_equal(a.within, b.within)
+
+
+# -- every analysis family, on a real sweep's tables (the float64 numpy twin: no device needed) --------------
+
+ESA = {"B4": (665, 30), "B5": (705, 15), "B6": (740, 15), "B7": (783, 20), "B8a": (865, 20), "B11": (1610, 90),
+       "B12": (2190, 180)}
+FAMILY_CASES = {
+    "igrm": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"], {"kind": "igrm", "parameter": "cab"},
+             "B4", {"centres": [665, 680], "widths": [20, 30]}),
+    "gvmi": ({"library": "builtin:leaf-water", "copies": 4}, ["B8a", "B11"],
+             {"kind": "gvmi", "parameter": "ewt", "nir": "B8a", "swir": "B11"}, "B11",
+             {"centres": [1610, 1650], "widths": [50, 90]}),
+    "sam": ({"library": "builtin:minerals-swir", "copies": 6}, ["B11", "B12"], {"kind": "sam"}, "B12",
+            {"centres": [2190, 2210], "widths": [60, 180]}),
+    "formula": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"],
+                {"kind": "formula", "expression": "705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)", "parameter": "cab"},
+                "B5", {"centres": [700, 710], "widths": [10, 15]}),
+}
+
+
+def _family_job(kind: str):
+    from s2cl.app.plan import plan_sweep
+    from s2cl.scene.scene import Scene
+
+    surface, bands, analysis, moving, grid = FAMILY_CASES[kind]
+    ranges = {b: ({"centre": ESA[b][0], "width": ESA[b][1]} if b != moving else grid) for b in bands}
+    scene = Scene.from_dict({
+        "scene": {"name": f"within-noise-{kind}"}, "surface": {**surface, "quantity": "reflectance"},
+        "sensor": {"bands": bands},
+        "effects": {"atmosphere": True, "correct": True, "seed": 3},
+        "sweep": {"bands": bands, "ranges": ranges}, "analysis": analysis,
+        **({"grid": {"start_nm": 1500, "stop_nm": 2500}} if kind == "sam" else {})})
+    return plan_sweep(scene)
+
+
+@pytest.mark.parametrize("kind", list(FAMILY_CASES))
+def test_every_family_known_answers(kind: str) -> None:
+    """On a real sweep's tables: the re-scored differences equal the sweep's own metrics' differences; the best
+    design with other noise draws (fresh deviates for every pixel) is within noise of it; the best design with
+    twenty times the noise is not."""
+    from s2cl.sweep.engine import evaluate_chunk
+    from s2cl.sweep.report import metric_of
+
+    job = _family_job(kind)
+    ev = NumpyEvaluator(job.tables, job.analysis)
+    rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=ev))
+    metric = metric_of(list(rows.columns))
+    top = rows.sort_values([metric, "config"]).reset_index(drop=True)
+    out = within_noise(job, top, metric, evaluator=ev, replicates=500)
+    assert out is not None and out["designs"][0]["within"] and out["candidates"] == job.n_configs
+    np.testing.assert_allclose([d["difference"] for d in out["designs"]], top[metric] - top[metric][0],
+                               rtol=1e-9, atol=1e-9)
+
+    best = int(top["config"][0])
+    family = FAMILIES[metric]
+    t = job.tables
+    other_noise = replace(t, z=np.random.default_rng(8).standard_normal(t.z.shape))
+    noisier = replace(t, sigma=tuple(20.0 * s for s in t.sigma))
+    stats = np.concatenate([family.stats(NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
+                            for tables in (t, other_noise, noisier)])
+    strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
+    boot = paired_bootstrap(stats, family.score, 0, replicates=1000, strata=strata)
+    assert boot.within[1], (kind, boot.low, boot.high)
+    assert not boot.within[2], (kind, boot.low, boot.high)
+    assert boot.difference[2] > 0
+
+
+def test_optimise_reports_the_within_noise_set(tmp_path) -> None:
+    """Through `s2cl optimise` on the device: summary.json's set (the best in it, reproducible), the printed
+    column and note, the results table's column, the hatched heatmap; `sweep report` keeps the set."""
+    import s2cl
+
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL_SWEEP_TOML.format(copies=5))
+    result = s2cl.optimise(scene, tmp_path / "api")
+    wn = result.summary["within_noise"]
+    assert wn["metric"] == "rms" and wn["candidates"] == 6 and wn["designs"][0]["config"] == result.best["config"]
+    assert wn["complete"]  # every ranked design was tested
+    assert wn["configs"][0] == result.best["config"] and result.best["within_noise"] is True
+    assert [d["rms"] for d in wn["designs"]] == [e["rms"] for e in result.summary["top"]]
+    np.testing.assert_allclose([d["difference"] for d in wn["designs"]],
+                               [e["rms"] - result.best["rms"] for e in result.summary["top"]], rtol=1e-6, atol=1e-9)
+    assert list(result.ranking["within_noise"]) == [d["within"] for d in wn["designs"]]
+    # the sensor's own bands, tested on the same pixels: its re-scored RMS is the reference row's
+    assert wn["reference"]["score"] == pytest.approx(result.reference["rms"], rel=1e-6)
+    assert result.reference["within_noise"] is wn["reference"]["within"]
+    assert wn["reference"]["difference"] == pytest.approx(result.reference["rms"] - result.best["rms"], rel=1e-5)
+    table = result.table()
+    assert table.set_index("config")["within_noise"].to_dict() == {d["config"]: d["within"] for d in wn["designs"]}
+    assert (tmp_path / "api" / "heatmap_B4.png").exists()
+
+    cli = subprocess.run([sys.executable, "-m", "s2cl", "optimise", str(scene), "-o", str(tmp_path / "cli")],
+                         capture_output=True, text=True, timeout=600)
+    assert cli.returncode == 0, cli.stderr
+    assert "within noise of #1" in cli.stdout and f"within noise of #1: {wn['count']} of the 6 best" in cli.stdout
+    printed = json.loads((tmp_path / "cli" / "summary.json").read_text(encoding="utf-8"))
+    same = ("configs", "designs", "count", "seed", "replicates")
+    assert {k: printed["within_noise"][k] for k in same} == json.loads(json.dumps({k: wn[k] for k in same}))  # seeded
+
+    again = subprocess.run([sys.executable, "-m", "s2cl", "sweep", "report", str(tmp_path / "cli")],
+                           capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert json.loads((tmp_path / "cli" / "summary.json").read_text(encoding="utf-8"))["within_noise"] == \
+        printed["within_noise"]
+
+
+def test_heatmap_hatches_the_within_noise_cells(tmp_path) -> None:
+    """The cells of the designs within noise are the ones binned_cells marks (others, and pairs that are no
+    variant, are not)."""
+    from s2cl.sweep.report import Digest
+
+    df = pd.DataFrame({"config": np.arange(6), "B4_centre_nm": np.repeat([665.0, 675.0, 685.0], 2),
+                       "B4_width_nm": np.tile([20.0, 30.0], 3), "rms": np.arange(6.0)})
+    d = Digest.of_frame(df, {"underdetermined": "keep"})
+    mask = d.binned_cells("B4", [(675.0, 30.0), (685.0, 20.0), (999.0, 20.0)])
+    np.testing.assert_array_equal(mask, [[False, False], [False, True], [True, False]])
+    from s2cl.sweep.report import heatmap
+
+    assert heatmap(d, "B4", tmp_path / "h.png", hatch=[(675.0, 30.0)]).exists()
