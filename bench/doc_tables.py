@@ -572,15 +572,15 @@ def bench_page() -> str:
 
 def instrument_costs() -> str:
     """``s2cl study instrument``: each instrument effect alone against the ideal instrument."""
-    saved = _load(INSTRUMENT_JSON)
-    r = saved["data"]
+    r = _load(INSTRUMENT_JSON)["data"]
     ideal = r["rows"][0]["seconds"]
+    key = (r.get("analysis") or {}).get("score")
     rows = []
     for row in r["rows"]:
         worst = max(row["rms_effect"], key=row["rms_effect"].get)
         rows.append((row["instrument"], row["rms_effect_mean"],
                      "–" if row["instrument"] == "ideal" else f"{worst} {cell(row['rms_effect'][worst])}",
-                     row["rms_vs_truth_mean"], row["score"].get("ndvi_rms"), row["seconds"],
+                     row["rms_vs_truth_mean"], row["score"].get(key) if key else None, row["seconds"],
                      f"{row['seconds'] / ideal:.2f}×"))
     spatial = r["spatial_step_seconds"]
     runs = {row["instrument"]: row["seconds"] for row in r["rows"]}
@@ -592,12 +592,14 @@ def instrument_costs() -> str:
     load = (f"1-minute load average {loads[0]:.1f} before and {loads[1]:.1f} after the run: "
             + ("other jobs shared the machine, so the times are upper bounds; read ratios" if busy
                else "the machine was otherwise quiet"))
+    a = r.get("analysis")
+    what = (f"; the map: {a['kind']} on {' '.join(a['bands'])}, {a['parameter']} against the cube's truth (µg/cm² "
+            "for cab)" if a else "")
     return (md_table(("instrument", "effect alone: RMS Δρ, mean of bands", "worst band", "product vs truth: RMS Δρ",
-                      "NDVI map RMS vs truth", "s per run", "× ideal"), rows)
-            + f"\n\n{r['pixels']:,} pixels at {r['input_gsd_m']:g} m (parcels of {r['parcel_pixels']} × "
-            f"{r['parcel_pixels']} pixels from {', '.join(r['targets'].values())}), {r['product']} (L2 band "
-            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}. The spatial step alone (every band's PSF "
-            f"and shift): {share}. From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
+                      "map RMS vs truth", "s per run", "× ideal"), rows)
+            + f"\n\n`{r['cube']}`, {r['pixels']:,} pixels at {r['input_gsd_m']:g} m, {r['product']} (L2 band "
+            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}{what}. The spatial step alone (every "
+            f"band's PSF and shift): {share}. From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 

@@ -280,33 +280,34 @@ def test_instrument_scene_errors() -> None:
 
 # -- what each effect costs ------------------------------------------------------------------------------------
 
-def test_effect_costs_on_a_small_parcel_image(rt) -> None:
-    """The instrument study's parts on 24 × 24 pixels: the ideal row has no effect and the noise floor against the
-    truth; each effect differs from the ideal; the plugged map score is computed for every row."""
-    from s2cl.app.instrument_costs import EFFECTS, effect_costs
-    from s2cl.libraries.registry import load_library
-    from s2cl.studies import instrument as study
+def test_effect_costs_on_a_small_fields_image(rt) -> None:
+    """The instrument study's core on a 48 × 48 builtin:fields image: the ideal row has no effect and the noise
+    floor against the truth; each effect differs from the ideal; the Cab map's error against the truth is scored
+    for every row."""
+    from s2cl.app.instrument_costs import EFFECTS, analysis_score, effect_costs
+    from s2cl.studies.instrument import cube_scene
 
-    scene = study.cube_scene(Scene.load("study-instrument"))
-    spectra = np.concatenate([load_library(f"builtin:{n}", scene.grid).spectra for n in ("lib1", "iron-backgrounds")])
-    cube = study.parcel_cube(spectra, 24, 6, 2)
-    calls: list[int] = []
-    ndvi = study.ndvi_score(study.true_ndvi(scene, cube))
-
-    def score(ds) -> dict[str, float]:
-        calls.append(1)
-        return ndvi(ds)
-
-    rows = effect_costs(rt, scene, cube, scene.grid.wavelengths, score=score)
+    scene = cube_scene(Scene.load("study-instrument"), 48)
+    rows = effect_costs(rt, scene, score=analysis_score(rt))
     assert [r.instrument for r in rows] == ["ideal", *EFFECTS]
-    assert len(calls) == len(rows)
     ideal = rows[0]
     assert all(v == 0.0 for v in ideal.rms_effect.values())
     assert 0.0 < ideal.as_dict()["rms_vs_truth_mean"] < 0.05
+    for r in rows:
+        assert 0.0 < r.score["cab_map_rms"] < 60.0 and 0.0 < r.score["fitted_fraction"] <= 1.0, r.instrument
     for r in rows[1:]:
         assert r.as_dict()["rms_effect_mean"] > 1e-5, r.instrument
         assert r.source and r.seconds > 0
-    assert 0.0 <= ideal.score["ndvi_rms"] < rows[1].score["ndvi_rms"]  # the MTF blurs parcel edges
+        assert r.score["cab_map_rms"] != ideal.score["cab_map_rms"], r.instrument
+
+
+def test_study_refuses_a_library_scene_and_resizing_a_file_cube(tmp_path) -> None:
+    from s2cl.studies.instrument import cube_scene
+
+    with pytest.raises(InputError, match=r"surface\.cube"):
+        cube_scene(Scene.load("default"))
+    with pytest.raises(InputError, match=r"study\.image_px"):
+        cube_scene(_scene(), 48)
 
 
 def test_effect_costs_ignores_the_scenes_switches(rt) -> None:

@@ -7,9 +7,9 @@ gets, timed) and clean (no noise, no quantisation: the effect alone). ``rms_effe
 difference to the clean ideal one — the effect's own size, free of noise and of the re-rounding to DN that any
 sub-DN change brings; ``rms_vs_truth`` is the product's RMS difference to the clean ideal one (for the ideal row:
 the noise and quantisation floor). The compared product is the L2 band reflectance when the scene corrects the
-atmosphere, else band radiance (calibrated in the product). ``score`` plugs in a map-level figure: a function of
-the simulated product dataset (e.g. a retrieval map's RMS against the scene's truth map) whose numbers enter each
-row.
+atmosphere, else band radiance (calibrated in the product). ``score`` plugs in map-level figures: a function of
+the scene, the simulated product (its image store) and the cube, whose numbers enter each row;
+:func:`analysis_score` is the scene's [analysis] retrieval map against the cube's truth (its RMS, bias and R²).
 """
 
 from __future__ import annotations
@@ -24,11 +24,13 @@ import xarray as xr
 
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
+from s2cl.io.image_store import MemoryStore
 from s2cl.scene.instrument_schema import SOURCES
 from s2cl.scene.scene import Scene
 
 EFFECTS = ("mtf", "coregistration", "smile", "nonuniformity")
-Score = Callable[[xr.Dataset], dict[str, float]]
+#: a map-level score: (scene, the simulated product's store, the cube) → named figures
+Score = Callable[[Scene, MemoryStore, SceneCube], dict[str, float]]
 
 
 @dataclass
@@ -83,26 +85,50 @@ def band_rms(a: xr.Dataset, b: xr.Dataset, names: list[str], prefix_a: str, pref
     return out
 
 
-def _timed(rt: Runtime, scene: Scene, cube: SceneCube, repeats: int) -> tuple[xr.Dataset, float]:
-    """The dataset and the best wall time of ``repeats`` runs after one warm-up (kernel builds excluded)."""
-    ds = simulate_cube(rt, scene, cube)
-    best = float("inf")
+def _timed(rt: Runtime, scene: Scene, cube: SceneCube, repeats: int) -> tuple[MemoryStore, float]:
+    """The product's store and the best wall time of ``repeats`` runs after one warm-up (kernel builds
+    excluded)."""
+    best, store = float("inf"), MemoryStore()
+    simulate_cube(rt, scene, cube, store=store)
     for _ in range(repeats):
+        store = MemoryStore()
         t0 = time.perf_counter()
-        ds = simulate_cube(rt, scene, cube)
+        simulate_cube(rt, scene, cube, store=store)
         best = min(best, time.perf_counter() - t0)
-    return ds, best
+    return store, best
 
 
-def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None,
+def analysis_score(rt: Runtime) -> Score:
+    """The scene's [analysis] on the product (:func:`s2cl.app.image_analysis.analyse_image`): the parameter map's
+    RMS, bias and R² against the cube's truth, where the cube knows it (else the fitted fraction alone)."""
+    from s2cl.app.checks import check_simulate
+    from s2cl.app.image_analysis import analyse_image
+
+    def score(scene: Scene, store: MemoryStore, cube: SceneCube) -> dict[str, float]:
+        checked = check_simulate(scene)
+        if checked.analysis is None:
+            return {}
+        out = analyse_image(rt, scene, store, cube, list(checked.analysis_bands), checked.analysis)
+        figures = {"fitted_fraction": out["fitted_pixels"] / out["pixels"]}
+        if "rms" in out:
+            name = out["parameter"]
+            figures.update({f"{name}_map_rms": out["rms"], f"{name}_map_bias": out["bias"],
+                            f"{name}_map_r2": out["r2"]})
+        return figures
+    return score
+
+
+def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
+                 wavelengths_nm: np.ndarray | None = None,
                  *, effects: tuple[str, ...] = EFFECTS, score: Score | None = None,
                  repeats: int = 1) -> list[EffectCost]:
-    """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory): one
+    """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory, or already
+    loaded by :func:`s2cl.forward.cube.load_scene_cube`): one
     :class:`EffectCost` per instrument, the ideal first. The scene's own [instrument] values set each effect's
     magnitude (its on/off switches are ignored)."""
     base = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False)}
     ideal_scene = with_instrument(scene, base)
-    prepared = load_scene_cube(ideal_scene, cube, wavelengths_nm)
+    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(ideal_scene, cube, wavelengths_nm)
     names = ideal_scene.sensor.band_names
     product = product_variable(ideal_scene)
     clean = "reflectance" if ideal_scene.effects.correct else "radiance"
@@ -110,9 +136,11 @@ def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | None = None, wave
     rows = []
     for name in ("ideal", *effects):
         spec = base if name == "ideal" else {**base, name: True}
-        ds, seconds = _timed(rt, with_instrument(scene, spec), prepared, repeats)
+        variant = with_instrument(scene, spec)
+        store, seconds = _timed(rt, variant, prepared, repeats)
+        figures = score(variant, store, prepared) if score else {}
         own = truth if name == "ideal" else simulate_cube(rt, with_instrument(scene, spec, effects=CLEAN), prepared)
         source = "no instrument effect (noise and quantisation only)" if name == "ideal" else SOURCES[name]
         rows.append(EffectCost(name, source, seconds, band_rms(own, truth, names, clean, clean),
-                               band_rms(ds, truth, names, product, clean), score(ds) if score else {}))
+                               band_rms(store.dataset(), truth, names, product, clean), figures))
     return rows

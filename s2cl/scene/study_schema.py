@@ -89,9 +89,8 @@ class StudySpec(Section):
                                          "bands [[centre, width], [centre, width]] (nm), below and above 2.1 um")
     co2_factors: list[float] = Field([1.0], min_length=1, description="cellulose: true CO2 columns as factors of the "
                                      "LUT's (6S's fixed profile); the correction assumes 1")
-    image_px: int = Field(120, ge=12, le=2000, description="instrument: side of the parcel image, input pixels")
-    parcel_px: int = Field(20, ge=1, le=2000, description="instrument: side of one parcel (one target spectrum), "
-                           "input pixels")
+    image_px: int = Field(0, ge=0, le=2000, description="instrument: side of a builtin:fields image, input pixels "
+                          "(0: the scene's cube as given)")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
     @field_validator("reflectance")
