@@ -5,9 +5,9 @@ Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
 * **smile** — at resampling: the SRF of band ``k`` at column position ``x`` (−1 … 1 across the image) is the
   nominal one moved by ``Δλ(x)`` and widened by ``ΔFWHM(x)/FWHM``, both polynomials in ``x``. Rather than one SRF
   per column (one kernel build, or a dense weight matrix, per column), the resampling kernel integrates each band at
-  three node SRFs spanning the smile's range (three per axis: nine when width varies too) in one pass, and each
-  column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`). Its error against
-  the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
+  :data:`SMILE_NODES` node SRFs spanning the smile's range (per axis: their product when the width varies too) in
+  one pass, and each column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`).
+  Its error against the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
 * **mtf** and **coregistration** — on the input grid before the box average: the band's image is multiplied, in
   frequency, by a Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at
   Nyquist, :func:`gaussian_sigma`) and by the phase ramp of the band's sub-pixel shift (a Fourier shift: it moves
@@ -38,8 +38,9 @@ from s2cl.scene.scene import Scene
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
 
-#: node SRFs per varying smile axis (cubic interpolation): against the per-column integral, the default smile's
-#: largest relative error is ~1e-7 with 4 nodes, ~1e-5 with 3 (tests/test_instrument.py measures it)
+#: node SRFs per varying smile axis (cubic interpolation): against the per-column integral the default smile's
+#: largest relative error was ~1e-7 with 4 nodes and ~1e-5 with 3 when chosen; tests/test_instrument.py holds it
+#: below 1e-6
 SMILE_NODES = 4
 #: how far the Gaussian is taken to reach (σ), as scipy.ndimage truncates it
 GAUSSIAN_TRUNCATE = 4.0
