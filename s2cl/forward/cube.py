@@ -16,6 +16,10 @@ The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, re
 halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
 (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
 radiance.
+
+The scene's [instrument] effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
+(node bands, interpolated per column), each band's PSF and shift before its box average (blocks are read with
+their halo too, and the NODATA footprint reaches as far), the detector non-uniformity per column after it.
 """
 
 from __future__ import annotations
