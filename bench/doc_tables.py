@@ -29,6 +29,7 @@ LUT_BUILD_JSON = RESULTS / "lut_build.json"
 LUT_ACCURACY_JSON = RESULTS / "lut_accuracy.json"
 RESIDUALS_JSON = RESULTS / "correction_residuals.json"
 BENCH_PAGE_JSON = RESULTS / "amd-epyc-2c-2026-11-24.json"  # the full `python -m bench` run docs/bench.md shows
+INSTRUMENT_JSON = DOCS / "studies" / "instrument" / "instrument.json"
 Result = dict[str, Any]
 
 
@@ -567,6 +568,43 @@ def bench_page() -> str:
     return report.markdown(_load(BENCH_PAGE_JSON), figures, docs=True)
 
 
+# -- docs/instrument.md -----------------------------------------------------------------------------
+
+def instrument_costs() -> str:
+    """``s2cl study instrument``: each instrument effect alone against the ideal instrument."""
+    r = _load(INSTRUMENT_JSON)["data"]
+    ideal = r["rows"][0]["seconds"]
+    key = (r.get("analysis") or {}).get("score")
+    rows = []
+    for row in r["rows"]:
+        worst = max(row["rms_effect"], key=row["rms_effect"].get)
+        rows.append((row["instrument"], row["rms_effect_mean"],
+                     "–" if row["instrument"] == "ideal" else f"{worst} {cell(row['rms_effect'][worst])}",
+                     row["rms_vs_truth_mean"], row["score"].get(key) if key else None, row["seconds"],
+                     f"{row['seconds'] / ideal:.2f}×"))
+    spatial = r["spatial_step_seconds"]
+    runs = {row["instrument"]: row["seconds"] for row in r["rows"]}
+    share = ", ".join(f"{e} {spatial[e]:.3g} s of its {runs[e]:.3g} s run ({100 * spatial[e] / runs[e]:.0f} %)"
+                      for e in spatial)
+    m = r["machine"]
+    loads = m["load_average_1min"]
+    busy = max(loads) > 1.25 * m["cores"]
+    load = (f"1-minute load average {loads[0]:.1f} before and {loads[1]:.1f} after the run: "
+            + ("other jobs shared the machine, so the times are upper bounds; read ratios" if busy
+               else "the machine was otherwise quiet"))
+    a = r.get("analysis")
+    what = (f"; the map: {a['kind']} on {' '.join(a['bands'])}, {a['parameter']} against the cube's truth (µg/cm² "
+            "for cab)" if a else "")
+    return (md_table(("instrument", "effect alone: RMS Δρ, mean of bands", "worst band", "product vs truth: RMS Δρ",
+                      "map RMS vs truth", "s per run", "× ideal"), rows)
+            + f"\n\n`{r['cube']}`, {r['pixels']:,} pixels at {r['input_gsd_m']:g} m, {r['product']} (L2 band "
+            f"reflectance) of the {len(r['bands'])} bands, seed {r['seed']}{what}. The spatial step alone (every "
+            f"band's PSF and shift): {share}; resampling every pixel, as a cube read from a file needs (the "
+            f"generated cube resamples its distinct spectra only): {r['resample_every_pixel_seconds']:.3g} s "
+            f"(timed on 8,192 pixels, scaled). From `{_rel(INSTRUMENT_JSON)}` (written by `s2cl study instrument -o "
+            f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -603,6 +641,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "soils.fe-band-depth": soil_fe_band_depth,
     "cellulose.co2": cellulose_co2,
     "retrieve.igrm-hyperspectral": igrm_hyperspectral,
+    "instrument.costs": instrument_costs,
 }
 
 # pages generated whole (path relative to the repository → its text)

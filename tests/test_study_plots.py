@@ -113,9 +113,21 @@ def _cellulose() -> dict:
                 -((wl - 2100) / 30) ** 2)).tolist()}}
 
 
+def _instrument() -> dict:
+    bands = ["B2", "B4", "B8", "B11"]
+
+    def row(name: str, scale: float) -> dict:
+        per_band = {b: scale * (k + 1) for k, b in enumerate(bands)}
+        return {"instrument": name, "rms_effect": per_band, "rms_vs_truth": {b: 0.005 for b in bands}}
+    return {"bands": bands, "product": "reflectance", "pixels": 57600,
+            "rows": [row("ideal", 0.0), row("mtf", 0.01), row("coregistration", 0.004), row("smile", 0.001),
+                     row("nonuniformity", 0.0005)]}
+
+
 SYNTHETIC = {"cirrus": _cirrus, "water-vapour": _water_vapour, "water-vapour-1020": _water_vapour_1020,
              "aerosol": _aerosol, "ozone": _ozone,
-             "methane": _methane, "stability": _stability, "cellulose": _cellulose}
+             "methane": _methane, "stability": _stability, "cellulose": _cellulose,
+             "instrument": _instrument}
 
 
 def _pixels(path: Path) -> np.ndarray:

@@ -25,7 +25,9 @@ def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
           (three-channel APDA with a 1020 nm window), aerosol (DDV, B1),
           ozone (B1-B5, Fig. 5), methane (B11), stability (band drift vs
           IGRM, GVMI, SAM errors), cellulose (a 2.1 um band for the NPV
-          fraction, Sec. 5); or a scene file with a [study] section.
+          fraction, Sec. 5), instrument (each instrument effect alone on
+          an image: its RMS against the ideal instrument and its time);
+          or a scene file with a [study] section.
     """
     from rich.table import Table
 
@@ -42,12 +44,13 @@ def study(name: str, quick: bool, output: Path | None, quiet: bool) -> None:
     for row in result.rows:
         table.add_row(*(str(v) for v in row))
     console.print(table)
-    figs = Table(title="s2cl vs Segl et al. 2012")
-    for c in ("quantity", "s2cl", "paper", "unit", "note"):
-        figs.add_column(c)
-    for k in result.key_figures:
-        figs.add_row(k.quantity, f"{k.s2cl:g}", "–" if k.paper is None else f"{k.paper:g}", k.unit, k.note)
-    console.print(figs)
+    if result.key_figures:
+        figs = Table(title="s2cl vs Segl et al. 2012")
+        for c in ("quantity", "s2cl", "paper", "unit", "note"):
+            figs.add_column(c)
+        for k in result.key_figures:
+            figs.add_row(k.quantity, f"{k.s2cl:g}", "–" if k.paper is None else f"{k.paper:g}", k.unit, k.note)
+        console.print(figs)
     for note in result.notes:
         console.print(f"note: {note}")
     console.print(f"wrote {js} and {png}")

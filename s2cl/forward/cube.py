@@ -16,6 +16,10 @@ The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, re
 halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
 (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
 radiance.
+
+The scene's [instrument] effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
+(node bands, interpolated per column), each band's PSF and shift before its box average (blocks are read with
+their halo too, and the NODATA footprint reaches as far), the detector non-uniformity per column after it.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.instrument import Instrument, SmileResampler
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows, psf_radius
 from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
@@ -196,24 +201,32 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     rows, cols = prepared.rows, prepared.cols
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    atmosphere = scene_atmosphere(scene)
+    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
+    instrument = Instrument.of(scene)
+    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.spec.smile else None
+    band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
     out = store if store is not None else MemoryStore()
     out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
                       "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
-                      "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum())})
+                      "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum()),
+                      "instrument": instrument.spec.describe()})
     nodata = prepared.nodata_image
-    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out, nodata, psf)
+    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out, nodata, psf, instrument)
               for gsd in sorted({b.gsd_m for b in scene.sensor.bands})]
     halo = max(gaussian_radius(psf * g.factor * FWHM_TO_SIGMA) for g in groups) if psf else 0
-    distinct = sim.band_radiance(prepared.spectra) if prepared.labels is not None else None
+    halo = max([halo] + [instrument.halo(g.ids, g.factor) for g in groups])
+    distinct = band_values(prepared.spectra) if prepared.labels is not None else None
     labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
     for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
         lo, hi = block.read_start, block.read_stop
         if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
             radiance = distinct[:, labels[lo:hi]]
         else:
-            radiance = sim.band_radiance(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+            radiance = band_values(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+        if smile is not None:  # each column's bands from the smile's node bands
+            radiance = smile.combine(radiance)
         for g in groups:
             g.add(block, radiance, psf)
         if progress:
@@ -236,9 +249,9 @@ class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
     def __init__(self, scene: Scene, sim: Simulator, gsd: float, gsd_in: float, rows: int, cols: int,
-                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, psf: float | None):
+                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, psf: float | None, instrument: Instrument):
         bands = scene.sensor.bands
-        self.scene, self.store, self.gsd = scene, store, gsd
+        self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
         self.ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
         self.factor = _factor(gsd, gsd_in, [bands[k].name for k in self.ids], scene.source)
         ny, nx = rows // self.factor, cols // self.factor
@@ -255,7 +268,8 @@ class _Group:
             self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
                                    scene.effects, sim.precision, correction=correction)
         #: output pixels whose footprint holds a NODATA input pixel (:func:`s2cl.forward.nodata.footprint_nodata`)
-        self.nodata = footprint_nodata(nodata, self.factor, psf_radius(self.factor, psf, FWHM_TO_SIGMA))[:, :nx]
+        radius = max(psf_radius(self.factor, psf, FWHM_TO_SIGMA), instrument.reach(self.ids, self.factor))
+        self.nodata = footprint_nodata(nodata, self.factor, radius)[:, :nx]
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
 
@@ -266,8 +280,9 @@ class _Group:
         if ny <= 0:
             return
         top = block.start - block.read_start
-        images = np.stack([box_mean(_psf(radiance[k], f, psf)[top : top + ny * f], f) for k in self.ids])
-        images = images[:, :, : self.nx]
+        spatial = self.instrument.spatial
+        images = np.stack([box_mean(_psf(spatial(radiance[k], k, f), f, psf)[top : top + ny * f], f) for k in self.ids])
+        images = self.instrument.columns(images[:, :, : self.nx], self.ids)
         nodata = self.nodata[out_rows]
         images[:, nodata] = np.nan
         result = None
@@ -307,7 +322,7 @@ class _Group:
         clipped below Lmin)."""
         quantised = self.sensing is not None and self.scene.effects.quantise
         for j, k in enumerate(self.ids):
-            counts = {"nodata_pixels": int(self.counts[2, j])}
+            counts: dict = {"nodata_pixels": int(self.counts[2, j]), **self.instrument.band_attrs(k)}
             if quantised:
                 counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
             self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)

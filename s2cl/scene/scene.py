@@ -24,6 +24,7 @@ from s2cl.libraries.fields import fields_shape, is_builtin_cube
 from s2cl.resources import scene_dir
 from s2cl.scene.config import RunConfig, resolve_run
 from s2cl.scene.effects import EffectSet
+from s2cl.scene.instrument_schema import check_instrument
 from s2cl.scene.schema import GridSpec, SceneSpec, input_error
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import load_srf_csv, measured_sentinel2_srf
@@ -93,6 +94,8 @@ class Scene:
         sensor = _sensor(spec, base, source)
         effects = _effects(spec, source)
         _check_surface(spec, source)
+        check_instrument(spec.instrument, sensor.band_names, psf=spec.spatial.psf, cube=spec.surface.cube is not None,
+                         resample=effects.resample, source=source)
         _check_atmosphere(spec, source)
         if effects.resample:
             for band in sensor.bands:

@@ -13,6 +13,7 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from s2cl.errors import InputError, key_token, token
+from s2cl.scene.instrument_schema import InstrumentSpec
 from s2cl.scene.section import Section
 from s2cl.scene.study_schema import (  # noqa: F401  (re-exported: the [study] section's model and limits)
     MAX_GAS_FACTOR,
@@ -255,6 +256,8 @@ class SceneSpec(Section):
     correction: CorrectionSpec = Field(CorrectionSpec(), description="the state the atmospheric correction assumes")
     effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run")
     spatial: SpatialSpec = Field(SpatialSpec(), description="spatial effects on image cubes (PSF)")
+    instrument: InstrumentSpec = Field(InstrumentSpec(), description="the instrument's own artefacts on image cubes "
+                                       "(per-band MTF, co-registration, smile, non-uniformity), each off by default")
     analysis: AnalysisSpec | None = Field(None, description="the retrieval scored on the simulated bands")
     sweep: SweepSpec | None = Field(None, description="which bands move, and where (s2cl optimise)")
     study: StudySpec | None = Field(None, description="an atmospheric-band, stability or cellulose study "

@@ -63,7 +63,7 @@ class StudySpec(Section):
     ``stability`` drifts the bands of each scene in ``applications``."""
 
     kind: Literal["cirrus", "water-vapour", "water-vapour-1020", "aerosol", "ozone", "methane", "stability",
-                  "cellulose"] = Field(description="which study runs")
+                  "cellulose", "instrument"] = Field(description="which study runs")
     reflectance: list[float] = Field([0.3], min_length=1, description="flat target reflectances, unitless")
     targets: dict[str, str] = Field(default_factory=dict, description="target class -> library ('builtin:NAME')")
     spectra: int = Field(0, ge=0, le=10_000, description="spectra taken from each target library (0: all)")
@@ -89,6 +89,8 @@ class StudySpec(Section):
                                          "bands [[centre, width], [centre, width]] (nm), below and above 2.1 um")
     co2_factors: list[float] = Field([1.0], min_length=1, description="cellulose: true CO2 columns as factors of the "
                                      "LUT's (6S's fixed profile); the correction assumes 1")
+    image_px: int = Field(0, ge=0, le=2000, description="instrument: side of a builtin:fields image, input pixels "
+                          "(0: the scene's cube as given)")
     quick: dict[str, Any] = Field(default_factory=dict, description="[study] keys replaced under --quick")
 
     @field_validator("reflectance")

@@ -8,6 +8,8 @@ bands) and a [sweep] section (the band variants, :mod:`s2cl.sensor.variants`), a
 (:mod:`s2cl.studies.plots`), so :func:`replot` redraws it from a saved ``NAME.json``. The ``stability`` study
 has no [sweep] of its own: its [study] names application scenes whose bands it drifts (:mod:`s2cl.studies.drift`).
 The ``cellulose`` study scores the 2.1 µm band the paper recommends (Sec. 5) against Sentinel-2's own SWIR bands.
+The ``instrument`` study puts each instrument effect ([instrument]) alone on a parcel image and reports its cost
+against the ideal instrument (:mod:`s2cl.studies.instrument`).
 """
 
 from __future__ import annotations
@@ -18,13 +20,23 @@ from pathlib import Path
 from s2cl.errors import InputError
 from s2cl.io.output import write_json
 from s2cl.scene.scene import Scene
-from s2cl.studies import aerosol, cellulose, cirrus, methane, ozone, stability, water_vapour, water_vapour_1020
+from s2cl.studies import (
+    aerosol,
+    cellulose,
+    cirrus,
+    instrument,
+    methane,
+    ozone,
+    stability,
+    water_vapour,
+    water_vapour_1020,
+)
 from s2cl.studies.common import StudyResult, StudySetup, load_study
 from s2cl.studies.plots import replot
 
 _MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "water-vapour-1020": water_vapour_1020,
             "aerosol": aerosol, "ozone": ozone, "methane": methane,
-            "stability": stability, "cellulose": cellulose}
+            "stability": stability, "cellulose": cellulose, "instrument": instrument}
 STUDIES: dict[str, Callable[[StudySetup], StudyResult]] = {name: m.run for name, m in _MODULES.items()}
 
 __all__ = ["STUDIES", "StudyResult", "replot", "run_study", "study_scene"]

@@ -248,6 +248,31 @@ def _ratio(values: list, nominal: float | None) -> np.ndarray:
         return np.where(v > 0, v / nominal, np.nan)
 
 
+def plot_instrument(data: Data, path: Path) -> Path:
+    """Instrument effects: per band, each effect's RMS difference alone against the ideal instrument (bars, log
+    axis), and the ideal product's noise and quantisation floor against the truth (black line)."""
+    plt = pyplot()
+    bands = list(data["bands"])
+    rows = data["rows"]
+    effects = [r for r in rows if r["instrument"] != "ideal"]
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.55 * len(bands) + 2), 4.0), dpi=110)
+    x = np.arange(len(bands), dtype=np.float64)
+    width = 0.8 / max(1, len(effects))
+    for j, r in enumerate(effects):
+        values = np.array([r["rms_effect"][b] for b in bands], dtype=np.float64)
+        ax.bar(x - 0.4 + (j + 0.5) * width, np.where(values > 0, values, np.nan), width, color=f"C{j}",
+               label=r["instrument"])
+    floor = np.array([rows[0]["rms_vs_truth"][b] for b in bands], dtype=np.float64)
+    ax.plot(x, floor, "k_", ms=14, mew=2, label="ideal: noise + quantisation")
+    ax.set_yscale("log")
+    ax.set_xticks(x, bands)
+    ax.set_ylabel(f"RMS difference ({data['product']})")
+    ax.set_title(f"each effect alone vs the ideal instrument, {data['pixels']:,} pixels", fontsize=9)
+    ax.legend(fontsize=7, ncol=len(effects) + 1, loc="upper center", bbox_to_anchor=(0.5, -0.08))
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
 PLOTS: dict[str, Callable[[Data, Path], Path]] = {
     "cirrus": plot_cirrus,
     "water-vapour": plot_water_vapour,
@@ -257,6 +282,7 @@ PLOTS: dict[str, Callable[[Data, Path], Path]] = {
     "methane": plot_methane,
     "stability": plot_stability,
     "cellulose": plot_cellulose,
+    "instrument": plot_instrument,
 }
 """Study kind (the ``study`` key of ``NAME.json``) → its figure."""
 

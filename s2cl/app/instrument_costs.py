@@ -1,0 +1,146 @@
+"""What each instrument effect costs on an image: each [instrument] effect switched on alone at its specified
+magnitude (the scene's own values, by default those of :data:`s2cl.scene.instrument_schema.SOURCES`), compared
+with the ideal instrument, and the time it takes.
+
+Each instrument runs twice: as the scene asks (noise, quantisation, calibration, correction: the product a user
+gets, timed) and clean (no noise, no quantisation: the effect alone). ``rms_effect`` is the clean product's RMS
+difference to the clean ideal one — the effect's own size, free of noise and of the re-rounding to DN that any
+sub-DN change brings; ``rms_vs_truth`` is the product's RMS difference to the clean ideal one (for the ideal row:
+the noise and quantisation floor). The compared product is the L2 band reflectance when the scene corrects the
+atmosphere, else band radiance (calibrated in the product). ``score`` plugs in map-level figures: a function of
+the scene, the simulated product (its image store) and the cube, whose numbers enter each row;
+:func:`analysis_score` is the scene's [analysis] retrieval map against the cube's truth (its RMS, bias and R²).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from s2cl.cl.runtime import Runtime
+from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
+from s2cl.io.image_store import MemoryStore
+from s2cl.scene.instrument_schema import SOURCES
+from s2cl.scene.scene import Scene
+
+EFFECTS = ("mtf", "coregistration", "smile", "nonuniformity")
+#: a map-level score: (scene, the simulated product's store, the cube) → named figures
+Score = Callable[[Scene, MemoryStore, SceneCube], dict[str, float]]
+
+
+@dataclass
+class EffectCost:
+    """One row: the instrument (``ideal`` or one effect on), its seconds per product run, and per band the RMS
+    differences described in the module docstring (units of the product)."""
+
+    instrument: str
+    source: str
+    seconds: float
+    rms_effect: dict[str, float]
+    rms_vs_truth: dict[str, float]
+    score: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        def mean(d: dict[str, float]) -> float:
+            return float(np.mean(list(d.values()))) if d else float("nan")
+
+        return {"instrument": self.instrument, "source": self.source, "seconds": self.seconds,
+                "rms_effect_mean": mean(self.rms_effect), "rms_vs_truth_mean": mean(self.rms_vs_truth),
+                "rms_effect": self.rms_effect, "rms_vs_truth": self.rms_vs_truth, "score": self.score}
+
+
+def with_instrument(scene: Scene, instrument: dict[str, Any], effects: dict[str, Any] | None = None) -> Scene:
+    """``scene`` with its [instrument] section replaced by ``instrument`` (and [effects] keys updated)."""
+    data = scene.spec.model_dump(exclude_none=True)
+    data["instrument"] = instrument
+    if effects:
+        data["effects"] = {**data["effects"], **effects}
+    if "output" in data:
+        data["output"].pop("precision", None)
+    return Scene.from_dict(data, path=scene.path, base_dir=scene.base_dir)
+
+
+def product_variable(scene: Scene) -> str:
+    """The compared product's variable prefix: L2 reflectance, calibrated radiance or band radiance."""
+    e = scene.effects
+    return "reflectance" if e.correct else "calibrated" if e.calibrate else "noisy" if e.noise else "radiance"
+
+
+#: the clean run: no noise, no quantisation (so no calibration either)
+CLEAN = {"noise": False, "quantise": False, "calibrate": False}
+
+
+def band_rms(a: xr.Dataset, b: xr.Dataset, names: list[str], prefix_a: str, prefix_b: str) -> dict[str, float]:
+    """Per band, the RMS of ``a − b`` over pixels finite in both (float64)."""
+    out = {}
+    for n in names:
+        x, y = a[f"{prefix_a}_{n}"].values.astype(np.float64), b[f"{prefix_b}_{n}"].values.astype(np.float64)
+        ok = np.isfinite(x) & np.isfinite(y)
+        out[n] = float(np.sqrt(np.mean((x[ok] - y[ok]) ** 2))) if ok.any() else float("nan")
+    return out
+
+
+def _timed(rt: Runtime, scene: Scene, cube: SceneCube, repeats: int) -> tuple[MemoryStore, float]:
+    """The product's store and the best wall time of ``repeats`` runs after one warm-up (kernel builds
+    excluded)."""
+    best, store = float("inf"), MemoryStore()
+    simulate_cube(rt, scene, cube, store=store)
+    for _ in range(repeats):
+        store = MemoryStore()
+        t0 = time.perf_counter()
+        simulate_cube(rt, scene, cube, store=store)
+        best = min(best, time.perf_counter() - t0)
+    return store, best
+
+
+def analysis_score(rt: Runtime) -> Score:
+    """The scene's [analysis] on the product (:func:`s2cl.app.image_analysis.analyse_image`): the parameter map's
+    RMS, bias and R² against the cube's truth, where the cube knows it (else the fitted fraction alone)."""
+    from s2cl.app.checks import check_simulate
+    from s2cl.app.image_analysis import analyse_image
+
+    def score(scene: Scene, store: MemoryStore, cube: SceneCube) -> dict[str, float]:
+        checked = check_simulate(scene)
+        if checked.analysis is None:
+            return {}
+        out = analyse_image(rt, scene, store, cube, list(checked.analysis_bands), checked.analysis)
+        figures = {"fitted_fraction": out["fitted_pixels"] / out["pixels"]}
+        if "rms" in out:
+            name = out["parameter"]
+            figures.update({f"{name}_map_rms": out["rms"], f"{name}_map_bias": out["bias"],
+                            f"{name}_map_r2": out["r2"]})
+        return figures
+    return score
+
+
+def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
+                 wavelengths_nm: np.ndarray | None = None,
+                 *, effects: tuple[str, ...] = EFFECTS, score: Score | None = None,
+                 repeats: int = 1) -> list[EffectCost]:
+    """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory, or already
+    loaded by :func:`s2cl.forward.cube.load_scene_cube`): one
+    :class:`EffectCost` per instrument, the ideal first. The scene's own [instrument] values set each effect's
+    magnitude (its on/off switches are ignored)."""
+    base = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False)}
+    ideal_scene = with_instrument(scene, base)
+    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(ideal_scene, cube, wavelengths_nm)
+    names = ideal_scene.sensor.band_names
+    product = product_variable(ideal_scene)
+    clean = "reflectance" if ideal_scene.effects.correct else "radiance"
+    truth = simulate_cube(rt, with_instrument(scene, base, effects=CLEAN), prepared)
+    rows = []
+    for name in ("ideal", *effects):
+        spec = base if name == "ideal" else {**base, name: True}
+        variant = with_instrument(scene, spec)
+        store, seconds = _timed(rt, variant, prepared, repeats)
+        figures = score(variant, store, prepared) if score else {}
+        own = truth if name == "ideal" else simulate_cube(rt, with_instrument(scene, spec, effects=CLEAN), prepared)
+        source = "no instrument effect (noise and quantisation only)" if name == "ideal" else SOURCES[name]
+        rows.append(EffectCost(name, source, seconds, band_rms(own, truth, names, clean, clean),
+                               band_rms(store.dataset(), truth, names, product, clean), figures))
+    return rows

@@ -1,0 +1,357 @@
+"""The instrument's own artefacts on an image cube (the scene's [instrument] section), each off unless asked for.
+
+Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
+
+* **smile** — at resampling: the SRF of band ``k`` at column position ``x`` (−1 … 1 across the image) is the
+  nominal one moved by ``Δλ(x)`` and widened by ``ΔFWHM(x)/FWHM``, both polynomials in ``x``. Rather than one SRF
+  per column (one kernel build, or a dense weight matrix, per column), the resampling kernel integrates each band at
+  :data:`SMILE_NODES` node SRFs spanning the smile's range (per axis: their product when the width varies too) in
+  one pass, and each column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`).
+  Its error against the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
+* **mtf** and **coregistration** — on the input grid before the box average: the band's image is multiplied, in
+  frequency, by a Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at
+  Nyquist, :func:`gaussian_sigma`) and by the phase ramp of the band's sub-pixel shift (a Fourier shift: it moves
+  the image without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at half a
+  pixel): along rows by an FFT of each mirrored row (no step at its wrap-around; borders act as a mirror), along
+  columns by the same transfer function as a finite filter (its inverse DFT, tapered at its ends), so that an
+  image simulated in blocks of rows gives the same bands as the whole image. The twin :func:`spatial_twin` uses
+  FFTs along both axes. Off: the band's image is returned as it is, no filter runs.
+* **nonuniformity** — on each band's grid after the box average: per-column gain ``g`` and offset ``o``; a relative
+  calibration estimates them with errors ``ε`` (relative) and ``δ``, so the product holds
+  ``(g·L + o − (o + δ)) / (g·(1 + ε))`` (or ``g·L + o`` without equalisation). Drawn from the scene's seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import fft as sfft
+from scipy.ndimage import correlate1d
+
+from s2cl.cl.runtime import Runtime
+from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
+from s2cl.grid import SpectralGrid
+from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST, InstrumentSpec
+from s2cl.scene.scene import Scene
+from s2cl.sensor.sensor import Band
+from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
+
+#: node SRFs per varying smile axis (cubic interpolation): against the per-column integral the default smile's
+#: largest relative error was ~1e-7 with 4 nodes and ~1e-5 with 3 when chosen; tests/test_instrument.py holds it
+#: below 1e-6
+SMILE_NODES = 4
+#: how far the Gaussian is taken to reach (σ), as scipy.ndimage truncates it
+GAUSSIAN_TRUNCATE = 4.0
+#: taps of the along-column filter beyond the Gaussian's reach and the shift: room for the shift's (sinc)
+#: interpolation, under a cosine taper
+HALO_MARGIN = 8
+#: random-stream tags (the second word of each generator's seed), one per effect
+_COREG_TAG, _NU_TAG = 0x636F7267, 0x6E756E69
+
+
+def gaussian_sigma(mtf_nyquist: float) -> float:
+    """σ (band pixels) of the Gaussian PSF whose MTF times the box average's (sinc(f), 2/π at Nyquist) equals
+    ``mtf_nyquist`` at the band's Nyquist frequency 1/2 cycle per band pixel: exp(−2π²σ²/4)·2/π = m."""
+    if not 0 < mtf_nyquist < BOX_MTF_NYQUIST:
+        raise ValueError(f"MTF at Nyquist must be in (0, {BOX_MTF_NYQUIST:.4f}), got {mtf_nyquist}")
+    return math.sqrt(-2.0 * math.log(mtf_nyquist / BOX_MTF_NYQUIST)) / math.pi
+
+
+def _transfer(f: np.ndarray, sigma: float, d: float) -> np.ndarray:
+    """The Gaussian's transfer function times the shift's phase ramp at frequencies ``f`` (cycles per pixel)."""
+    return np.exp(-2.0 * math.pi**2 * sigma**2 * f**2 - 2j * math.pi * f * d)
+
+
+def _fft_axis(a: np.ndarray, sigma: float, d: float, axis: int) -> np.ndarray:
+    """``a`` filtered along ``axis`` by a real FFT of ``a`` mirrored along it (the mirrored line's periodic
+    extension is continuous, so the wrap-around adds no step; borders act as a half-sample mirror)."""
+    if sigma == 0.0 and d == 0.0:
+        return a
+    n = a.shape[axis]
+    tile = np.concatenate([a, np.flip(a, axis=axis)], axis=axis)
+    shape = [1, 1]
+    shape[axis] = -1
+    out = sfft.irfft(sfft.rfft(tile, axis=axis) * _transfer(sfft.rfftfreq(2 * n), sigma, d).reshape(shape),
+                     n=2 * n, axis=axis)
+    return out[:, :n] if axis == 1 else out[:n]
+
+
+def fir_radius(sigma: float, d: float) -> int:
+    """Half-length (pixels) of the along-column filter of a Gaussian of ``sigma`` and a shift ``d`` (pixels): the
+    Gaussian to :data:`GAUSSIAN_TRUNCATE` σ, the shift, and :data:`HALO_MARGIN` for the shift's interpolation."""
+    return math.ceil(GAUSSIAN_TRUNCATE * sigma + abs(d)) + HALO_MARGIN
+
+
+def fir_kernel(sigma: float, d: float) -> np.ndarray:
+    """Taps ``h[-R … R]`` (R = :func:`fir_radius`) of the same transfer function as :func:`_fft_axis`: its inverse
+    DFT on a fine grid, kept whole over the Gaussian's reach around the shifted centre and tapered by a cosine over
+    the :data:`HALO_MARGIN` taps beyond, normalised to a sum of 1."""
+    radius = fir_radius(sigma, d)
+    core = radius - HALO_MARGIN
+    n = max(4096, 8 * radius)
+    full = np.real(np.fft.ifft(_transfer(np.fft.fftfreq(n), sigma, d)))
+    taps = np.arange(-radius, radius + 1)
+    beyond = np.clip(np.abs(taps - d) - core, 0.0, None)  # the window: 1 over the core, a cosine over the margin
+    h = full[taps % n] * 0.5 * (1.0 + np.cos(np.pi * np.minimum(beyond / (HALO_MARGIN + 1), 1.0)))
+    return h / h.sum()
+
+
+def _fir_rows(a: np.ndarray, sigma: float, d: float) -> np.ndarray:
+    """``a`` filtered along its columns (axis 0) by :func:`fir_kernel`, borders as a half-sample mirror."""
+    if sigma == 0.0 and d == 0.0:
+        return a
+    return correlate1d(a, fir_kernel(sigma, d)[::-1], axis=0, mode="reflect")
+
+
+def _filter(img: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """``img`` through the Gaussian and the shift, axis by axis (both are separable; an axis with neither is
+    skipped): along rows by FFT, along columns by the finite filter :func:`fir_kernel`, which reaches only
+    :func:`fir_radius` rows, so an image simulated in blocks of rows read with that halo gives the same result as
+    the whole image (float64)."""
+    return _fir_rows(_fft_axis(img, sigma, dx, 1), sigma, dy)
+
+
+def spatial_twin(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """float64 twin of :func:`spatial_response` (finite images): FFTs along both axes, no finite filter."""
+    img = np.asarray(image, dtype=np.float64)
+    return _fft_axis(_fft_axis(img, sigma, dx, 1), sigma, dy, 0)
+
+
+def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
+    """``image`` (rows, cols) blurred by a Gaussian of ``sigma`` and moved by ``(dx, dy)`` (content at x goes to
+    x + dx), all in input pixels (:func:`_filter`; borders act as a half-sample mirror, ``scipy.ndimage`` mode
+    ``reflect``).
+
+    No-data (non-finite) pixels are left out: the image with them at 0 is divided by the same response of the
+    valid-pixel mask (normalised convolution), and a pixel whose response is less than half valid is NaN."""
+    img = np.asarray(image, dtype=np.float64)
+    valid = np.isfinite(img)
+    if valid.all():
+        return _filter(img, sigma, dx, dy)
+    weight = _filter(valid.astype(np.float64), sigma, dx, dy)
+    out = _filter(np.where(valid, img, 0.0), sigma, dx, dy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(weight >= 0.5, out / weight, np.nan)
+
+
+def lagrange(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Lagrange basis ``(len(nodes), len(x))``: row j is l_j(x), so Σ_j l_j(x)·f(nodes_j) interpolates f."""
+    nodes, x = np.asarray(nodes, dtype=np.float64), np.asarray(x, dtype=np.float64)
+    out = np.ones((nodes.size, x.size))
+    for j, nj in enumerate(nodes):
+        for m, nm in enumerate(nodes):
+            if m != j:
+                out[j] *= (x - nm) / (nj - nm)
+    return out
+
+
+def moved_weights(band: Band, grid: SpectralGrid, shift_nm: float, width_factor: float, support: float,
+                  source: str | None = None) -> BandWeights:
+    """Weights of ``band``'s SRF moved by ``shift_nm`` and stretched about its centre by ``width_factor``
+    (a tabulated SRF has its wavelength axis moved and stretched)."""
+    c = band.centre_nm
+    tab = band.tabulated
+    if tab is not None:
+        tab = TabulatedResponse(c + (tab.wavelengths_nm - c) * width_factor + shift_nm, tab.response, tab.origin)
+    return band_weights(grid, name=band.name, centre_nm=c + shift_nm, fwhm_nm=band.fwhm_nm * width_factor,
+                        tabulated=tab, support=support, source=source)
+
+
+def _nodes(values: np.ndarray) -> np.ndarray:
+    """Interpolation nodes spanning ``values``: one when they do not vary, else :data:`SMILE_NODES` Chebyshev
+    (Lobatto) nodes from min to max."""
+    lo, hi = float(values.min()), float(values.max())
+    if hi - lo < 1e-12:
+        return np.array([lo])
+    return 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(np.pi * np.arange(SMILE_NODES) / (SMILE_NODES - 1))
+
+
+@dataclass(frozen=True)
+class Smile:
+    """Centre shift (nm) and width factor per column of an image ``cols`` wide."""
+
+    shift_nm: np.ndarray
+    width_factor: np.ndarray
+
+    @classmethod
+    def of(cls, spec: InstrumentSpec, cols: int) -> Smile:
+        x = 2.0 * (np.arange(cols) + 0.5) / cols - 1.0
+        shift = np.polynomial.polynomial.polyval(x, spec.smile_centre_nm)
+        width = 1.0 + np.polynomial.polynomial.polyval(x, spec.smile_width_pct) / 100.0
+        return cls(np.atleast_1d(shift), np.atleast_1d(width))
+
+    def node_grid(self) -> tuple[np.ndarray, np.ndarray]:
+        """(centre-shift nodes, width-factor nodes)."""
+        return _nodes(self.shift_nm), _nodes(self.width_factor)
+
+    def plan(self, scene: Scene) -> ResamplePlan:
+        """Every band at every node SRF (band-major, then centre node, then width node), named ``B4~smile3``."""
+        cn, wn = self.node_grid()
+        names, weights = [], []
+        for band in scene.sensor.bands:
+            for i, (c, w) in enumerate((c, w) for c in cn for w in wn):
+                names.append(f"{band.name}~smile{i}")
+                weights.append(moved_weights(band, scene.grid, c, w, scene.run.support, scene.source))
+        return ResamplePlan(tuple(names), tuple(weights), scene.grid.size)
+
+    def combine(self, nodes: np.ndarray, n_bands: int, rows: int, cols: int) -> np.ndarray:
+        """Band radiance ``(n_bands, rows, cols)`` from the node values ``(n_bands · n_nodes, rows · cols)``."""
+        cn, wn = self.node_grid()
+        lc, lw = lagrange(cn, self.shift_nm), lagrange(wn, self.width_factor)  # (nodes, cols)
+        coef = (lc[:, None, :] * lw[None, :, :]).reshape(cn.size * wn.size, cols)
+        v = nodes.reshape(n_bands, cn.size * wn.size, rows, cols)
+        return np.einsum("knrc,nc->krc", v.astype(np.float64), coef).astype(nodes.dtype)
+
+
+class SmileResampler:
+    """The smile's node bands compiled once for an image ``cols`` wide: :meth:`nodes` resamples spectra to every
+    band's node values, :meth:`combine` interpolates each column's bands from them."""
+
+    def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None):
+        self.smile = Smile.of(scene.spec.instrument, cols)
+        self.n_bands, self.cols = scene.sensor.size, cols
+        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere=atmosphere)
+
+    def nodes(self, spectra: np.ndarray) -> np.ndarray:
+        """Node band values ``(n_bands · n_nodes, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        return self.resampler(spectra)
+
+    def combine(self, nodes: np.ndarray) -> np.ndarray:
+        """Band radiance ``(n_bands, rows, cols)`` from node values of whole rows (any shape holding
+        ``n_bands · n_nodes × rows × cols`` values in that order)."""
+        rows = nodes.size // (nodes.shape[0] * self.cols)
+        return self.smile.combine(nodes.reshape(nodes.shape[0], rows * self.cols), self.n_bands, rows, self.cols)
+
+
+def smile_radiance(rt: Runtime, scene: Scene, spectra: np.ndarray, rows: int, cols: int,
+                   atmosphere: AtmosphereArrays | None) -> np.ndarray:
+    """Band radiance ``(n_bands, rows, cols)`` of the spectra ``(rows · cols, n_wavelengths)`` with the scene's
+    smile: one resampling pass over the node SRFs, then per-column interpolation."""
+    smile = SmileResampler(rt, scene, cols, atmosphere)
+    return smile.combine(smile.nodes(spectra))
+
+
+def smile_twin(scene: Scene, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """float64 numpy twin of :func:`smile_radiance` (spectra already radiance): each column integrated over its
+    own moved SRF, no interpolation."""
+    smile = Smile.of(scene.spec.instrument, cols)
+    cube = np.asarray(spectra, dtype=np.float64).reshape(rows, cols, -1)
+    out = np.empty((scene.sensor.size, rows, cols))
+    for k, band in enumerate(scene.sensor.bands):
+        for c in range(cols):
+            w = moved_weights(band, scene.grid, smile.shift_nm[c], smile.width_factor[c], scene.run.support)
+            out[k, :, c] = w.apply(cube[:, c, :])
+    return out
+
+
+@dataclass(frozen=True)
+class Instrument:
+    """The scene's instrument effects, resolved per band (band order of the scene's sensor)."""
+
+    spec: InstrumentSpec
+    seed: int
+    band_names: tuple[str, ...]
+    lref: tuple[float, ...]
+
+    @classmethod
+    def of(cls, scene: Scene) -> Instrument:
+        bands = scene.sensor.bands
+        return cls(scene.spec.instrument, scene.run.seed, tuple(b.name for b in bands), tuple(b.lref for b in bands))
+
+    def _lookup(self, table: dict, k: int):
+        name = self.band_names[k].lower()
+        return next((v for b, v in table.items() if b.lower() == name), None)
+
+    def mtf_sigma(self, k: int) -> float | None:
+        """Band ``k``'s Gaussian PSF σ in band pixels, None when the MTF effect is off."""
+        if not self.spec.mtf:
+            return None
+        m = self._lookup(self.spec.mtf_nyquist_bands, k)
+        return gaussian_sigma(self.spec.mtf_nyquist if m is None else m)
+
+    def shift(self, k: int) -> tuple[float, float] | None:
+        """Band ``k``'s shift (dx, dy) in band pixels, None when co-registration error is off."""
+        if not self.spec.coregistration:
+            return None
+        given = self._lookup(self.spec.coregistration_shifts, k)
+        if given is not None:
+            return float(given[0]), float(given[1])
+        angle = np.random.default_rng([self.seed, _COREG_TAG, k]).uniform(0.0, 2.0 * math.pi)
+        r = self.spec.coregistration_px
+        return r * math.cos(angle), r * math.sin(angle)
+
+    @property
+    def spatial_on(self) -> bool:
+        return self.spec.mtf or self.spec.coregistration
+
+    def reach(self, ids: list[int], factor: int) -> int:
+        """Input pixels the PSF and shift of bands ``ids`` (``factor`` input pixels per band pixel) reach on each
+        side: the Gaussian to :data:`GAUSSIAN_TRUNCATE` σ plus the shift (0 when both are off). An output pixel
+        is NODATA when a NODATA input pixel lies this close to its box."""
+        if not self.spatial_on:
+            return 0
+        out = 0.0
+        for k in ids:
+            sigma, shift = self.mtf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
+            out = max(out, (GAUSSIAN_TRUNCATE * sigma + max(abs(shift[0]), abs(shift[1]))) * factor)
+        return math.ceil(out)
+
+    def halo(self, ids: list[int], factor: int) -> int:
+        """Rows a block of the image is read with beyond its own for bands ``ids``: the longest along-column
+        filter's half-length (:func:`fir_radius`; 0 when the spatial effects are off)."""
+        if not self.spatial_on:
+            return 0
+        return max(fir_radius((self.mtf_sigma(k) or 0.0) * factor, (self.shift(k) or (0.0, 0.0))[1] * factor)
+                   for k in ids)
+
+    def spatial(self, image: np.ndarray, k: int, factor: int) -> np.ndarray:
+        """Band ``k``'s image on the input grid through its PSF and shift (``factor`` input pixels per band
+        pixel); returned untouched when both are off."""
+        sigma, shift = self.mtf_sigma(k), self.shift(k)
+        if sigma is None and shift is None:
+            return image
+        dx, dy = shift or (0.0, 0.0)
+        out = spatial_response(image, (sigma or 0.0) * factor, dx * factor, dy * factor)
+        return out.astype(image.dtype, copy=False)
+
+    def column_response(self, k: int, cols: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Band ``k``'s per-column (gain, offset) as the product sees them — ``L' = gain · L + offset`` on the
+        band's grid of ``cols`` columns — or None when non-uniformity is off."""
+        s = self.spec
+        if not s.nonuniformity:
+            return None
+        z = np.random.default_rng([self.seed, _NU_TAG, k]).standard_normal((4, cols))
+        lref = self.lref[k]
+        g = 1.0 + s.gain_pct / 100.0 * z[0]
+        o = s.offset_pct / 100.0 * lref * z[1]
+        if not s.equalised:
+            return g, o
+        eps = s.residual_gain_pct / 100.0 * z[2]
+        delta = s.residual_offset_pct / 100.0 * lref * z[3]
+        return 1.0 / (1.0 + eps), -delta / (g * (1.0 + eps))
+
+    def band_attrs(self, k: int) -> dict[str, float | str]:
+        """What the instrument did to band ``k``, as attributes of its variables (empty when ideal)."""
+        attrs: dict[str, float | str] = {}
+        sigma, shift = self.mtf_sigma(k), self.shift(k)
+        if sigma is not None:
+            m = self._lookup(self.spec.mtf_nyquist_bands, k)
+            attrs.update(mtf_nyquist=float(self.spec.mtf_nyquist if m is None else m), psf_sigma_px=sigma)
+        if shift is not None:
+            attrs.update(shift_x_px=shift[0], shift_y_px=shift[1])
+        if self.spec.smile:
+            attrs.update(smile_centre_nm=", ".join(f"{c:g}" for c in self.spec.smile_centre_nm),
+                         smile_width_pct=", ".join(f"{c:g}" for c in self.spec.smile_width_pct))
+        return attrs
+
+    def columns(self, images: np.ndarray, ids: list[int]) -> np.ndarray:
+        """Band images ``(len(ids), rows, cols)`` with their per-column response; returned untouched when off."""
+        if not self.spec.nonuniformity:
+            return images
+        out = np.empty_like(images)
+        for j, k in enumerate(ids):
+            gain, offset = self.column_response(k, images.shape[2])  # type: ignore[misc]
+            out[j] = (images[j].astype(np.float64) * gain[None, :] + offset[None, :]).astype(images.dtype)
+        return out

@@ -1,0 +1,352 @@
+"""Instrument effects on image cubes ([instrument]): per-band MTF, co-registration shift, spectral smile,
+detector non-uniformity — each against its float64 twin or its defining property, and absent when off."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+from s2cl.errors import InputError
+from s2cl.forward import cube as cube_module
+from s2cl.forward import instrument as inst
+from s2cl.forward.cube import aggregate, load_scene_cube, simulate_cube
+from s2cl.forward.instrument import (
+    Instrument,
+    Smile,
+    gaussian_sigma,
+    lagrange,
+    smile_twin,
+    spatial_response,
+    spatial_twin,
+)
+from s2cl.forward.resample import Resampler
+from s2cl.forward.simulate import Simulator
+from s2cl.grid import DEFAULT_GRID
+from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST
+from s2cl.scene.scene import Scene
+
+
+def _cube(rows: int = 24, cols: int = 24, seed: int = 0) -> np.ndarray:
+    """Radiance cube: fields of two spectral shapes with sharp edges (so smile and shifts show)."""
+    rng = np.random.default_rng(seed)
+    wl = DEFAULT_GRID.wavelengths
+    veg = 80.0 / (1.0 + np.exp(-(wl - 715.0) / 12.0)) + 20.0 * np.exp(-(((wl - 550) / 40) ** 2))
+    soil = 30.0 + 0.02 * (wl - 400.0)
+    a = rng.uniform(0.2, 1.0, (rows, cols, 1))
+    return (a * np.where(rng.random((rows, cols, 1)) < 0.5, veg, soil)).astype(np.float32)
+
+
+def _scene(instrument: dict | None = None, **kw) -> Scene:
+    data = {"scene": {"name": "cube"}, "surface": {"cube": "cube.nc", "gsd_m": 10.0},
+            "effects": {"seed": 3, **kw.pop("effects", {})}, "instrument": instrument or {}, **kw}
+    return Scene.from_dict(data)
+
+
+# -- MTF ---------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("mtf", [0.15, 0.3, 0.5])
+@pytest.mark.parametrize(("axis", "tol"), [(1, 2e-3), (0, 1e-2)])
+def test_mtf_at_nyquist_is_the_given_value(mtf: float, axis: int, tol: float) -> None:
+    """A sine at the band's Nyquist frequency, phase-aligned with the band pixels: after the band's Gaussian and
+    the box average its amplitude is the MTF (input grid 20× finer than the band's). Across the image (axis 1, FFT)
+    to 2e-3, along it (axis 0, the finite filter) to 1e-2."""
+    f = 20
+    n = 40 * f
+    x = np.arange(n) + 0.5
+    image = np.tile(np.cos(math.pi * x / f - math.pi / 2), (8 * f, 1))
+    if axis == 0:
+        image = image.T.copy()
+    sigma = gaussian_sigma(mtf) * f
+    out = aggregate(spatial_response(image, sigma, 0.0, 0.0), f)
+    inner = out[2:-2, 4:-4] if axis == 1 else out[4:-4, 2:-2]
+    # the sampled box of f fine pixels has MTF sin(π/2)/(f·sin(π/(2f))) instead of 2/π: compare with that system
+    box = 1.0 / (f * math.sin(math.pi / (2 * f)))
+    assert np.abs(inner).max() == pytest.approx(mtf / BOX_MTF_NYQUIST * box, rel=tol)
+
+
+def test_gaussian_sigma_refuses_mtf_above_the_box() -> None:
+    with pytest.raises(ValueError):
+        gaussian_sigma(0.7)
+    with pytest.raises(InputError, match=r"instrument\.mtf_nyquist"):
+        _scene({"mtf": True, "mtf_nyquist": 0.7})
+
+
+def test_fft_blur_matches_spatial_convolution_twin() -> None:
+    """The FFT twin against scipy's direct Gaussian convolution with mirrored borders; the production filter (FFT
+    across, finite filter along) against the twin."""
+    img = _cube(40, 50)[:, :, 300].astype(np.float64)
+    twin = spatial_twin(img, 2.3, 0.0, 0.0)
+    direct = gaussian_filter(img, 2.3, mode="reflect", truncate=8.0)
+    assert np.max(np.abs(twin - direct)) < 1e-4 * np.abs(direct).max()
+    assert np.max(np.abs(spatial_response(img, 2.3, 0.0, 0.0) - twin)) < 1e-4 * np.abs(twin).max()
+
+
+@pytest.mark.parametrize(("sigma", "dx", "dy", "smooth", "tol"), [
+    (0.8, 0.3, -0.45, 0.0, 1e-2), (3.0, 1.2, 0.7, 0.0, 1e-3), (0.0, 0.0, 0.5, 1.5, 1e-2)])
+def test_spatial_step_against_its_fft_twin(sigma, dx, dy, smooth, tol) -> None:
+    """Relative to the image's range, on a pixel-scale random image (the hardest case for the finite filter's
+    truncation): blur and shift together, a wide PSF; and a pure half-pixel shift of the image smoothed first (a
+    sub-pixel shift of pixel-scale noise is ill-defined: two interpolators differ by some 10 % there)."""
+    img = _cube(60, 60)[:, :, 700].astype(np.float64)
+    if smooth:
+        img = gaussian_filter(img, smooth, mode="reflect")
+    err = np.abs(spatial_response(img, sigma, dx, dy) - spatial_twin(img, sigma, dx, dy))[15:-15, 15:-15]
+    assert err.max() < tol * np.ptp(img)
+
+
+# -- co-registration -----------------------------------------------------------------------------------------
+
+def test_integer_shift_is_a_roll_and_fraction_moves_a_sine() -> None:
+    img = _cube(30, 30)[:, :, 500].astype(np.float64)
+    out = spatial_response(img, 0.0, 3.0, -2.0)
+    assert np.allclose(out[:-2, 3:], img[2:, :-3], atol=1e-9)  # out(y, x) = img(y - dy, x - dx)
+    # a band-limited sine moved by 0.37 pixels: exact (the twin is the analytic sine)
+    x = np.arange(64.0)
+    sine = np.tile(np.sin(2 * math.pi * x / 16), (8, 1))
+    moved = spatial_response(sine, 0.0, 0.37, 0.0)
+    assert np.allclose(moved[:, 16:48], np.tile(np.sin(2 * math.pi * (x - 0.37) / 16), (8, 1))[:, 16:48],
+                       atol=2e-3)
+    down = spatial_response(sine.T.copy(), 0.0, 0.0, 0.37)  # along columns: the finite filter
+    assert np.allclose(down[16:48, :], np.tile(np.sin(2 * math.pi * (x - 0.37) / 16), (8, 1)).T[16:48, :],
+                       atol=2e-3)
+
+
+def test_nodata_pixels_stay_local() -> None:
+    """A NaN pixel does not spread through the FFT: away from it the result is the one of the image with that pixel
+    filled in; at its shifted place it is NaN."""
+    img = _cube(30, 30)[:, :, 400].astype(np.float64)
+    holed = img.copy()
+    holed[10, 12] = np.nan
+    out = spatial_response(holed, 1.0, 2.0, 0.0)
+    ref = spatial_response(img, 1.0, 2.0, 0.0)
+    assert np.isnan(out[10, 14]) or abs(out[10, 14] - ref[10, 14]) < 0.2 * abs(ref[10, 14])
+    far = np.ones_like(img, bool)
+    far[4:17, 6:22] = False
+    assert np.isfinite(out[far]).all()
+    assert np.allclose(out[far], ref[far], rtol=1e-3)
+    shifted = spatial_response(holed, 0.0, 2.0, 0.0)
+    assert np.isnan(shifted[10, 14]) and np.isfinite(np.delete(shifted.ravel(), 10 * 30 + 14)).all()
+
+
+def test_shifts_from_seed_have_the_given_magnitude() -> None:
+    a = Instrument.of(_scene({"coregistration": True}))
+    shifts = [a.shift(k) for k in range(len(a.band_names))]
+    assert all(math.hypot(*s) == pytest.approx(0.15) for s in shifts)
+    assert len({round(s[0], 9) for s in shifts}) == len(shifts)  # a direction per band
+    assert shifts == [Instrument.of(_scene({"coregistration": True})).shift(k) for k in range(len(shifts))]
+    other = Instrument.of(_scene({"coregistration": True}, effects={"seed": 4}))
+    assert other.shift(0) != shifts[0]
+    given = Instrument.of(_scene({"coregistration": True, "coregistration_shifts": {"B5": [0.1, -0.2]}}))
+    assert given.shift(given.band_names.index("B5")) == (0.1, -0.2)
+
+
+def test_shifted_band_in_the_cube(rt) -> None:
+    """B4 shifted by exactly one band pixel (10 m) in x: its radiance image is the ideal one moved by a column."""
+    cube = _cube()
+    ideal = simulate_cube(rt, _scene(effects={"noise": False, "quantise": False, "calibrate": False}), cube)
+    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {"B4": [1.0, 0.0]}},
+                                     effects={"noise": False, "quantise": False, "calibrate": False}), cube)
+    assert moved["radiance_B4"].attrs["shift_x_px"] == 1.0 and "shift_x_px" not in ideal["radiance_B4"].attrs
+    a, b = ideal["radiance_B4"].values, moved["radiance_B4"].values
+    assert np.allclose(b[:, 1:], a[:, :-1], rtol=1e-5)
+    # bands without a given shift keep their seeded one (0.15 px): changed, but not by a whole pixel
+    assert not np.allclose(moved["radiance_B3"].values, ideal["radiance_B3"].values, rtol=1e-4)
+
+
+# -- smile ---------------------------------------------------------------------------------------------------
+
+def test_lagrange_reproduces_a_quadratic() -> None:
+    nodes = np.array([-1.0, 0.2, 1.5])
+    x = np.linspace(-1, 1.5, 11)
+    basis = lagrange(nodes, x)
+    assert np.allclose(basis.sum(axis=0), 1.0)
+    assert np.allclose((3 * nodes**2 - nodes + 2) @ basis, 3 * x**2 - x + 2)
+
+
+@pytest.mark.parametrize(("spec", "tol"), [
+    ({"smile_centre_nm": [0.0, 0.0, 1.0]}, 1e-6),
+    ({"smile_centre_nm": [0.5, -2.0, 1.5], "smile_width_pct": [0.0, 5.0]}, 1e-4)])
+def test_smile_against_per_column_twin(rt, spec, tol) -> None:
+    """Node interpolation on the device against each column's own SRF integral in float64: the default smile
+    (1 nm) to 1e-6, a 5 nm smile with a 5 % width change to 1e-4 (the SRF support's cut-off makes the band value a
+    slightly rough function of the shift), where the smile itself changes the bands by 10-40 %."""
+    scene = _scene({"smile": True, **spec}, compute={"precision": "float64"})
+    cube = _cube(6, 40)
+    prepared = load_scene_cube(scene, cube, None)
+    ours = inst.smile_radiance(rt, scene, prepared.spectra, 6, 40, None)
+    twin = smile_twin(scene, prepared.spectra, 6, 40)
+    nominal = Simulator.for_scene(rt, scene).band_radiance(prepared.spectra).reshape(twin.shape)
+    err = np.abs(ours - twin) / np.abs(twin)
+    assert err.max() < tol
+    assert np.max(np.abs(nominal - twin) / np.abs(twin)) > 1e3 * tol  # the smile itself is far above that
+
+
+def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
+    """Off: the cube path builds only the nominal resampling kernel (no node band in its source); on: the node
+    bands are in the rendered source."""
+    sources: list[str] = []
+    original = Resampler.__init__
+
+    def spy(self, *a, **k):
+        original(self, *a, **k)
+        sources.append(self.source)
+
+    monkeypatch.setattr(Resampler, "__init__", spy)
+    cube = _cube(12, 12)
+    simulate_cube(rt, _scene(), cube)
+    assert sources and not any("smile" in s for s in sources)
+    sources.clear()
+    simulate_cube(rt, _scene({"smile": True}), cube)
+    assert any("B4~smile3" in s for s in sources)
+    smile = Smile.of(_scene({"smile": True}).spec.instrument, 12)
+    assert smile.node_grid()[0].size == inst.SMILE_NODES and smile.node_grid()[1].size == 1
+
+
+# -- non-uniformity --------------------------------------------------------------------------------------------
+
+def test_nonuniformity_columns_from_seed() -> None:
+    scene = _scene({"nonuniformity": True, "residual_gain_pct": 1.0, "residual_offset_pct": 0.0})
+    a = Instrument.of(scene)
+    gain, offset = a.column_response(3, 5000)
+    assert np.std(1.0 / gain - 1.0) == pytest.approx(0.01, rel=0.05)
+    assert np.all(offset == 0.0)
+    again = Instrument.of(_scene({"nonuniformity": True, "residual_gain_pct": 1.0, "residual_offset_pct": 0.0}))
+    assert np.array_equal(again.column_response(3, 5000)[0], gain)
+    assert not np.array_equal(a.column_response(4, 5000)[0], gain)
+    raw = Instrument.of(_scene({"nonuniformity": True, "equalised": False, "gain_pct": 3.0}))
+    g, o = raw.column_response(3, 5000)
+    assert np.std(g) == pytest.approx(0.03, rel=0.05)
+    assert np.std(o) == pytest.approx(0.005 * scene.sensor.bands[3].lref, rel=0.05)
+    # equalised: (g L + o - (o + δ)) / (g (1 + ε)) written out (the twin)
+    z = np.random.default_rng([3, inst._NU_TAG, 3]).standard_normal((4, 50))
+    s = _scene({"nonuniformity": True})
+    lref = s.sensor.bands[3].lref
+    gr, orw = 1 + 0.02 * z[0], 0.005 * lref * z[1]
+    eps, delta = 0.002 * z[2], 0.0005 * lref * z[3]
+    L = np.linspace(10, 100, 50)
+    expect = (gr * L + orw - (orw + delta)) / (gr * (1 + eps))
+    gain, offset = Instrument.of(s).column_response(3, 50)
+    assert np.allclose(gain * L + offset, expect, rtol=1e-12)
+
+
+def test_nonuniformity_stripes_columns_in_the_cube(rt) -> None:
+    cube = np.broadcast_to(_cube(1, 1), (24, 24, DEFAULT_GRID.size)).copy()
+    off = {"noise": False, "quantise": False, "calibrate": False}
+    ds = simulate_cube(rt, _scene({"nonuniformity": True}, effects=off), cube)
+    img = ds["radiance_B4"].values
+    assert np.allclose(img, img[0:1, :], rtol=1e-6)  # constant down each column
+    assert np.std(img[0]) / img[0].mean() > 5e-4  # but varying across
+    assert ds.attrs["instrument"] == "nonuniformity"
+
+
+# -- off means skipped ---------------------------------------------------------------------------------------
+
+def test_host_effects_are_skipped_when_off(rt, monkeypatch) -> None:
+    """An ideal instrument runs no FFT and no column response: the functions are made to fail and the cube still
+    simulates, to the same bits as before."""
+    cube = _cube(12, 12)
+    before = simulate_cube(rt, _scene(), cube)
+
+    def fail(*a, **k):
+        raise AssertionError("instrument effect ran while off")
+
+    monkeypatch.setattr(inst, "spatial_response", fail)
+    monkeypatch.setattr(Instrument, "column_response", fail)
+    monkeypatch.setattr(cube_module, "SmileResampler", fail)
+    after = simulate_cube(rt, _scene(), cube)
+    assert after.attrs["instrument"] == "ideal"
+    for name in before.data_vars:
+        assert np.array_equal(before[name].values, after[name].values)
+
+
+def test_instrument_scene_errors() -> None:
+    with pytest.raises(InputError, match=r"spatial\.psf"):
+        _scene({"mtf": True}, spatial={"psf": "gaussian"})
+    with pytest.raises(InputError, match=r"instrument\.mtf_nyquist_bands.*unknown band"):
+        _scene({"mtf": True, "mtf_nyquist_bands": {"B99": 0.2}})
+    with pytest.raises(InputError, match=r"instrument\.smile_width_pct"):
+        _scene({"smile": True, "smile_width_pct": [0.0, 0.0, -95.0]})
+    with pytest.raises(InputError, match=r"effects\.resample"):
+        _scene({"smile": True}, effects={"resample": False})
+    with pytest.raises(InputError, match=r"surface\.cube"):
+        Scene.from_dict({"scene": {"name": "lib"}, "surface": {"library": "builtin:prosail_lib1"},
+                         "instrument": {"nonuniformity": True}})
+    with pytest.raises(InputError, match=r"instrument\.coregistration_shifts"):
+        _scene({"coregistration": True, "coregistration_shifts": {"B4": [3.0, 0.0]}})
+
+
+# -- what each effect costs ------------------------------------------------------------------------------------
+
+def test_effect_costs_on_a_small_fields_image(rt) -> None:
+    """The instrument study's core on a 48 × 48 builtin:fields image: the ideal row has no effect and the noise
+    floor against the truth; each effect differs from the ideal; the Cab map's error against the truth is scored
+    for every row."""
+    from s2cl.app.instrument_costs import EFFECTS, analysis_score, effect_costs
+    from s2cl.studies.instrument import cube_scene
+
+    scene = cube_scene(Scene.load("study-instrument"), 48)
+    rows = effect_costs(rt, scene, score=analysis_score(rt))
+    assert [r.instrument for r in rows] == ["ideal", *EFFECTS]
+    ideal = rows[0]
+    assert all(v == 0.0 for v in ideal.rms_effect.values())
+    assert 0.0 < ideal.as_dict()["rms_vs_truth_mean"] < 0.05
+    for r in rows:
+        assert 0.0 < r.score["cab_map_rms"] < 60.0 and 0.0 < r.score["fitted_fraction"] <= 1.0, r.instrument
+    for r in rows[1:]:
+        assert r.as_dict()["rms_effect_mean"] > 1e-5, r.instrument
+        assert r.source and r.seconds > 0
+        assert r.score["cab_map_rms"] != ideal.score["cab_map_rms"], r.instrument
+
+
+def test_study_refuses_a_library_scene_and_resizing_a_file_cube(tmp_path) -> None:
+    from s2cl.studies.instrument import cube_scene
+
+    with pytest.raises(InputError, match=r"surface\.cube"):
+        cube_scene(Scene.load("default"))
+    with pytest.raises(InputError, match=r"study\.image_px"):
+        cube_scene(_scene(), 48)
+
+
+def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
+    """A scene with every effect on still gets an ideal row that is ideal, and its magnitudes are used."""
+    from s2cl.app.instrument_costs import with_instrument
+
+    s = _scene({"mtf": True, "mtf_nyquist": 0.3, "smile": True})
+    ideal = with_instrument(s, {**s.spec.instrument.model_dump(), "mtf": False, "smile": False})
+    assert ideal.spec.instrument.describe() == "ideal" and ideal.spec.instrument.mtf_nyquist == 0.3
+
+
+# -- row blocks and no-data ----------------------------------------------------------------------------------
+
+def test_row_blocks_match_the_whole_image(rt) -> None:
+    """Every effect on, simulated in blocks of 12 rows (read with the instrument's halo) and whole: the same band
+    radiance (to float32 rounding) and attributes."""
+    cube = _cube(48, 48)
+    scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True},
+                   effects={"noise": False, "quantise": False, "calibrate": False})
+    whole = simulate_cube(rt, scene, cube)
+    blocks = simulate_cube(rt, scene, cube, block_rows=12)
+    for name in scene.sensor.band_names:
+        a, b = whole[f"radiance_{name}"].values, blocks[f"radiance_{name}"].values
+        assert np.allclose(a, b, rtol=1e-6, atol=1e-6), name
+        assert whole[f"radiance_{name}"].attrs == blocks[f"radiance_{name}"].attrs
+
+
+def test_nodata_footprint_grows_with_the_psf_and_shift(rt) -> None:
+    """A NaN input pixel makes NODATA every output pixel whose PSF and shift reach it: more of them with the MTF
+    on than without."""
+    cube = _cube(48, 48)
+    cube[20, 20, :] = np.nan
+    off = {"noise": False, "quantise": False, "calibrate": False}
+    plain = simulate_cube(rt, _scene(effects=off), cube)
+    blurred = simulate_cube(rt, _scene({"mtf": True}, effects=off), cube)
+    for ds in (plain, blurred):
+        assert np.isnan(ds["radiance_B4"].values[20, 20])
+    n_plain = int(np.isnan(plain["radiance_B4"].values).sum())
+    n_blurred = int(np.isnan(blurred["radiance_B4"].values).sum())
+    assert n_plain == 1 < n_blurred
+    assert blurred["radiance_B4"].attrs["nodata_pixels"] == n_blurred
+    assert np.isfinite(blurred["radiance_B4"].values[:10]).all()
