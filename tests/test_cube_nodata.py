@@ -245,3 +245,59 @@ def test_envi_data_file_names_and_interleaves(tmp_path, ext: str) -> None:
     if ext not in ("bsq", "bil", "bip"):
         (tmp_path / f"enmap.{interleave}").rename(tmp_path / f"enmap.{ext}")
     np.testing.assert_array_equal(load_cube(hdr).values, (ints[:, :, ~BAD] / np.float32(10000)).astype(np.float32))
+
+
+@pytest.mark.parametrize(("interleave", "dtype", "big_endian", "offset"),
+                         [("bsq", "int16", False, 0), ("bil", "float32", True, 64), ("bip", "uint16", True, 7)])
+def test_envi_rows_read_alone_equal_the_whole_read(tmp_path, interleave: str, dtype: str, big_endian: bool,
+                                                   offset: int) -> None:
+    """Rows read alone (a memory map of the data file) equal the same rows of the whole read and SPy's own read
+    (interleave, byte order, data type, header offset, ignore value, scale factor and bad bands)."""
+    import spectral.io.envi as envi
+
+    from s2cl.io.cubes import open_cube
+
+    holed, _ = _holes(_reflectance(), -99, nan=False)
+    hdr = _write_envi(tmp_path, holed, dtype=dtype, interleave=interleave, big_endian=big_endian)
+    data = tmp_path / f"enmap.{interleave}"
+    data.write_bytes(b"\0" * offset + data.read_bytes())
+    hdr.write_text(hdr.read_text().replace("header offset = 0", f"header offset = {offset}"))
+    whole = load_cube(hdr).values
+    spy = envi.open(str(hdr), str(data)).load(scale=False).astype(np.float64)[:, :, ~BAD]
+    expected = np.where(spy == -99, np.nan, spy / 10000)
+    np.testing.assert_allclose(whole, expected, rtol=1e-7)
+    reader = open_cube(hdr)
+    assert (reader.rows, reader.cols) == (ROWS, COLS)
+    for start, stop in ((0, 1), (3, 8), (11, 12)):
+        np.testing.assert_array_equal(reader.read(start, stop), whole[start:stop])
+
+
+def test_file_cubes_simulated_by_row_blocks_equal_the_whole_image(rt, tmp_path) -> None:
+    """An ENVI cube (ignore value, bad bands, scale factor, with a PSF) and a NetCDF cube (fill value, CF flags) read
+    block by block with their halo (block_rows 4, 6): every variable bit-identical to the whole image, no-data
+    included."""
+    from s2cl.io.image_store import MemoryStore
+
+    ints = _reflectance()
+    holed, mask = _holes(ints, -99, nan=False)
+    hdr = _write_envi(tmp_path, holed, interleave="bil")
+    qa = np.zeros((ROWS, COLS), np.uint8)
+    qa[6, 0] = 1
+    refl = np.where(holed == -99, np.nan, holed / 10000.0)[:, :, ~BAD]
+    xr.Dataset({"refl": (("y", "x", "wavelength"), refl, {"ancillary_variables": "qa"}),
+                "qa": (("y", "x"), qa, {"flag_values": np.array([0, 1], np.uint8), "flag_meanings": "clear no_data"})},
+               coords={"wavelength": ("wavelength", WL[~BAD], {"units": "nm"})}).to_netcdf(
+        tmp_path / "cube.nc", engine="h5netcdf", encoding={"refl": {"dtype": "int16", "scale_factor": 1e-4,
+                                                                    "_FillValue": -99}})
+    for cube, psf in ((hdr.name, "gaussian"), ("cube.nc", "none")):
+        scene = _scene(tmp_path, cube, psf)
+        whole = simulate_cube(rt, scene)
+        assert whole.attrs["nodata_input_pixels"] == mask.sum() + (cube == "cube.nc")
+        for block_rows in (4, 6):
+            store = MemoryStore()
+            simulate_cube(rt, scene, store=store, block_rows=block_rows)
+            blocks = store.dataset()
+            assert set(blocks.data_vars) == set(whole.data_vars)
+            for name in whole.data_vars:
+                np.testing.assert_array_equal(blocks[name].values, whole[name].values, err_msg=f"{cube} {name}")
+            assert blocks["radiance_B2"].attrs == whole["radiance_B2"].attrs

@@ -1,5 +1,5 @@
 """``s2cl simulate`` as a function: a scene checked, then streamed through the sensor chain into
-``simulation.nc`` and ``simulation.json`` (or, for an image cube, simulated whole); what the command prints, as data."""
+``simulation.nc`` and ``simulation.json`` (an image cube by blocks of rows); what the command prints, as data."""
 
 from __future__ import annotations
 
@@ -14,11 +14,14 @@ from s2cl.scene.scene import Scene
 
 SIMULATION_JSON = "simulation.json"
 
-#: bytes per pixel of a cube: per input wavelength (float64 as loaded, and a working copy), per grid
+#: bytes per pixel of a block of a cube: per input wavelength (as stored, and float64 as read), per grid
 #: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
 CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
 #: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
 CUBE_BYTES_GENERATED = 16
+#: bytes per input pixel of a cube file held whole: its NODATA mask and the bands' footprint masks, and the map's
+#: index, status and bounds
+CUBE_BYTES_FILE = 16
 #: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
 #: float32, DN, flags)
 CUBE_DISK_BYTES_PER_BAND = 23
@@ -86,16 +89,16 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
     ``surface.cube`` when not even one block of rows fits.
 
-    What does not stream: a cube file's spectra, loaded whole onto the grid (:func:`cube_whole_bytes`), a generated
-    cube's labels and parcel ids, and the map's index, status and bounds. What does: per band and input pixel of a
-    block and of its PSF halo, the band images, the radiometric stage's outputs and the analysis
-    (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra on their way through the resampler."""
+    What does not stream (:func:`cube_whole_bytes`): a cube file's NODATA mask, a generated cube's labels and parcel
+    ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of its PSF
+    halo, the band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a
+    file's spectra, read by rows and put on the grid on their way through the resampler."""
     from s2cl.forward.cube import FWHM_TO_SIGMA
     from s2cl.forward.row_blocks import gaussian_radius
     from s2cl.io.budget import BASELINE_BYTES
 
-    per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + ((CUBE_BYTES_PER_GRID - 8) * sc.grid.size if wavelengths
-                                                               else 0))
+    spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0
+    per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
     s = sc.spec
     factors = [round(b.gsd_m / (s.surface.gsd_m or 1.0)) for b in sc.sensor.bands]
     halo = gaussian_radius(s.spatial.psf_fwhm * max(factors) * FWHM_TO_SIGMA) if s.spatial.psf == "gaussian" else 0
@@ -110,9 +113,14 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
 
 
 def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
-    """Bytes a cube holds whole whatever the blocks: a file's spectra as read (:data:`CUBE_BYTES_PER_INPUT` per
-    wavelength) and on the grid (float64), or a generated cube's :data:`CUBE_BYTES_GENERATED`."""
-    return pixels * ((CUBE_BYTES_PER_INPUT * wavelengths + 8 * sc.grid.size) if wavelengths else CUBE_BYTES_GENERATED)
+    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel and the rows its
+    NODATA pass reads at a time (:data:`s2cl.forward.cube.NODATA_PASS_BYTES`, as stored and as floating), or a
+    generated cube's :data:`CUBE_BYTES_GENERATED`."""
+    from s2cl.forward.cube import NODATA_PASS_BYTES
+
+    if not wavelengths:
+        return pixels * CUBE_BYTES_GENERATED
+    return pixels * CUBE_BYTES_FILE + 2 * NODATA_PASS_BYTES
 
 
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
@@ -132,7 +140,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     from s2cl.scene.caveats import report
 
     sc = checked.scene
-    pixels, wavelengths = scene_cube_size(sc)  # a file cube's whole part must fit before it is loaded
+    pixels, wavelengths = scene_cube_size(sc)  # a cube's whole part must fit before its file is read
     budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
                    f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")

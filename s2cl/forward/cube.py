@@ -24,6 +24,7 @@ their halo too, and the NODATA footprint reaches as far), the detector non-unifo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,7 +41,7 @@ from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blo
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.grid import SpectralGrid, check_wavelengths
-from s2cl.io.cubes import CubeFile, cube_size, load_cube
+from s2cl.io.cubes import CubeReader, cube_size, load_cube, open_cube
 from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
 from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import resample_to_grid
@@ -49,6 +50,8 @@ from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
 FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+#: bytes of a cube file's values read at a time (as stored, and as floating) by the NODATA pass over its rows
+NODATA_PASS_BYTES = 8_000_000
 __all__ = ["SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube", "to_grid"]
 
 
@@ -105,9 +108,11 @@ class SceneCube:
     pixels), and the NODATA mask ``(rows·cols,)``; or (a generated cube, :mod:`s2cl.libraries.fields`) its
     distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming each pixel's spectrum;
     ``truth_params``: the parameters of each distinct spectrum where the cube knows them, and ``parcels``
-    ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file)."""
+    ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file). A cube
+    file streams: ``spectra`` is None and ``read_rows`` gives a band of rows' spectra on the grid, read from the file
+    when asked (:meth:`block`)."""
 
-    spectra: np.ndarray
+    spectra: np.ndarray | None
     rows: int
     cols: int
     source: str
@@ -115,6 +120,15 @@ class SceneCube:
     labels: np.ndarray | None = None
     truth_params: dict[str, np.ndarray] = field(default_factory=dict)
     parcels: np.ndarray | None = None
+    read_rows: Callable[[int, int], np.ndarray] | None = None
+
+    def block(self, start: int, stop: int) -> np.ndarray:
+        """Spectra on the grid ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now;
+        zero at NODATA pixels)."""
+        if self.read_rows is not None:
+            return self.read_rows(start, stop)
+        assert self.spectra is not None and self.labels is None
+        return self.spectra[start * self.cols : stop * self.cols]
 
     @property
     def nodata_image(self) -> np.ndarray:
@@ -152,7 +166,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
     creates the folder."""
     s = scene.spec
     source = scene.source
-    generated, owned, nodata = None, False, None
+    generated, reader, nodata = None, None, None
     if cube is None:
         if s.surface.cube is None:
             raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
@@ -161,18 +175,19 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
             generated = fields_image(scene.grid, rows, cols, scene.run.seed)
         else:
             source = str(scene.resolve(s.surface.cube))
-            read: CubeFile = load_cube(scene.resolve(s.surface.cube), s.surface.variable)
-            cube, wavelengths_nm, owned = read.values, read.wavelengths_nm, True
-            if read.bad_nm.size:
+            reader = open_cube(scene.resolve(s.surface.cube), s.surface.variable)
+            if reader.bad_nm.size:
                 weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
                 check_bad_band_gaps([b.name for b in scene.sensor.bands],
-                                    gap_weights(weights, scene.grid, read.wavelengths_nm, read.bad_nm),
+                                    gap_weights(weights, scene.grid, reader.wavelengths_nm, reader.bad_nm),
                                     s.surface.quantity, source)
+            rows, cols = reader.rows, reader.cols
+            nodata = _file_nodata(reader, scene.grid, source)
     if generated is not None:
         spectra = generated.library.spectra
-    else:
+    elif reader is None:
         rows, cols = np.asarray(cube).shape[:2]
-        spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source, owned=owned)
+        spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source)
     gsd_in = s.surface.gsd_m
     if gsd_in is None:
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
@@ -186,7 +201,32 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         lib = generated.library
         return SceneCube(spectra, rows, cols, source, labels=generated.labels.reshape(-1),
                          truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
-    return SceneCube(spectra, rows, cols, source, nodata if nodata is not None and nodata.any() else None)
+    nodata = nodata if nodata is not None and nodata.any() else None
+    if reader is not None:
+        return SceneCube(None, rows, cols, source, nodata, read_rows=_file_rows(reader, scene.grid, source))
+    return SceneCube(spectra, rows, cols, source, nodata)
+
+
+def _file_nodata(reader: CubeReader, grid: SpectralGrid, source: str) -> np.ndarray:
+    """The NODATA mask ``(rows·cols,)`` of a cube file, from a pass over its rows (:data:`NODATA_PASS_BYTES` at a
+    time); the first rows also go onto the grid, so that every check of :func:`to_grid` is done up front."""
+    mask = np.zeros(reader.rows * reader.cols, bool)
+    step = max(1, NODATA_PASS_BYTES // (8 * reader.cols * reader.wavelengths_nm.size))
+    cols = reader.cols
+    for start in range(0, reader.rows, step):
+        stop = min(reader.rows, start + step)
+        values = reader.read(start, stop)
+        if start == 0:
+            to_grid(values[:1], reader.wavelengths_nm, grid, source)
+        mask[start * cols : stop * cols] = nodata_rows(values.reshape(-1, values.shape[-1]))
+    return mask
+
+
+def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str) -> Callable[[int, int], np.ndarray]:
+    """Rows ``start … stop-1`` of a cube file read and put on the grid (:func:`to_grid`, zero at NODATA pixels)."""
+    def read_rows(start: int, stop: int) -> np.ndarray:
+        return to_grid(reader.read(start, stop), reader.wavelengths_nm, grid, source, owned=True)[0]
+    return read_rows
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
@@ -224,7 +264,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
         if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
             radiance = distinct[:, labels[lo:hi]]
         else:
-            radiance = band_values(prepared.spectra[lo * cols : hi * cols]).reshape(-1, hi - lo, cols)
+            radiance = band_values(prepared.block(lo, hi)).reshape(-1, hi - lo, cols)
         if smile is not None:  # each column's bands from the smile's node bands
             radiance = smile.combine(radiance)
         for g in groups:

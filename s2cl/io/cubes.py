@@ -16,7 +16,7 @@ What each format may mark:
 
 from __future__ import annotations
 
-import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ import xarray as xr
 
 from s2cl.errors import InputError, token
 from s2cl.grid import check_wavelengths
-from s2cl.io.envi import envi_data_file, envi_layout, read_envi_header
+from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
 from s2cl.io.inputs import input_file, parse_number
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
@@ -49,34 +49,81 @@ class CubeFile:
     bad_nm: np.ndarray = field(default_factory=lambda: np.empty(0))
 
 
+@dataclass(frozen=True)
+class CubeReader:
+    """A cube file opened for reading a band of rows at a time: its shape and wavelengths from the metadata, every
+    rule of :func:`load_cube` checked; :meth:`read` gives rows ``start … stop-1`` exactly as :func:`load_cube` gives
+    them within the whole cube (the same function reads both).
+
+    :param wavelengths_nm: the kept bands' wavelengths (nm, increasing).
+    :param bad_nm: wavelengths (nm) of the bands the file's bad band list dropped (empty when none)."""
+
+    path: Path
+    rows: int
+    cols: int
+    wavelengths_nm: np.ndarray
+    bad_nm: np.ndarray
+    _read: Callable[[int, int], np.ndarray]
+
+    def read(self, start: int, stop: int) -> np.ndarray:
+        """Rows ``start … stop-1`` ``(stop-start, cols, wavelengths)``: floating values, NaN where the file marks no
+        data."""
+        return self._read(start, stop)
+
+
 def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
     """The cube at ``path``: NetCDF (a 3-D variable with a ``wavelength`` dimension and coordinate) or ENVI
-    (the ``.hdr`` file). See the module docstring for the no-data conventions honoured."""
+    (the ``.hdr`` file), read whole. See the module docstring for the no-data conventions honoured."""
+    reader = open_cube(path, variable)
+    return CubeFile(reader.read(0, reader.rows), reader.wavelengths_nm, reader.bad_nm)
+
+
+def open_cube(path: str | Path, variable: str | None = None) -> CubeReader:
+    """The cube at ``path`` opened for reading by rows (:class:`CubeReader`); nothing but metadata is read."""
     p = input_file(path, what="cube file")
     if p.suffix.lower() == ".hdr":
-        return _load_envi(p)
-    try:
-        ds = xr.open_dataset(p, engine="h5netcdf")
-    except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
-    with ds:
-        candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
-        name = variable or (candidates[0] if len(candidates) == 1 else None)
-        if name is None or name not in ds:
-            raise InputError(f"choose the cube variable (surface.variable); 3-D variables with a 'wavelength' "
-                             f"dimension: {candidates or 'none'}", source=p, key="surface.variable")
-        v = ds[name]
-        if "wavelength" not in v.dims or v.ndim != 3:
-            raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
-        v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
-        real(v.dtype, p, name)
+        return _open_envi(p)
+    with _open_netcdf(p) as ds:
+        v = _netcdf_cube(ds, p, variable)
         scale = wavelength_scale(ds["wavelength"].attrs.get("units"), p, "wavelength.units")
         wl = np.asarray(ds["wavelength"].values, dtype=np.float64) * scale
-        values = _floating(np.asarray(v.values))
-        flagged = _flagged_nodata(ds, v, p, name)
-        if flagged is not None:
-            values[flagged] = np.nan
-        return CubeFile(values, check_wavelengths(wl, source=str(p), key="wavelength"))
+        rows, cols = (int(v.sizes[d]) for d in v.dims[:2])
+        name = str(v.name)
+
+    def read(start: int, stop: int) -> np.ndarray:
+        with _open_netcdf(p) as ds:
+            v = _netcdf_cube(ds, p, name)
+            window = {v.dims[0]: slice(start, stop)}
+            values = _floating(np.asarray(v.isel(window).values))
+            flagged = _flagged_nodata(ds, v, p, name, window)
+            if flagged is not None:
+                values[flagged] = np.nan
+            return values
+
+    return CubeReader(p, rows, cols, check_wavelengths(wl, source=str(p), key="wavelength"), np.empty(0), read)
+
+
+def _open_netcdf(p: Path) -> xr.Dataset:
+    """The NetCDF-4 file ``p`` opened lazily (nothing loaded)."""
+    try:
+        return xr.open_dataset(p, engine="h5netcdf")
+    except Exception as err:  # h5netcdf/h5py raise many types for a bad file
+        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
+
+
+def _netcdf_cube(ds: xr.Dataset, p: Path, variable: str | None) -> xr.DataArray:
+    """The cube variable of ``ds`` (lazy), dimensions ``(row, column, wavelength)``, checked."""
+    candidates = [n for n, v in ds.data_vars.items() if v.ndim == 3 and "wavelength" in v.dims]
+    name = variable or (candidates[0] if len(candidates) == 1 else None)
+    if name is None or name not in ds:
+        raise InputError(f"choose the cube variable (surface.variable); 3-D variables with a 'wavelength' "
+                         f"dimension: {candidates or 'none'}", source=p, key="surface.variable")
+    v = ds[name]
+    if "wavelength" not in v.dims or v.ndim != 3:
+        raise InputError("needs 3 dimensions, one of them 'wavelength'", source=p, key=name)
+    v = v.transpose(*[d for d in v.dims if d != "wavelength"], "wavelength")
+    real(v.dtype, p, name)
+    return v
 
 
 def cube_size(path: str | Path) -> tuple[int, int]:
@@ -127,8 +174,10 @@ def _floating(values: np.ndarray) -> np.ndarray:
     return out if out.flags.writeable else out.copy()
 
 
-def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str) -> np.ndarray | None:
-    """``(rows, cols)`` mask of the pixels a CF flag variable named in ``ancillary_variables`` marks as no data."""
+def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str,
+                    window: dict[Any, slice]) -> np.ndarray | None:
+    """``(rows, cols)`` mask of the pixels of ``window`` (the cube's rows read) a CF flag variable named in
+    ``ancillary_variables`` marks as no data."""
     mask = None
     spatial = v.dims[:2]
     for flag_name in str(v.attrs.get("ancillary_variables", "")).split():
@@ -143,7 +192,7 @@ def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str) -> np.n
         if sorted(f.dims) != sorted(spatial):
             raise InputError(f"flags no data but has dimensions {f.dims}; the cube's pixels are {spatial}",
                              source=p, key=flag_name)
-        flags = np.asarray(f.transpose(*spatial).values)
+        flags = np.asarray(f.isel(window).transpose(*spatial).values)
         known = np.isfinite(flags) if flags.dtype.kind == "f" else np.ones(flags.shape, bool)
         flags_int = np.where(known, flags, 0).astype(np.int64)
         for attr in ("flag_values", "flag_masks"):
@@ -204,9 +253,13 @@ def _bad_band_list(meta: dict, bands: int, p: Path) -> np.ndarray:
     return flags == 1.0
 
 
-def _load_envi(p: Path) -> CubeFile:
-    import spectral.io.envi as envi
+#: numpy types of the ENVI data types (:data:`s2cl.io.envi.ENVI_ITEM_BYTES`), before the header's byte order
+_ENVI_TYPES = {"1": "u1", "2": "i2", "3": "i4", "4": "f4", "5": "f8", "12": "u2", "13": "u4", "14": "i8", "15": "u8"}
+#: axes of the data file per interleave, named l(ines), s(amples), b(ands)
+_INTERLEAVES = {"bsq": "bls", "bil": "lbs", "bip": "lsb"}
 
+
+def _open_envi(p: Path) -> CubeReader:
     meta = read_envi_header(p)
     data = envi_data_file(p)
     layout = envi_layout(meta, p, data)
@@ -217,21 +270,34 @@ def _load_envi(p: Path) -> CubeFile:
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise InputError(f"must be a finite number > 0, got {scale:g}", source=p, key="reflectance scale factor")
     good = _bad_band_list(meta, layout.bands, p)
-    try:
-        img = envi.open(str(p), str(data))
-        with warnings.catch_warnings():  # NaN values are no-data here, not news
-            warnings.simplefilter("ignore")
-            raw = np.asarray(img.load(dtype=img.dtype, scale=False))
-    except Exception as err:  # SPy raises many types for a bad header or data file
-        raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
-    real(raw.dtype, p, "data type")
-    if not good.all():
-        raw = raw[:, :, good]
-    values = _floating(raw)
-    if ignore is not None:
-        # a float file holds the ignore value at its own precision; an integer file compares exactly
-        values[raw == (raw.dtype.type(ignore) if raw.dtype.kind == "f" else ignore)] = np.nan
-    del raw
-    if scale is not None and scale != 1.0:
-        values /= values.dtype.type(scale)
-    return CubeFile(values, check_wavelengths(w[good], source=str(p), key="wavelength"), bad_nm=w[~good])
+    interleave = str(meta.get("interleave", "bsq")).strip().lower()
+    if interleave not in _INTERLEAVES:
+        raise InputError(f"is {token(interleave)}; ENVI interleaves are bsq, bil and bip", source=p, key="interleave")
+    order = header_int(meta, "byte order", p, minimum=0, default=0)
+    if order > 1:
+        raise InputError(f"must be 0 (little endian) or 1 (big endian), got {order}", source=p, key="byte order")
+    dtype = np.dtype(_ENVI_TYPES[str(meta["data type"]).strip()]).newbyteorder("<" if order == 0 else ">")
+    real(dtype, p, "data type")
+    axes = _INTERLEAVES[interleave]
+    sizes = {"l": layout.lines, "s": layout.samples, "b": layout.bands}
+
+    def read(start: int, stop: int) -> np.ndarray:
+        try:
+            mm = np.memmap(data, dtype=dtype, mode="r", offset=layout.offset, shape=tuple(sizes[a] for a in axes))
+        except (OSError, ValueError) as err:
+            raise InputError(f"cannot read ENVI image ({type(err).__name__})", source=p) from err
+        rows = mm[tuple(slice(start, stop) if a == "l" else slice(None) for a in axes)]
+        rows = rows.transpose(*(axes.index(a) for a in "lsb"))
+        raw = np.asarray(rows[:, :, good] if not good.all() else rows, dtype=dtype.newbyteorder("="))
+        del mm, rows
+        values = _floating(raw)
+        if ignore is not None:
+            # a float file holds the ignore value at its own precision; an integer file compares exactly
+            values[raw == (raw.dtype.type(ignore) if raw.dtype.kind == "f" else ignore)] = np.nan
+        del raw
+        if scale is not None and scale != 1.0:
+            values /= values.dtype.type(scale)
+        return values
+
+    return CubeReader(p, layout.lines, layout.samples, check_wavelengths(w[good], source=str(p), key="wavelength"),
+                      w[~good], read)
