@@ -271,7 +271,8 @@ def test_a_cube_too_large_for_memory_is_refused_before_loading(tmp_path) -> None
         f.create_variable("reflectance", ("y", "x", "wavelength"), np.float32, chunks=(100, 100, 211))
     text = ('[scene]\nname = "cube"\n[surface]\ncube = "big.nc"\ngsd_m = 10\nquantity = "reflectance"\n'
             "[effects]\natmosphere = true\n")
-    out, mb = peak_rss_mb("simulate", "-q", str(scene(tmp_path, text)), "-o", "out", cwd=tmp_path)
+    out, mb = peak_rss_mb("simulate", "-q", str(scene(tmp_path, text)), "-o", "out", "--max-memory", "1G",
+                          cwd=tmp_path)  # a file streams by rows: refused when not even one block of rows fits
     one_line_error(out, "s.toml: surface.cube:", "16,000,000 pixels × 211 wavelengths", "crop the cube")
     assert mb < 1000 and not (tmp_path / "out").exists()
 

@@ -132,7 +132,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     (:mod:`s2cl.app.image_analysis`)."""
     from s2cl.app.image_quicklook import write_quicklook
     from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import load_scene_cube, scene_cube_size, simulate_cube
+    from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
     from s2cl.io.budget import BASELINE_BYTES
     from s2cl.io.image_store import NetcdfStore
     from s2cl.io.outdir import claim
@@ -144,9 +144,10 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
                    f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")
+    rows, cols, wavelengths = scene_cube_shape(sc)  # and one block of rows must fit before it is read
+    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths)
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
-    block_rows = cube_block_rows(sc, budget, cube.rows, cube.cols, wavelengths)
     require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * CUBE_DISK_BYTES_PER_BAND * sc.sensor.size
                  + 2e6)
     warnings = report(checked.caveats)

@@ -159,6 +159,17 @@ def scene_cube_size(scene: Scene) -> tuple[int, int]:
     return cube_size(scene.resolve(cube))
 
 
+def scene_cube_shape(scene: Scene) -> tuple[int, int, int]:
+    """(rows, cols, wavelengths held per pixel in its file) of the scene's cube from its metadata only (a generated
+    cube: 0 wavelengths)."""
+    cube = scene.spec.surface.cube
+    assert cube is not None
+    if is_builtin_cube(cube):
+        return (*fields_shape(cube, source=scene.source), 0)
+    reader = open_cube(scene.resolve(cube), scene.spec.surface.variable)
+    return reader.rows, reader.cols, reader.wavelengths_nm.size + reader.bad_nm.size
+
+
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                     wavelengths_nm: np.ndarray | None = None) -> SceneCube:
     """The scene's ``surface.cube`` file (or ``cube`` given in memory: NaN marks no data) loaded onto the
