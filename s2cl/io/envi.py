@@ -1,11 +1,12 @@
-"""ENVI headers, checked before SPy reads any data: the one place that says which header key lies.
+"""ENVI headers, checked before any data is read: the one place that says which header key lies.
 
 An ENVI file pair is a text header (``.hdr``) and a raw data file. SPy trusts the header: a header that
 declares more data than the file holds, a complex data type, or a count written as ``2e1`` ends in a
 bare ``ValueError`` deep inside SPy or numpy. :func:`envi_layout` reads the header's layout keys strictly,
 names the key at fault, and checks the data file's size against them; :func:`envi_data_file` finds the
 data file as SPy would and refuses anything that is not a regular file (a FIFO would block forever).
-Used by spectral libraries (:mod:`s2cl.libraries.files`) and image cubes (:mod:`s2cl.forward.cube`).
+Used by spectral libraries (:mod:`s2cl.libraries.files`, read by SPy) and image cubes (:mod:`s2cl.io.cubes`, whose
+rows are read through a memory map of the data file).
 """
 
 from __future__ import annotations
