@@ -13,11 +13,7 @@ Template variables
   regress    status codes whose index enters the regression (regression)
   condition  bool: the median condition code is wanted (IGRM)
   n_classes  classes (classification)
-  select     "radix" | "quickselect": how the median of |r| is selected (regression; same values)
-  scratch_extra   doubles of `scratch` per configuration after its n_pixels |r| (radix: the histogram)
   args, signature  the argument specs (s2cl.sweep.metrics_kernel.ARGS) and the function writing them
-Arguments: out [n_configs][len(names)], scratch [n_configs][n_pixels + scratch_extra] (regression), the sweep
-  kernel's index, status, bounds, condition [n_configs][pitch], target [n_pixels], n_configs.
 Regression (one work-item = one configuration, three passes over its pixels):
   1. counts per status and of pixels on a bound; sums of the index over the regression's pixels (valid:
      status in `regress` and a finite index) and over those not on a bound; the condition-code histogram
@@ -25,10 +21,7 @@ Regression (one work-item = one configuration, three passes over its pixels):
   2. moments about each subset's mean: v = x - mean, sums of v^1..4, y, y v, y v^2, y^2;
   3. residuals of the conditioned quadratic (index centred and scaled by its standard deviation, 3 x 3
      normal equations, Gaussian elimination with partial pivoting): the sum of squares, and |r| into
-     `scratch` for the median (the mean of the two middle values for an even count), selected exactly by
-     `select`: "radix" (default: most significant digit first over the bit patterns, which order as the
-     values for non-negative doubles; a few passes with predictable branches) or "quickselect" (Hoare
-     partition; kept for bench/sweep_profile.py's before/after). Both give the same order statistics.
+     `scratch` for the median (quickselect; the mean of the two middle values for an even count).
   A configuration whose normal equations are singular (fewer than three distinct index values) or
   that has fewer than 3 regression pixels is marked in `host`: the host recomputes it with numpy
   (the pseudo-inverse solution), so edge cases have one definition.
@@ -44,7 +37,6 @@ Output: out[c * len(names) + k], double.
 <% K = {name: k for k, name in enumerate(names)} %>
 % if kind == "regression":
 
-% if select == "quickselect":
 /* k-th smallest of a[0..n) (n > k), partially sorting a in place: Hoare partition, median of three */
 static double s2_select(__global double *a, uint n, uint k)
 {
@@ -71,49 +63,6 @@ static double s2_select(__global double *a, uint n, uint k)
     return a[k];
 }
 
-% else:
-/* k-th smallest (0-based, n > k) of the non-negative doubles a[0..n), exactly, without moving them: their bit
-   patterns order as their values, so the digits are read most significant first (11 bits: the exponent first,
-   then the mantissa), each pass counting the keys that share the digits found so far into hist (2048 counts:
-   global memory, as a work-group of such arrays in private memory overflows PoCL's stacks). *less: keys below. */
-static double s2_select(__global const double *a, uint n, uint k, uint *less, double *below_max,
-                        __global uint *hist)
-{
-    ulong prefix = 0, mask = 0;
-    uint below = 0, rank = k;
-    for (int shift = 52; ; shift = shift > 11 ? shift - 11 : 0) {
-        const int width = shift == 0 ? 8 : 11;
-        const uint bins = 1u << width;
-        for (uint b = 0; b < bins; ++b) hist[b] = 0;
-        for (uint i = 0; i < n; ++i) {
-            const ulong key = as_ulong(a[i]);
-            if ((key & mask) == prefix)
-                hist[(uint)(key >> shift) & (bins - 1u)] += 1;
-        }
-        uint bin = 0;
-        while (rank >= hist[bin]) { rank -= hist[bin]; below += hist[bin]; ++bin; }
-        prefix |= (ulong)bin << shift;
-        mask |= (ulong)(bins - 1u) << shift;
-        if (hist[bin] == 1 || shift == 0) {
-            /* the key with this prefix (every digit read: all keys with it are equal), and the largest key
-               below it (-1 when none) in the same pass */
-            ulong hit = prefix, lower = 0;
-            int any = 0;
-            for (uint i = 0; i < n; ++i) {
-                const ulong key = as_ulong(a[i]);
-                hit = (key & mask) == prefix ? key : hit;
-                const int lt = key < prefix;
-                lower = (lt && (!any || key > lower)) ? key : lower;
-                any |= lt;
-            }
-            *less = below;
-            *below_max = any ? as_double(lower) : -1.0;
-            return as_double(hit);
-        }
-    }
-}
-
-% endif
 /* solve the symmetric 3 x 3 system m c = b by Gaussian elimination with partial pivoting; 0 if singular */
 static int s2_solve3(double m[9], double b[3], double c[3])
 {
@@ -170,7 +119,7 @@ __kernel void regression_metrics(
     if (c >= n_configs)
         return;
     const size_t row = (size_t)c * ${pitch}u;
-    __global double *res = scratch + (size_t)c * ${n_pixels + scratch_extra}u;
+    __global double *res = scratch + (size_t)c * ${n_pixels}u;
     uint count[6] = {0, 0, 0, 0, 0, 0};
     uint n = 0, nu = 0, nb = 0;
     double sx = 0.0, sxu = 0.0;
@@ -231,11 +180,7 @@ __kernel void regression_metrics(
             const double u = (x - x0) / k;
             const double r = y - coef[0] - coef[1] * u - coef[2] * u * u;
             ss += r * r;
-% if select == "quickselect":
             res[j++] = r < 0.0 ? -r : r;
-% else:
-            res[j++] = as_double(as_ulong(r) & 0x7fffffffffffffffUL);  /* |r|, and +0 for -0 */
-% endif
             if (bounds[row + p] == 0) {
                 const double w = (x - x0u) / ku;
                 const double ru = y - coefu[0] - coefu[1] * w - coefu[2] * w * w;
@@ -246,7 +191,6 @@ __kernel void regression_metrics(
     double median = NAN;
     if (n) {
         const uint mid = n / 2;
-% if select == "quickselect":
         const double upper = s2_select(res, n, mid);
         if (n % 2) {
             median = upper;
@@ -255,14 +199,6 @@ __kernel void regression_metrics(
             for (uint q = 1; q < mid; ++q) lower = res[q] > lower ? res[q] : lower;
             median = 0.5 * (lower + upper);
         }
-% else:
-        uint less;
-        double below_max;
-        const double upper = s2_select(res, n, mid, &less, &below_max, (__global uint *)(res + ${n_pixels}u));
-        /* even count: the (mid-1)-th smallest is upper itself when a copy of it ranks below mid, else the
-           largest value below it */
-        median = (n % 2) ? upper : 0.5 * ((less == mid ? below_max : upper) + upper);
-% endif
     }
     const double npx = (double)${n_pixels};
     __global double *o = out + (size_t)c * ${len(names)}u;

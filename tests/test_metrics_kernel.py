@@ -58,22 +58,21 @@ def test_device_metrics_equal_numpy_on_an_igrm_sweep(fp64) -> None:
 
 
 def _synthetic(rt, T, rows: dict[str, np.ndarray], target: np.ndarray, analysis: AnalysisSettings,
-               n_classes: int = 0, select: str = "radix") -> tuple[dict, dict]:
+               n_classes: int = 0) -> tuple[dict, dict]:
     n, m = rows["index"].shape
     pitch = m + 3  # rows padded, as the sweep kernel pads them
     pad = {k: np.zeros((n, pitch), dtype=v.dtype) for k, v in rows.items()}
     for k, v in rows.items():
         pad[k][:, :m] = v
     buffers = {k: rt.to_device(np.ascontiguousarray(v.astype(T.dtype) if k == "index" else v)) for k, v in pad.items()}
-    kernel = MetricsKernel(rt, T, analysis, target, pitch, n_classes, select=select)
+    kernel = MetricsKernel(rt, T, analysis, target, pitch, n_classes)
     raw = RawChunk(0, n, rows["index"], rows["status"], rows["bounds"], rows["condition"])
     dev = kernel(buffers, n, lambda sel: RawChunk(0, n, *(rows[k][sel] for k in ("index", "status", "bounds",
                                                                                     "condition"))))
     return host_metrics(analysis, raw, target, n_classes), dev
 
 
-@pytest.mark.parametrize("select", ["radix", "quickselect"])
-def test_hard_rows_regression(fp64, select: str) -> None:
+def test_hard_rows_regression(fp64) -> None:
     rng = np.random.default_rng(3)
     m = 61
     target = rng.uniform(10, 90, m)
@@ -95,41 +94,10 @@ def test_hard_rows_regression(fp64, select: str) -> None:
     rows = {"index": index, "status": status, "bounds": bounds, "condition": condition}
     for real_t in ("float32", "float64"):
         host, dev = _synthetic(fp64, fp64.types(real_t, 1), {**rows, "index": index.astype(real_t)}, target,
-                               AnalysisSettings("igrm", "cab"), select=select)
+                               AnalysisSettings("igrm", "cab"))
         _agree(host, dev)
     assert np.isnan(dev["rms"][2]) and dev["n_valid"][2] == 0 and dev["constant_index"][1]
     assert np.isnan(dev["rms_unbounded"][6])
-
-
-@pytest.mark.parametrize("m", [1, 2, 3, 4, 5, 64, 257])
-def test_median_selections_agree_exactly(fp64, m: int) -> None:
-    """Both median selections give numpy's median of |residual| bit for bit (robust_rms), on odd and even
-    counts, with ties (an index on a coarse grid), repeated values spanning several exponents and both
-    middle values equal or not."""
-    rng = np.random.default_rng(m)
-    target = rng.uniform(10, 90, m)
-    index = np.stack([700 + 0.3 * (target - 50) + rng.normal(0, 1, m),
-                      np.round(700 + 0.3 * (target - 50) + rng.normal(0, 2, m)),
-                      700 + 0.3 * (target - 50) * 10.0 ** rng.integers(-6, 3, m),
-                      np.full(m, 700.0) + (np.arange(m) % 2)])
-    n = index.shape[0]
-    rows = {"index": index, "status": np.full((n, m), Status.OK, np.uint8), "bounds": np.zeros((n, m), np.uint8),
-            "condition": np.zeros((n, m), np.uint8)}
-    T = fp64.types("float64", 1)
-    got = {s: _synthetic(fp64, T, rows, target, AnalysisSettings("igrm", "cab"), select=s) for s in ("radix",
-                                                                                                      "quickselect")}
-    for host, dev in got.values():
-        np.testing.assert_array_equal(np.isnan(dev["robust_rms"]), np.isnan(host["robust_rms"]))
-        fit = host["robust_rms"] > 1e-8  # not an exact fit, whose residuals are rounding noise
-        np.testing.assert_allclose(dev["robust_rms"][fit], host["robust_rms"][fit], rtol=TOL)
-    np.testing.assert_array_equal(got["radix"][1]["robust_rms"], got["quickselect"][1]["robust_rms"])
-
-
-def test_unknown_median_selection_is_refused(fp64) -> None:
-    from s2cl.errors import InputError
-
-    with pytest.raises(InputError, match="median selection"):
-        MetricsKernel(fp64, fp64.types("float64", 1), AnalysisSettings("igrm", "cab"), np.zeros(3), 3, select="sort")
 
 
 def test_hard_rows_classification(fp64) -> None:

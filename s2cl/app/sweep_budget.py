@@ -11,8 +11,7 @@ over all slots, ``G`` grid wavelengths, ``C`` configurations per chunk):
 - the common random numbers ``z`` (float64 on the host, float32 on the device) and the target:
   ``(12 · S + 16) · P``, plus the Philox work arrays of one slot while they are drawn (``160 · P``);
 - per configuration-pixel of a chunk: the kernel's outputs with their host copies (``28``), and the metrics'
-  work arrays: float64 scratch on the device (:data:`METRICS_SCRATCH_BYTES`, and
-  :data:`METRICS_SCRATCH_BYTES_PER_CONFIG` per configuration) when the metrics run there (a
+  work arrays: float64 scratch on the device (:data:`METRICS_SCRATCH_BYTES`) when the metrics run there (a
   device with float64, one process), else the numpy metrics' float64 work arrays on the host
   (:data:`s2cl.sweep.engine.HOST_BYTES_PER_EVALUATION`; Dask workers and devices without float64);
   per configuration of a chunk, its row of results twice (the chunk file and the merge into
@@ -36,7 +35,6 @@ from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import BandGrid, BandRange
 from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BYTES_PER_VARIANT
 from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION, results_disk_bytes
-from s2cl.sweep.metrics_kernel import SCRATCH_EXTRA
 
 KERNEL_BYTES_PER_EVALUATION = 28
 PHILOX_BYTES_PER_PIXEL = 160
@@ -44,8 +42,6 @@ PER_PIXEL_SLOT = 12
 PER_PIXEL = 16
 #: float64 scratch per configuration-pixel of the metrics kernel (kernels/metrics.cl.mako: the median's copy)
 METRICS_SCRATCH_BYTES = 8
-#: and per configuration (the radix selection's histogram after its pixels)
-METRICS_SCRATCH_BYTES_PER_CONFIG = 8 * SCRATCH_EXTRA["radix"]
 #: a chunk's work arrays at most (auto chunk): larger chunks run faster (the time per configuration against the
 #: chunk: bench/results/sweep-chunks-*.json, python -m bench.bench_sweep --skip-dask --chunks A,B,C)
 AUTO_CHUNK_BYTES = 1e9
@@ -94,7 +90,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     held = fixed + copies * per_copy  # through the whole run; then the chunks' arrays, then the report
     metrics = HOST_BYTES_PER_EVALUATION if host_metrics else METRICS_SCRATCH_BYTES
     per_evaluation = KERNEL_BYTES_PER_EVALUATION + metrics
-    per_config = pixels * per_evaluation + 16.0 * columns + (0 if host_metrics else METRICS_SCRATCH_BYTES_PER_CONFIG)
+    per_config = pixels * per_evaluation + 16.0 * columns
 
     def need(n: int) -> float:
         return held + max(n * per_config, report)

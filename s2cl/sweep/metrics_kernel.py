@@ -17,7 +17,6 @@ from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
-from s2cl.errors import InputError
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.sweep.raw import RawChunk
@@ -31,10 +30,6 @@ CLASSIFICATION = ("omission_error_pct", "overall_accuracy_pct", "unclassified_fr
 ARGS = (Arg("out", "out", "double"), Arg("scratch", "inout", "double"), Arg("index", "in", "real"),
         Arg("status", "in", "uchar"), Arg("bounds", "in", "uchar"), Arg("condition", "in", "uchar"),
         Arg("target", "in", "double"), Arg("n_configs", "scalar", "uint"))
-#: the median selections of kernels/metrics.cl.mako: "radix" (the default), "quickselect" (bench/sweep_profile.py)
-SELECT = ("radix", "quickselect")
-#: doubles of scratch per configuration beyond its pixels, by selection (radix: a histogram of 2048 uint counts)
-SCRATCH_EXTRA = {"radix": 1024, "quickselect": 0}
 
 
 class MetricsKernel:
@@ -42,25 +37,19 @@ class MetricsKernel:
 
     :param T: the sweep kernel's types (the index arrives in its precision).
     :param target: per-pixel regression target, or SAM truth class (``(n_pixels,)``).
-    :param select: how the median absolute residual is selected (:data:`SELECT`; the same value either way).
     """
 
     def __init__(self, rt: Runtime, T: VecTypes, analysis: AnalysisSettings, target: np.ndarray, pitch: int,
-                 n_classes: int = 0, *, select: str = "radix"):
-        if select not in SELECT:
-            raise InputError(f"unknown median selection {select!r}; allowed: {', '.join(SELECT)}", key="select")
+                 n_classes: int = 0):
         self.rt, self.T, self.analysis, self.pitch = rt, T, analysis, pitch
         self.classify = analysis.family.metric == "classification"
         self.names = CLASSIFICATION if self.classify else REGRESSION
         self.condition = analysis.family.has_condition
         self.n_pixels = int(np.asarray(target).size)
         self.n_classes = n_classes
-        self.row_doubles = self.n_pixels + SCRATCH_EXTRA[select]
         source = render(TEMPLATE, T=T, kind="classification" if self.classify else "regression", names=self.names,
                         n_pixels=self.n_pixels, pitch=pitch, regress=tuple(int(r) for r in analysis.regress),
-                        condition=self.condition, n_classes=n_classes, select=select,
-                        scratch_extra=SCRATCH_EXTRA[select], args=ARGS,
-                        signature=signature)
+                        condition=self.condition, n_classes=n_classes, args=ARGS, signature=signature)
         program = rt.build(source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "classification_metrics" if self.classify else "regression_metrics")
         self.target = np.ascontiguousarray(target, dtype=np.float64)
@@ -77,7 +66,7 @@ class MetricsKernel:
         host's recomputation of marked ones."""
         rt, width = self.rt, len(self.names)
         values = {"out": rt.alloc(n_configs * width * 8), "target": self._target_d, "n_configs": n_configs,
-                  "scratch": rt.alloc(max(1, 0 if self.classify else n_configs * self.row_doubles) * 8),
+                  "scratch": rt.alloc(max(1, 0 if self.classify else n_configs * self.n_pixels) * 8),
                   **{k: buffers[k] for k in ("index", "status", "bounds", "condition")}}
         self.kernel(rt.queue, (n_configs,), None, *bind(ARGS, values, self.T))
         table = rt.fetch(values["out"], (n_configs, width), np.float64)
