@@ -166,13 +166,17 @@ def throughput() -> str:
     """The fused sweep kernel against the numpy twin, evaluations per second."""
     r = _load(THROUGHPUT_JSON)
     o, n, w = r["opencl"], r["numpy"], r["whole_sweep_extrapolated"]
+    chunk_rate = o["evaluations"] / o["evaluate_chunk_s"]
+    opencl_s = o["evaluate_chunk_s"] / o["configurations"] * r["configurations"]
     rows = [(f"fused kernel ({o['precision']}, {o['lanes']} lanes), {o['configurations']:,} configurations",
              f"{o['kernel_evaluations_per_s'] / 1e6:.3g} M", ""),
-            ("+ per-configuration metrics on the device", f"{o['with_metrics_evaluations_per_s'] / 1e6:.3g} M",
-             f"{w['opencl_s']:.0f} s"),
+            ("+ per-configuration metrics in numpy on the host (Dask workers, devices without float64)",
+             f"{o['with_metrics_evaluations_per_s'] / 1e6:.3g} M", ""),
+            ("`evaluate_chunk` as a sweep runs it: + metrics on the device, rows", f"{chunk_rate / 1e6:.3g} M",
+             f"{opencl_s:.0f} s"),
             (f"numpy twin ({n['what']}), {len(n['sample_configurations'])} configurations, extrapolated",
              f"{n['evaluations_per_s'] / 1e6:.3g} M", f"{w['numpy_s']:,.0f} s"),
-            ("**ratio**", f"**{r['ratio_kernel']:.0f}×** (kernel)", f"**{w['ratio']:.0f}×**")]
+            ("**ratio**", f"**{r['ratio_kernel']:.0f}×** (kernel)", f"**{w['numpy_s'] / opencl_s:.0f}×**")]
     v = r["validation"]
     return (md_table(("", "evaluations/s", f"whole {r['scene']}, extrapolated"), rows)
             + f"\n\nChecked first ({v['criterion']}): the same status for {100 * v['same_status_fraction']:.2f} % of "
@@ -208,6 +212,7 @@ def sweep_profile() -> str:
     table2 = md_table(("on the block", "seconds (median)", "evaluations or fits per s"),
                       [(w, f"{sec[k]:.3g}", f"{rate[k] / 1e6:.3g} M" if k in rate else "") for w, k in timed])
     same = r["same_pixels"]
+    order = its["sweep_sample"]["pixel_order"]
     return (f"{r['scene']}: {r['configurations']:,} configurations × {r['pixels']:,} pixels, {r['precision']}, "
             f"{r['lanes']} lanes. The {r['lanes']} pixels of a work-item iterate in lock-step until the slowest "
             f"stops, so each fit pays its group's maximum; lane use = mean ÷ paid iterations.\n\n{table1}\n\n"
@@ -229,7 +234,10 @@ def sweep_profile() -> str:
             f"predicts {cm['standalone_population_predicted_s']:.3g} s for it, measured "
             f"{cm['standalone_population_measured_s']:.3g} s. Over the whole sweep the lane use is "
             f"{100 * f['sweep_sample_lane_use']:.0f} %: lanes refilled the moment their fit stops, at no cost, would "
-            f"make the kernel at most {f['perfect_lane_use_speedup_bound']:.2f}× faster.\n\n"
+            f"make the kernel at most {f['perfect_lane_use_speedup_bound']:.2f}× faster. Grouping the pixels by their "
+            f"mean iterations in other designs gives {100 * order['sorted_by_other_designs']:.0f} % (their own order "
+            f"{100 * order['natural']:.0f} %, by each design's own iterations, known only after the fit, "
+            f"{100 * order['sorted_by_own_iterations']:.0f} %; {order['rows']} sampled designs).\n\n"
             f"From `{_rel(SWEEP_PROFILE_JSON)}` (written by `python -m bench.sweep_profile`; {_machine(r)}; "
             f"{r['load_note']}).")
 

@@ -21,7 +21,7 @@ Template variables
   analysis_functions, analysis_body   the analysis family's OpenCL C (s2cl.retrieve.family.Family.sweep_code):
              its device functions, and the body that reads rho[k], x[k] (and cfg) and sets value, st, bd, code
   profile    set of profile switches (s2cl.sweep.kernel.PROFILES; empty in every sweep, where they compile out):
-             iterations   the condition output carries the fit's iterations (`it` of the IGRM body) instead
+             iterations   the condition output carries the IGRM fit's iterations (`it`, modulo 256), not the code
              reflectance  extra output rho_out [n_configs][n_slots][pitch]: the corrected reflectance per slot
              no_fit       the analysis is replaced by value = the sum of rho[k] x[k] (st = bd = code = 0)
              fit_only     rho[k] read from the extra input rho_in (layout of rho_out): no gather, noise,
