@@ -27,3 +27,16 @@ def test_pixel_orders_bound_and_pilot() -> None:
     o = pixel_orders(it, lanes=2)
     assert o["rows"] == 2 and o["sorted_by_own_iterations"] == pytest.approx(o["sorted_by_other_designs"])
     assert o["natural"] < o["sorted_by_own_iterations"] <= 1.0
+
+
+def test_refill_model_reduces_to_lock_step_and_wins_on_spread() -> None:
+    from bench.sweep_profile import refill_cost
+
+    rng = np.random.default_rng(1)
+    it = rng.integers(0, 30, 64)
+    groups = it.reshape(-1, 4).max(axis=1)
+    assert refill_cost(it, lanes=4, free=4, fixed=1.5) == pytest.approx(groups.sum() + 1.5 * groups.size)
+    # one long fit among short ones: refilled lanes keep fitting while it runs
+    it = np.array([20, 1, 1, 1, 1, 1, 1, 1])
+    assert refill_cost(it, lanes=4, free=3, fixed=0.0) == 20
+    assert refill_cost(it, lanes=4, free=4, fixed=0.0) == 21
