@@ -207,7 +207,10 @@ def sweep_profile() -> str:
              ("standalone IGRM kernel on the same reflectances, a launch per configuration", "standalone_same_pixels"),
              ("as many launches of one lane group (their cost)", "standalone_empty_launches"),
              ("metrics as the sweep calls them (kernel, fetch, rows the host recomputes)", "metrics"),
+             ("metrics kernel alone, work-groups named (`Runtime.local_size`)", "metrics_kernel"),
+             ("metrics kernel alone, work-groups left to the driver", "metrics_kernel_driver_groups"),
              ("`evaluate_chunk` (kernel, metrics, rows)", "evaluate_chunk"),
+             ("`evaluate_chunk`, the metrics' work-groups left to the driver", "evaluate_chunk_driver_groups"),
              ("standalone IGRM kernel, bench_igrm's population", "standalone_population")]
     table2 = md_table(("on the block", "seconds (median)", "evaluations or fits per s"),
                       [(w, f"{sec[k]:.3g}", f"{rate[k] / 1e6:.3g} M" if k in rate else "") for w, k in timed])
@@ -227,7 +230,10 @@ def sweep_profile() -> str:
             f"{100 * f['fixed_work_share']:.1f} % and the paid iterations the rest "
             f"({cm['per_lane_group_iteration_ns']:,.0f} ns per lane-group iteration; fixed work "
             f"{cm['fixed_in_iterations']:.1f} iterations' worth); the metrics take "
-            f"{100 * f['metrics_share_of_chunk']:.1f} % of a chunk. The standalone fit runs "
+            f"{100 * f['metrics_share_of_chunk']:.1f} % of a chunk. Left to the driver, the metrics kernel's "
+            f"work-groups make one group of every configuration, which PoCL runs on one core: "
+            f"{f['metrics_kernel_driver_over_named_groups']:.2f}× the time of named groups, "
+            f"{f['evaluate_chunk_driver_over_named_groups']:.2f}× for the whole chunk. The standalone fit runs "
             f"{f['population_over_fused']:.2f}× the fused rate on its own population because each of its fits "
             f"pays {f['paid_iterations_ratio']:.2f}× fewer iterations ({f['iterations_ratio']:.2f}× fewer, at "
             f"{f['lane_use_ratio']:.2f}× the lane use); at the block's costs per iteration and per group the model "

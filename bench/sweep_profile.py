@@ -16,8 +16,9 @@ every sweep):
   a lane group, initial guess and verdict, and one iteration); the fit alone from the block's stored
   reflectances (``fit_only``); the standalone IGRM kernel (kernels/igrm.cl.mako) on the same reflectances, one
   launch per configuration (and the cost of as many one-group launches); the metrics kernel on the block's
-  outputs as the sweep calls it; ``evaluate_chunk`` (kernel, metrics, rows); the standalone kernel on
-  ``bench.bench_igrm``'s population;
+  outputs, alone with its named work-groups and with the driver's (one group of every configuration, which
+  PoCL runs on one core), and as the sweep calls it; ``evaluate_chunk`` (kernel, metrics, rows), also with the
+  driver's work-groups; the standalone kernel on ``bench.bench_igrm``'s population;
 - from these, a cost model per lane group (outside the fit + fixed work + paid iterations × the cost of one),
   whose prediction of the population's time (from its paid iterations) is set beside the measured one.
 
@@ -38,6 +39,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import numpy as np
 
@@ -55,6 +57,7 @@ from bench.common import (
 from bench.sweep_check import validate_sweep
 from s2cl.app import plan
 from s2cl.app.plan import plan_sweep
+from s2cl.cl.kernel_args import bind
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.reference.igrm_cases import BANDS_4, band_centres, prosail_population
 from s2cl.retrieve.family import AnalysisSettings
@@ -63,6 +66,7 @@ from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
 from s2cl.sweep.kernel import SweepKernel
+from s2cl.sweep.metrics_kernel import ARGS as METRICS_ARGS
 from s2cl.sweep.metrics_kernel import MetricsKernel
 from s2cl.sweep.raw import variant_indices
 from s2cl.sweep.tables import SweepTables
@@ -190,6 +194,33 @@ def run_all(rt: Runtime, fitter: IgrmFitter, launches: list[dict[str, Any]]) -> 
     return run
 
 
+def metrics_launch(rt: Runtime, metrics: MetricsKernel, out: dict[str, Any], n: int, named: bool
+                   ) -> Callable[[], None]:
+    """The metrics kernel alone on the sweep kernel's outputs ``out`` (``n`` configurations), launched with the
+    work-groups :meth:`MetricsKernel.__call__` names (``named``) or with the driver's choice."""
+    values = {"out": rt.alloc(n * len(metrics.names) * 8), "target": metrics._target_d, "n_configs": n,
+              "scratch": rt.alloc(n * metrics.n_pixels * 8),
+              **{k: out[k] for k in ("index", "status", "bounds", "condition")}}
+    args = bind(METRICS_ARGS, values, metrics.T)
+    local = rt.local_size(metrics.kernel, n) if named else None
+
+    def run() -> None:
+        metrics.kernel(rt.queue, (n,), local, *args)
+        rt.finish()
+
+    return run
+
+
+def driver_groups(fn: Callable[[], Any]) -> Callable[[], Any]:
+    """``fn`` with every 1-D launch of named work-groups left to the driver instead (:meth:`Runtime.local_size`
+    returning None): the sweep chunk as it ran before its metrics named their work-groups."""
+    def run() -> Any:
+        with mock.patch.object(Runtime, "local_size", lambda self, kernel, size: None):
+            return fn()
+
+    return run
+
+
 def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int = 0) -> dict[str, Any]:
     """The profile of the module's docstring for the IGRM sweep ``scene_name``: ``n_block`` configurations timed
     from a third of the way in (as ``bench.bench_sweep``), ``n_sample`` drawn with ``seed`` for the iterations,
@@ -285,7 +316,10 @@ def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int
         "fused_fit_only": launch(fit_only, {"rho_in": rho_d}),
         "standalone_same_pixels": run_all(rt, fitter, same), "standalone_empty_launches": run_all(rt, fitter, empty),
         "metrics": lambda: metrics(out_full, n, fetch_rows),
+        "metrics_kernel": metrics_launch(rt, metrics, out_full, n, named=True),
+        "metrics_kernel_driver_groups": metrics_launch(rt, metrics, out_full, n, named=False),
         "evaluate_chunk": lambda: evaluate_chunk(job, lo, hi),
+        "evaluate_chunk_driver_groups": driver_groups(lambda: evaluate_chunk(job, lo, hi)),
         "standalone_population": run_all(rt, fitter, [pop_v])}
     seconds = dict(zip(contenders, interleaved_medians(list(contenders.values()), repeat=repeat, warmup=1),
                        strict=True))
@@ -296,6 +330,7 @@ def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int
             "standalone_same_pixels_less_launches": e / max(seconds["standalone_same_pixels"]
                                                             - seconds["standalone_empty_launches"], 1e-9),
             "evaluate_chunk": e / seconds["evaluate_chunk"],
+            "evaluate_chunk_driver_groups": e / seconds["evaluate_chunk_driver_groups"],
             "standalone_population": POPULATION / seconds["standalone_population"]}
     result["rates_per_s"] = rate
     it_block, it_pop = result["iterations"]["timed_block"], result["iterations"]["standalone_population"]
@@ -322,6 +357,8 @@ def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int
         "iterations_share": groups * paid * per_iteration / seconds["fused"],
         "metrics_share_of_chunk": seconds["metrics"] / seconds["evaluate_chunk"],
         "host_share_of_chunk": 1 - (seconds["fused"] + seconds["metrics"]) / seconds["evaluate_chunk"],
+        "metrics_kernel_driver_over_named_groups": seconds["metrics_kernel_driver_groups"] / seconds["metrics_kernel"],
+        "evaluate_chunk_driver_over_named_groups": seconds["evaluate_chunk_driver_groups"] / seconds["evaluate_chunk"],
         "population_over_fused": rate["standalone_population"] / rate["fused"],
         "iterations_ratio": it_block["mean"] / it_pop["mean"],
         "lane_use_ratio": it_pop["lane_use"] / it_block["lane_use"],
