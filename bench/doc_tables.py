@@ -231,7 +231,7 @@ def sweep_profile() -> str:
             f"({cm['per_lane_group_iteration_ns']:,.0f} ns per lane-group iteration; fixed work "
             f"{cm['fixed_in_iterations']:.1f} iterations' worth); the metrics take "
             f"{100 * f['metrics_share_of_chunk']:.1f} % of a chunk. Left to the driver, the metrics kernel's "
-            f"work-groups make one group of every configuration, which PoCL runs on one core: "
+            f"work-groups make one group of all the configurations, which one PoCL thread runs alone: "
             f"{f['metrics_kernel_driver_over_named_groups']:.2f}× the time of named groups, "
             f"{f['evaluate_chunk_driver_over_named_groups']:.2f}× for the whole chunk. The standalone fit runs "
             f"{f['population_over_fused']:.2f}× the fused rate on its own population because each of its fits "

@@ -16,8 +16,8 @@ every sweep):
   a lane group, initial guess and verdict, and one iteration); the fit alone from the block's stored
   reflectances (``fit_only``); the standalone IGRM kernel (kernels/igrm.cl.mako) on the same reflectances, one
   launch per configuration (and the cost of as many one-group launches); the metrics kernel on the block's
-  outputs, alone with its named work-groups and with the driver's (one group of every configuration, which
-  PoCL runs on one core), and as the sweep calls it; ``evaluate_chunk`` (kernel, metrics, rows), also with the
+  outputs, alone with its named work-groups and with the driver's (one group of all the configurations, which
+  one PoCL thread runs alone), and as the sweep calls it; ``evaluate_chunk`` (kernel, metrics, rows), also with the
   driver's work-groups; the standalone kernel on ``bench.bench_igrm``'s population;
 - from these, a cost model per lane group (outside the fit + fixed work + paid iterations × the cost of one),
   whose prediction of the population's time (from its paid iterations) is set beside the measured one.
