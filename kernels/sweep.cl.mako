@@ -20,6 +20,12 @@ Template variables
   noise, quantise            bools
   analysis_functions, analysis_body   the analysis family's OpenCL C (s2cl.retrieve.family.Family.sweep_code):
              its device functions, and the body that reads rho[k], x[k] (and cfg) and sets value, st, bd, code
+  profile    set of profile switches (s2cl.sweep.kernel.PROFILES; empty in every sweep, where they compile out):
+             iterations   the condition output carries the IGRM fit's iterations (`it`, modulo 256), not the code
+             reflectance  extra output rho_out [n_configs][n_slots][pitch]: the corrected reflectance per slot
+             no_fit       the analysis is replaced by value = the sum of rho[k] x[k] (st = bd = code = 0)
+             fit_only     rho[k] read from the extra input rho_in (layout of rho_out): no gather, noise,
+                          quantise, calibrate or correct
 Arguments (s2cl.sweep.kernel.ARGS)
   index     out [n_configs][pitch] real   igrm: lp (nm); index: its value; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
@@ -78,6 +84,10 @@ __kernel void sweep_configs(
     ${V} rho[${n_slots}];
     ${R} x[${n_slots}];
 % for k in range(n_slots):
+  % if "fit_only" in profile:
+    rho[${k}] = ${vload(f"(rho_in + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")};
+    x[${k}] = centre[${var0[k]}u + (cfg / ${strides[k]}u) % ${counts[k]}u];
+  % else:
     {   /* slot ${k} */
         const uint v = (cfg / ${strides[k]}u) % ${counts[k]}u;
         const uint row = (${row0[k]}u + v) * ${n_spectra}u;
@@ -97,15 +107,36 @@ __kernel void sweep_configs(
         rho[${k}] = s2_correct_${T.suffix}(L, lp[var], g[var], s[var]);
         x[${k}] = centre[var];
     }
+  % endif
+  % if "reflectance" in profile:
+    ${vstore(f"rho[{k}]", f"(rho_out + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")}
+  % endif
 % endfor
     const size_t at = (size_t)c * ${pitch}u + p0;
     {   /* the analysis: its family's body (s2cl.retrieve.family.Family.sweep_code) */
+% if "no_fit" in profile:
+        ${V} value = ${T.vlit(0.0)};
+  % for k in range(n_slots):
+        value += rho[${k}] * x[${k}];
+  % endfor
+        const ${T.M} st = (${T.M})(0), bd = (${T.M})(0);
+        const ${V} code = ${T.vlit(0.0)};
+% else:
 ${analysis_body}
+% endif
+% if "iterations" in profile:
+        const ${T.M} it_out = it;
+  % for l in range(L):
+        condition[at + ${l}] = (uchar)${lane("it_out", l)};
+  % endfor
+% endif
         ${vstore("value", "(index + at)")}
 % for l in range(L):
         status[at + ${l}] = (uchar)${lane("st", l)};
         bounds[at + ${l}] = (uchar)${lane("bd", l)};
+  % if "iterations" not in profile:
         condition[at + ${l}] = (uchar)${lane("code", l)};
+  % endif
 % endfor
     }
 }

@@ -139,3 +139,55 @@ def test_igrm_sweep_sorts_bands_and_flags_coincident_ones_by_condition(rt) -> No
     median = np.median(got.condition, axis=1)
     # measured: 14, 29 and 173 codes (0.7, 1.5 and 8.7 decades)
     assert median[2] >= 140 and median[0] < 60 and median[1] < 60
+
+
+def test_profile_builds_reproduce_the_sweep(rt) -> None:
+    """The profile switches (bench/sweep_profile.py) measure the sweep's own work: the fit from the stored
+    reflectances gives the fused kernel's results bit for bit, and so does the standalone IGRM fit of the same
+    reflectances (bands sorted by centre), whose iteration counts the ``iterations`` build reports."""
+    from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings
+    from s2cl.sweep.raw import variant_indices
+
+    tables, analysis = _igrm_job(copies=5)
+    n, m = tables.n_configs, tables.n_pixels
+    full = SweepKernel(tables, analysis, rt)
+    want = full(0, n)
+
+    def build(*switches: str) -> SweepKernel:
+        return SweepKernel(tables, analysis, rt, profile=frozenset(switches))
+
+    out = build("reflectance")._launch(0, n)
+    rho = rt.fetch(out["rho_out"], (n, tables.n_slots, full.pitch), full.T.dtype)
+    fit_only = build("fit_only")
+    got = fit_only._fetch(fit_only._launch(0, n, {"rho_in": out["rho_out"]}), 0, n)
+    assert np.array_equal(got.index, want.index) and np.array_equal(got.status, want.status)
+    assert np.array_equal(got.condition, want.condition) and np.array_equal(got.bounds, want.bounds)
+    counting = build("iterations")
+    iterations = counting._fetch(counting._launch(0, n), 0, n).condition
+    idx = variant_indices(tables, 0, n)
+    fitter = IgrmFitter(rt, tables.n_slots, IgrmSettings.from_mapping(dict(analysis.igrm)))
+    for c in range(n):
+        centres = np.array([tables.centre[k][idx[c, k]] for k in range(tables.n_slots)])
+        order = np.argsort(centres, kind="stable")
+        r = fitter.fit(np.ascontiguousarray(rho[c][order][:, :m]), centres[order])
+        assert np.array_equal(r.lp, want.index[c]) and np.array_equal(r.status, want.status[c])
+        assert np.array_equal(r.iterations, iterations[c]) and iterations[c].max() > 1
+    stand_in = build("no_fit")._fetch(build("no_fit")._launch(0, n), 0, n)
+    assert np.all(np.isfinite(stand_in.index)) and not stand_in.status.any()
+
+
+@pytest.mark.parametrize("switches", [{"sorting"}, {"no_fit", "fit_only"}])
+def test_profile_switches_are_checked(rt, switches: set[str]) -> None:
+    from s2cl.errors import InputError
+
+    tables, analysis = _igrm_job(copies=1)
+    with pytest.raises(InputError, match="profile switches"):
+        SweepKernel(tables, analysis, rt, profile=frozenset(switches))
+
+
+def test_iterations_switch_needs_the_igrm(rt) -> None:
+    from s2cl.errors import InputError
+
+    job = gvmi_job(copies=1)
+    with pytest.raises(InputError, match="igrm only"):
+        SweepKernel(job.tables, job.analysis, rt, profile=frozenset({"iterations"}))

@@ -146,8 +146,8 @@ class Runtime:
         return int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
 
     def work_group(self, kernel: Any) -> int:
-        """Work-items per group for the light 1-D launches (resampling, sensing, IGRM, SAM, indices; the sweep
-        and metrics kernels keep the driver's choice, which measured no worse for them): the kernel's
+        """Work-items per group for the 1-D launches (resampling, sensing, IGRM, SAM, indices, the sweep's
+        metrics; the 2-D sweep kernel keeps the driver's choice, which measured no worse for it): the kernel's
         preferred work-group size multiple as the device reports it (8 on PoCL CPUs), four of them on other
         devices, never above the kernel's limit. Left to itself, PoCL picks a divisor of the global size,
         which can be poor for awkward sizes: the resampling API ran 3.9 M spectra/s with PoCL's choice

@@ -65,6 +65,8 @@ class Family:
         in a scene is refused.
     :cvar uses_every_band: whether it reads every analysed band (a band addition can only score such families).
     :cvar has_condition: whether the outcome carries condition codes.
+    :cvar iterative: whether its sweep body sets ``it``, the fit's iterations (the sweep profile's
+        ``iterations`` switch reads it).
     :cvar width_matters: whether the design rule depends on band widths.
     :cvar twin: ``"module:function"`` of its numpy twin on a sweep chunk (:mod:`s2cl.reference.families`).
     """
@@ -75,6 +77,7 @@ class Family:
     keys: ClassVar[tuple[str, ...]] = ()
     uses_every_band: ClassVar[bool] = False
     has_condition: ClassVar[bool] = False
+    iterative: ClassVar[bool] = False
     width_matters: ClassVar[bool] = True
     twin: ClassVar[str]
     #: a library parameter it is usually regressed on (examples in messages)

@@ -23,6 +23,16 @@ TABLES = ("radiance", "sigma", "z", "centre", "lp", "g", "s", "refs")
 ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
         Arg("condition", "out", "uchar"), *(Arg(n, "in", "real") for n in TABLES),
         Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
+#: profile builds (the ``profile`` switches of kernels/sweep.cl.mako; bench/sweep_profile.py times them): none
+#: is ever part of a sweep's kernel
+PROFILES = ("iterations", "reflectance", "no_fit", "fit_only")
+#: the extra arguments of the profile switches that have one
+PROFILE_ARGS = {"reflectance": Arg("rho_out", "out", "real"), "fit_only": Arg("rho_in", "in", "real")}
+
+
+def kernel_args(profile: frozenset[str] = frozenset()) -> tuple[Arg, ...]:
+    """The kernel's arguments for a build with the ``profile`` switches (:data:`ARGS` without any)."""
+    return ARGS + tuple(PROFILE_ARGS[p] for p in PROFILES if p in profile and p in PROFILE_ARGS)
 
 
 #: work-items per group at most: PoCL's own choice for few pixels and many configurations (e.g. 8 × 512 items for
@@ -43,7 +53,12 @@ class SweepKernel:
     """The fused per-configuration kernel for one sweep's tables and analysis, on ``rt``'s device."""
 
     def __init__(self, tables: SweepTables, analysis: AnalysisSettings, rt: Runtime, *, precision: str = "float32",
-                 lanes: int | None = None):
+                 lanes: int | None = None, profile: frozenset[str] = frozenset()):
+        unknown = sorted(set(profile) - set(PROFILES))
+        if unknown or ("iterations" in profile and not analysis.family.iterative) or {"no_fit", "fit_only"} <= profile:
+            raise InputError(f"profile switches {sorted(profile)}: allowed {', '.join(PROFILES)} (iterations: an "
+                             "iterative fit only; not no_fit with fit_only)")
+        self.profile, self.args = frozenset(profile), kernel_args(frozenset(profile))
         self.rt = rt
         self.tables, self.analysis = tables, analysis
         self.T = rt.types(precision, lanes)
@@ -60,7 +75,7 @@ class SweepKernel:
                          n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
                          lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
                          noise=t.noise, quantise=t.quantise, analysis_functions=functions, analysis_body=body,
-                         args=ARGS, signature=signature)
+                         profile=self.profile, args=self.args, signature=signature)
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
@@ -91,18 +106,21 @@ class SweepKernel:
         self.tables = tables
         self._upload()
 
-    def _launch(self, start: int, stop: int) -> dict:
-        """Run configurations ``start … stop-1``; their per-pixel outputs stay on the device."""
+    def _launch(self, start: int, stop: int, extra: dict | None = None) -> dict:
+        """Run configurations ``start … stop-1``; their per-pixel outputs stay on the device. ``extra``: the
+        profile switches' buffers (:data:`PROFILE_ARGS`)."""
         n = stop - start
         if n <= 0 or stop > self.tables.n_configs:
             raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
         rt, T, pitch = self.rt, self.T, self.pitch
         out = {"index": rt.alloc(n * pitch * T.dtype.itemsize), "status": rt.alloc(n * pitch),
                "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
-        values = {**out, **self.buffers, "config_start": start, "n_configs": n}
+        if "reflectance" in self.profile:
+            out["rho_out"] = rt.alloc(n * self.tables.n_slots * pitch * T.dtype.itemsize)
+        values = {**out, **self.buffers, **(extra or {}), "config_start": start, "n_configs": n}
         local = work_group(pitch // T.lanes)
         configs = -(-n // local[1]) * local[1]  # the kernel returns for configurations past n_configs
-        self.kernel(rt.queue, (pitch // T.lanes, configs), local, *bind(ARGS, values, T))
+        self.kernel(rt.queue, (pitch // T.lanes, configs), local, *bind(self.args, values, T))
         return out
 
     def _fetch(self, out: dict, start: int, stop: int, rows: np.ndarray | None = None) -> RawChunk:

@@ -68,7 +68,8 @@ class MetricsKernel:
         values = {"out": rt.alloc(n_configs * width * 8), "target": self._target_d, "n_configs": n_configs,
                   "scratch": rt.alloc(max(1, 0 if self.classify else n_configs * self.n_pixels) * 8),
                   **{k: buffers[k] for k in ("index", "status", "bounds", "condition")}}
-        self.kernel(rt.queue, (n_configs,), None, *bind(ARGS, values, self.T))
+        # named work-groups: left to itself, PoCL makes one group of all the configurations, which one thread runs
+        self.kernel(rt.queue, (n_configs,), rt.local_size(self.kernel, n_configs), *bind(ARGS, values, self.T))
         table = rt.fetch(values["out"], (n_configs, width), np.float64)
         rows = {name: table[:, k].copy() for k, name in enumerate(self.names) if name != "host"}
         rows["n_valid"] = rows["n_valid"].astype(np.int64) if "n_valid" in rows else None

@@ -37,6 +37,7 @@ class IgrmFamily(Family):
     keys = ("igrm", "regress")
     uses_every_band = True
     has_condition = True
+    iterative = True
     width_matters = False
     twin = "s2cl.reference.families:igrm"
 
