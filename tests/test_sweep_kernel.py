@@ -189,5 +189,5 @@ def test_iterations_switch_needs_the_igrm(rt) -> None:
     from s2cl.errors import InputError
 
     job = gvmi_job(copies=1)
-    with pytest.raises(InputError, match="igrm only"):
+    with pytest.raises(InputError, match="iterative fit only"):
         SweepKernel(job.tables, job.analysis, rt, profile=frozenset({"iterations"}))
