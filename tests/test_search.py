@@ -81,6 +81,50 @@ def test_lattice_neighbourhoods_stay_in_the_space() -> None:
     assert stride > 1 and 1 <= len(grid) <= 10
 
 
+def test_joint_moves_split_centres_and_widths_above_max_joint(monkeypatch) -> None:
+    """Above MAX_JOINT designs the joint move shifts all centres together and all widths together (2 · 3 ** bands),
+    never a centre and a width at once; below it, both at once (3 ** (2 · bands))."""
+    job = _job()
+    lat = Lattice(job)
+    inner = variant_indices(job.tables, job.n_configs // 2, job.n_configs // 2 + 1)[0]
+    n = len(lat.slots)
+    ci = np.array([sl.ci[v] for sl, v in zip(lat.slots, inner, strict=True)])
+    wi = np.array([sl.wi[v] for sl, v in zip(lat.slots, inner, strict=True)])
+
+    def shifts(designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dc = np.stack([lat.slots[k].ci[designs[:, k]] - ci[k] for k in range(n)], axis=1)
+        dw = np.stack([lat.slots[k].wi[designs[:, k]] - wi[k] for k in range(n)], axis=1)
+        return dc, dw
+
+    both = lat.joint_moves(inner, 1)
+    dc, dw = shifts(both)
+    assert ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
+    monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 3 ** (2 * n) - 1)
+    split = lat.joint_moves(inner, 1)
+    dc, dw = shifts(split)
+    assert not ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
+    assert len(split) <= 2 * 3 ** n and (np.abs(dc).sum(axis=1) > 0).any() and (np.abs(dw).sum(axis=1) > 0).any()
+    assert {tuple(r) for r in lat.joint(inner, 1, "centres")} | {tuple(r) for r in lat.joint(inner, 1, "widths")} \
+        == {tuple(r) for r in split}
+    box = lat.neighbourhood(inner, 1)
+    assert {tuple(r) for r in split} <= {tuple(r) for r in box}
+
+
+def test_refined_search_with_split_joint_moves_ends_on_a_local_optimum(tmp_path, monkeypatch) -> None:
+    """With the joint neighbourhood split (as for six bands and more) the refined search still ends on a design
+    that no design of its (split) neighbourhood beats on every pixel."""
+    monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 10)
+    monkeypatch.setattr("s2cl.sweep.search.MAX_JOINT", 10)
+    job = _job(copies=6, start=100, finalists=4, radius=2)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    _, record = run_search(job, tmp_path / "a", evaluator_of=numpy_evaluator)
+    assert any(s["stage"].startswith("refine") for s in record["stages"])
+    lat = Lattice(job)
+    best = variant_indices(job.tables, record["best_config"], record["best_config"] + 1)[0]
+    around = lat.configs(lat.neighbourhood(best, 2))
+    assert exhaustive.loc[around, "rms"].min() == exhaustive.loc[record["best_config"], "rms"]
+
+
 def _scores(out) -> pd.DataFrame:
     return pd.read_parquet(out / RESULTS)
 

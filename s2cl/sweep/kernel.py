@@ -24,6 +24,9 @@ ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds"
         Arg("condition", "out", "uchar"), *(Arg(n, "in", "real") for n in TABLES),
         Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
 
+#: configuration numbers the kernel addresses (``config_start`` and ``n_configs`` are 32-bit): a design numbered
+#: beyond is evaluated through its own tables (:func:`s2cl.sweep.design_tables.design_tables`)
+KERNEL_CONFIGS = 2**32 - 1
 
 #: work-items per group at most: PoCL's own choice for few pixels and many configurations (e.g. 8 × 512 items for
 #: 120 pixels × 1,024 configurations) crashed the kernel; groups this small measured no slower
