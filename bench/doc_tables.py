@@ -605,6 +605,13 @@ def instrument_costs() -> str:
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 
+def search_joint() -> str:
+    """The six-band search from 5 seeds and its local checks (``python -m bench.search_wide --scene ...``)."""
+    from bench.search_wide import JOINT_SCENE, joint_section, results_path
+
+    return joint_section(_load(results_path(JOINT_SCENE)))
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -642,6 +649,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "cellulose.co2": cellulose_co2,
     "retrieve.igrm-hyperspectral": igrm_hyperspectral,
     "instrument.costs": instrument_costs,
+    "search.joint-b3-b8a": search_joint,
 }
 
 # pages generated whole (path relative to the repository → its text)
