@@ -605,11 +605,12 @@ def instrument_costs() -> str:
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 
-def search_joint() -> str:
-    """The six-band search from 5 seeds and its local checks (``python -m bench.search_wide --scene ...``)."""
+def search_joint(joint: str) -> str:
+    """The six-band search and its local checks with the joint step ``joint`` (``python -m bench.search_wide
+    --scene ...``)."""
     from bench.search_wide import JOINT_SCENE, joint_section, results_path
 
-    return joint_section(_load(results_path(JOINT_SCENE)))
+    return joint_section(_load(results_path(JOINT_SCENE, joint)))
 
 
 BLOCKS: dict[str, Callable[[], str]] = {
@@ -649,7 +650,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "cellulose.co2": cellulose_co2,
     "retrieve.igrm-hyperspectral": igrm_hyperspectral,
     "instrument.costs": instrument_costs,
-    "search.joint-b3-b8a": search_joint,
+    "search.joint-b3-b8a": lambda: search_joint("split"),
+    "search.joint-b3-b8a-full": lambda: search_joint("full"),
 }
 
 # pages generated whole (path relative to the repository → its text)

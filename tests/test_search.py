@@ -290,4 +290,4 @@ def test_search_wide_checks_the_joint_step_at_once_or_centres_and_widths_apart(b
     assert all(r["widths"] == [best[b][1]] for b, r in split[6].items())
     assert all(r["centres"] == [best[b][0]] for b, r in split[7].items())
     assert results_path(SCENE).name == "search-wide.json"
-    assert results_path("search-lib1-b3-b8a-1nm").name == "search-wide-search-lib1-b3-b8a-1nm.json"
+    assert results_path("search-lib1-b3-b8a-1nm", "split").name == "search-wide-search-lib1-b3-b8a-1nm-split.json"
