@@ -204,20 +204,22 @@ def joint_section(results: dict[str, Any]) -> str:
              f"with the same winner share its check. Results: `{where}`. Measured on "
              f"{m['cpu']} ({m['cores']} cores), {m['date']}; {results['load_note']}.",
              "", "| seed | winner (centre/width nm) | Cab RMS µg/cm² | search s | designs scored | share of the "
-             "space's pixel-evaluations | check: designs | check: better | check s | beyond the windows: designs "
-             "| better |",
-             "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "space's pixel-evaluations | check: designs | check: better | check: best Cab RMS | check s | beyond the "
+             "windows: designs | better |",
+             "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         shape = " ".join(f"{b} {c:g}/{w:g}" for b, (c, w) in r["bands"].items())
         c = r["check"]
         seconds = f"{c['seconds']:.0f}" if c["seed"] == r["seed"] else f"seed {c['seed']}'s"
         lines.append(f"| {r['seed']} | {shape} | {r['rms']:.4f} | {r['seconds']:.0f} | {r['evaluations']:,} | "
                      f"{r['pixel_evaluations'] / r['exhaustive_pixel_evaluations']:.1e} | {c['designs']:,} | "
-                     f"{c['better']} | {seconds} | {c['outside_designs']:,} | {c['outside_better']:,} |")
+                     f"{c['better']} | {c['best_rms']:.4f} | {seconds} | {c['outside_designs']:,} | "
+                     f"{c['outside_better']:,} |")
     lines += ["", f"Over {len(rows)} seeds: Cab RMS {results['rms_min']:.4f} to {results['rms_max']:.4f} µg/cm² "
               f"(standard deviation {results['rms_stdev']:.4f}), {results['distinct_winners']} distinct winners, "
-              f"{results['checks_passed']} of {len(rows)} local checks passed (no design of the neighbourhood "
-              "better). *Beyond the windows*: the check's designs outside the scene's windows: not in the space."]
+              f"{results['checks_passed']} of {len(rows)} local checks passed (a check passes when no design of "
+              "the neighbourhood inside the windows scores better than the winner). *Beyond the windows*: the check's "
+              "designs outside the scene's windows: not in the space."]
     return "\n".join(lines)
 
 
