@@ -82,8 +82,8 @@ def test_lattice_neighbourhoods_stay_in_the_space() -> None:
 
 
 def test_joint_moves_split_centres_and_widths_above_max_joint(monkeypatch) -> None:
-    """Above MAX_JOINT designs the joint move shifts all centres together and all widths together (2 · 3 ** bands),
-    never a centre and a width at once; below it, both at once (3 ** (2 · bands))."""
+    """Above MAX_JOINT designs the joint move shifts all centres together and all widths together (2 · 3 ** bands)
+    and every two bands in centre and width at once; below it, every band in both at once (3 ** (2 · bands))."""
     job = _job()
     lat = Lattice(job)
     inner = variant_indices(job.tables, job.n_configs // 2, job.n_configs // 2 + 1)[0]
@@ -101,11 +101,13 @@ def test_joint_moves_split_centres_and_widths_above_max_joint(monkeypatch) -> No
     assert ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
     monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 3 ** (2 * n) - 1)
     split = lat.joint_moves(inner, 1)
-    dc, dw = shifts(split)
+    centres, widths, pairs = (lat.joint(inner, 1, "centres"), lat.joint(inner, 1, "widths"), lat.pairs(inner, 1))
+    dc, dw = shifts(np.concatenate([centres, widths]))
     assert not ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
-    assert len(split) <= 2 * 3 ** n and (np.abs(dc).sum(axis=1) > 0).any() and (np.abs(dw).sum(axis=1) > 0).any()
-    assert {tuple(r) for r in lat.joint(inner, 1, "centres")} | {tuple(r) for r in lat.joint(inner, 1, "widths")} \
-        == {tuple(r) for r in split}
+    assert len(centres) <= 3 ** n and (np.abs(dc).sum(axis=1) > 0).any() and (np.abs(dw).sum(axis=1) > 0).any()
+    dc, dw = shifts(pairs)
+    assert ((dc != 0) | (dw != 0)).sum(axis=1).max() <= 2 and len(pairs) <= 3 ** 4 * n * (n - 1) // 2
+    assert {tuple(r) for r in np.concatenate([centres, widths, pairs])} == {tuple(r) for r in split}
     box = lat.neighbourhood(inner, 1)
     assert {tuple(r) for r in split} <= {tuple(r) for r in box}
 

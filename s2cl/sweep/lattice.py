@@ -87,10 +87,23 @@ class Lattice:
 
     def joint_moves(self, design: np.ndarray, step: int) -> np.ndarray:
         """All bands moved together by ± ``step``: centres and widths at once when that is at most
-        :data:`MAX_JOINT` designs, else the centres together and the widths together (2 · 3 ** bands)."""
+        :data:`MAX_JOINT` designs, else the centres together, the widths together (2 · 3 ** bands) and every two
+        bands in centre and width at once (:meth:`pairs`)."""
         if 3 ** (2 * len(self.slots)) <= MAX_JOINT:
             return self.joint(design, step)
-        return np.concatenate([self.joint(design, step, "centres"), self.joint(design, step, "widths")])
+        return np.concatenate([self.joint(design, step, "centres"), self.joint(design, step, "widths"),
+                               self.pairs(design, step)])
+
+    def pairs(self, design: np.ndarray, step: int) -> np.ndarray:
+        """Every two bands moved together by -step, 0 or +step in centre and width (3⁴ moves per pair)."""
+        moves = np.array(list(itertools.product((-step, 0, step), repeat=4)), dtype=np.int64)
+        out = []
+        for k, m in itertools.combinations(range(len(self.slots)), 2):
+            d = np.repeat(design[None, :], len(moves), axis=0)
+            d[:, k] = self.slots[k].moved(d[:, k], moves[:, 0], moves[:, 1])
+            d[:, m] = self.slots[m].moved(d[:, m], moves[:, 2], moves[:, 3])
+            out.append(d[(d >= 0).all(axis=1)])
+        return np.concatenate(out)
 
     def band_box(self, design: np.ndarray, k: int, radius: int) -> np.ndarray:
         """Band ``k`` over ± ``radius`` steps of centre and width, the others as in ``design``."""

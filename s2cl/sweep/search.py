@@ -13,8 +13,9 @@ bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candid
 at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre and width and
 all bands together over ``± 1`` step, from the best design, until no design there scores better. Where moving
 every centre and width at once gives more than :data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and
-more), the refinement moves each band alone over ``± s/2`` steps and all centres together and all widths
-together; the local step moves all centres together and all widths together over ``± 1``.
+more), the refinement moves each band alone over ``± s/2`` steps, and it and the local step move all centres
+together, all widths together and every two bands in centre and width at once
+(:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
 
 Each batch of designs is one chunk file (``chunks/part-E.parquet``, ``E`` the search's running count of
 design evaluations, written atomically): the search is deterministic, so a killed search started again replays
