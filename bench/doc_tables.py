@@ -676,6 +676,14 @@ def instrument_costs() -> str:
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 
+def search_joint(joint: str) -> str:
+    """The six-band search and its local checks with the joint step ``joint`` (``python -m bench.search_wide
+    --scene ...``)."""
+    from bench.search_wide import JOINT_SCENE, joint_section, results_path
+
+    return joint_section(_load(results_path(JOINT_SCENE, joint)))
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -714,6 +722,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "cellulose.co2": cellulose_co2,
     "retrieve.igrm-hyperspectral": igrm_hyperspectral,
     "instrument.costs": instrument_costs,
+    "search.joint-b3-b8a": lambda: search_joint("split"),
+    "search.joint-b3-b8a-full": lambda: search_joint("full"),
 }
 
 # pages generated whole (path relative to the repository → its text)

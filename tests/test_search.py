@@ -81,6 +81,52 @@ def test_lattice_neighbourhoods_stay_in_the_space() -> None:
     assert stride > 1 and 1 <= len(grid) <= 10
 
 
+def test_joint_moves_split_centres_and_widths_above_max_joint(monkeypatch) -> None:
+    """Above MAX_JOINT designs the joint move shifts all centres together and all widths together (2 · 3 ** bands)
+    and every two bands in centre and width at once; below it, every band in both at once (3 ** (2 · bands))."""
+    job = _job()
+    lat = Lattice(job)
+    inner = variant_indices(job.tables, job.n_configs // 2, job.n_configs // 2 + 1)[0]
+    n = len(lat.slots)
+    ci = np.array([sl.ci[v] for sl, v in zip(lat.slots, inner, strict=True)])
+    wi = np.array([sl.wi[v] for sl, v in zip(lat.slots, inner, strict=True)])
+
+    def shifts(designs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dc = np.stack([lat.slots[k].ci[designs[:, k]] - ci[k] for k in range(n)], axis=1)
+        dw = np.stack([lat.slots[k].wi[designs[:, k]] - wi[k] for k in range(n)], axis=1)
+        return dc, dw
+
+    both = lat.joint_moves(inner, 1)
+    dc, dw = shifts(both)
+    assert ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
+    monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 3 ** (2 * n) - 1)
+    split = lat.joint_moves(inner, 1)
+    centres, widths, pairs = (lat.joint(inner, 1, "centres"), lat.joint(inner, 1, "widths"), lat.pairs(inner, 1))
+    dc, dw = shifts(np.concatenate([centres, widths]))
+    assert not ((dc != 0).any(axis=1) & (dw != 0).any(axis=1)).any()
+    assert len(centres) <= 3 ** n and (np.abs(dc).sum(axis=1) > 0).any() and (np.abs(dw).sum(axis=1) > 0).any()
+    dc, dw = shifts(pairs)
+    assert ((dc != 0) | (dw != 0)).sum(axis=1).max() <= 2 and len(pairs) <= 3 ** 4 * n * (n - 1) // 2
+    assert {tuple(r) for r in np.concatenate([centres, widths, pairs])} == {tuple(r) for r in split}
+    box = lat.neighbourhood(inner, 1)
+    assert {tuple(r) for r in split} <= {tuple(r) for r in box}
+
+
+def test_refined_search_with_split_joint_moves_ends_on_a_local_optimum(tmp_path, monkeypatch) -> None:
+    """With the joint neighbourhood split (as for six bands and more) the refined search still ends on a design
+    that no design of its (split) neighbourhood beats on every pixel."""
+    monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 10)
+    monkeypatch.setattr("s2cl.sweep.search.MAX_JOINT", 10)
+    job = _job(copies=6, start=100, finalists=4, radius=2)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    _, record = run_search(job, tmp_path / "a", evaluator_of=numpy_evaluator)
+    assert any(s["stage"].startswith("refine") for s in record["stages"])
+    lat = Lattice(job)
+    best = variant_indices(job.tables, record["best_config"], record["best_config"] + 1)[0]
+    around = lat.configs(lat.neighbourhood(best, 2))
+    assert exhaustive.loc[around, "rms"].min() == exhaustive.loc[record["best_config"], "rms"]
+
+
 def _scores(out) -> pd.DataFrame:
     return pd.read_parquet(out / RESULTS)
 
@@ -185,6 +231,33 @@ def test_optimise_searches_a_scene_end_to_end(tmp_path) -> None:
     assert record["pixel_evaluations"] < record["exhaustive_pixel_evaluations"]
 
 
+def test_designs_beyond_the_kernels_numbers_score_through_their_own_tables(tmp_path, monkeypatch) -> None:
+    """The reference row and the within-noise set of a design numbered beyond the kernel's 32-bit configuration
+    numbers come from that design's own tables (config_tables), with the same scores as through the sweep's."""
+    from sweep_fixtures import SMALL_SWEEP_TOML
+
+    from s2cl.app.optimise import optimise
+    from s2cl.scene.scene import Scene
+    from s2cl.sweep.design_tables import config_tables
+
+    (tmp_path / "sweep.toml").write_text(SMALL_SWEEP_TOML.format(copies=4))
+    scene = Scene.load(str(tmp_path / "sweep.toml"))
+    plain = optimise(scene, tmp_path / "a").summary
+    monkeypatch.setattr("s2cl.app.plan.KERNEL_CONFIGS", 0)
+    monkeypatch.setattr("s2cl.sweep.kernel.KERNEL_CONFIGS", 0)
+    beyond = optimise(scene, tmp_path / "b", overwrite=True).summary
+    assert beyond["reference"] == plain["reference"]
+
+    def strip(w: dict) -> dict:
+        return {k: v for k, v in w.items() if k != "seconds"}
+
+    assert plain["within_noise"] is not None and strip(beyond["within_noise"]) == strip(plain["within_noise"])
+    job = _job()
+    t, configs = job.tables, np.array([17, 2, 9])
+    got = evaluate(config_tables(t, configs), job.analysis, 0, len(configs))
+    assert np.array_equal(got.index, evaluate(t, job.analysis, 0, t.n_configs).index[configs])
+
+
 @pytest.mark.bench
 def test_search_check_quick_on_table5(bench_path: None, tmp_path) -> None:
     """`python -m bench.search_check --quick --only table5-b11`: both runs, the exactness check, the row."""
@@ -198,3 +271,25 @@ def test_search_check_quick_on_table5(bench_path: None, tmp_path) -> None:
     assert row["configurations"] == 36 and row["rank"] >= 1 and row["gap"] >= 0
     assert 0 < row["pixel_evaluation_fraction"] <= 1 and row["metric"] == "rms"
     assert "table5-b11" in section(data) and len(data["load_average"]["before"]) == 3
+
+
+def test_search_wide_checks_the_joint_step_at_once_or_centres_and_widths_apart(bench_path: None) -> None:
+    """`python -m bench.search_wide --joint`: each band alone over ± 5 nm (11 × 11), then the ± 1 nm joint step
+    as one sweep of 3²ⁿ designs (full) or two of 3ⁿ (split: centres with the widths fixed, widths with the
+    centres fixed); a scene other than the default has its own results file."""
+    import math
+
+    from bench.search_wide import SCENE, check_sweeps, results_path
+
+    best = {b: [600.0 + 40 * k, 20.0 + k] for k, b in enumerate(("B3", "B4", "B5", "B6", "B7", "B8a"))}
+
+    def size(ranges: dict) -> int:
+        return math.prod(len(r["centres"]) * len(r["widths"]) if "centres" in r else 1 for r in ranges.values())
+
+    full, split = check_sweeps(best, "full"), check_sweeps(best, "split")
+    assert [size(r) for r in full] == [121] * 6 + [3 ** 12]
+    assert [size(r) for r in split] == [121] * 6 + [3 ** 6, 3 ** 6]
+    assert all(r["widths"] == [best[b][1]] for b, r in split[6].items())
+    assert all(r["centres"] == [best[b][0]] for b, r in split[7].items())
+    assert results_path(SCENE).name == "search-wide.json"
+    assert results_path("search-lib1-b3-b8a-1nm", "split").name == "search-wide-search-lib1-b3-b8a-1nm-split.json"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.sensor.variants import BandRange, SweepSpace, table2_space
+from s2cl.sensor.variants import MAX_CONFIGS, BandRange, SweepSpace, table2_space
 
 
 @pytest.mark.parametrize(("bands", "count"), [(["B4", "B5", "B6", "B7"], 43_056), (["B4", "B5", "B6", "B8"], 3_312),
@@ -58,6 +58,16 @@ def test_bad_ranges(rng: BandRange, message: str) -> None:
 def test_duplicate_band() -> None:
     with pytest.raises(InputError, match="twice"):
         SweepSpace((BandRange("B4", 630, 690, 30, 50), BandRange("B4", 630, 690, 30, 50))).validate()
+
+
+def test_space_beyond_64_bit_configuration_numbers_is_refused() -> None:
+    """Six bands of 2,346 variants (1.7·10²⁰ designs) cannot be numbered; 1,251 each (3.8·10¹⁸) can."""
+    wide = SweepSpace(tuple(BandRange(f"B{k}", 0, 80, 10, 60, step_nm=1) for k in range(6)))
+    assert wide.size > MAX_CONFIGS
+    with pytest.raises(InputError, match="64-bit"):
+        wide.validate()
+    narrow = SweepSpace(tuple(BandRange(f"B{k}", 0, 60, 10, 50, step_nm=1) for k in range(6))).validate()
+    assert narrow.size <= MAX_CONFIGS
 
 
 def test_grid_band() -> None:

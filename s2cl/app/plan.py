@@ -17,7 +17,9 @@ from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
+from s2cl.sweep.design_tables import config_tables
 from s2cl.sweep.engine import SweepJob, evaluate_chunk, kernel_evaluator
+from s2cl.sweep.kernel import KERNEL_CONFIGS
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.search import SearchSettings
 from s2cl.sweep.space import addition_scene
@@ -72,7 +74,8 @@ def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dic
     shapes = _own_shapes(scene, job)
     config = configuration_of(job.tables, shapes)
     if config is not None:  # the sensor's own design is one of the sweep's: its tables and kernel serve
-        rows = evaluate_chunk(job, config, config + 1, device)
+        one, at = _design_job(job, config)
+        rows = {**evaluate_chunk(one, at, at + 1, device), "config": np.array([config], dtype=np.int64)}
         return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
     return fixed_row(scene, job, _own_bands(scene, job), job.analysis, device=device)
 
@@ -97,9 +100,19 @@ def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None) -> 
         return None
     config = configuration_of(job.tables, _own_shapes(scene, job))
     if config is not None:
-        return kernel_evaluator(job, device)(config, config + 1)
+        one, at = _design_job(job, config)
+        return kernel_evaluator(one, device)(at, at + 1)
     one = _one_job(scene, job, _own_bands(scene, job), job.analysis)
     return kernel_evaluator(one, device)(0, 1)
+
+
+def _design_job(job: SweepJob, config: int) -> tuple[SweepJob, int]:
+    """The job and configuration number that evaluate design ``config`` of ``job``: the sweep's own tables where the
+    kernel's 32-bit configuration numbers reach it, else that one design's tables (:func:`config_tables`: the same
+    rows, noise deviates and kernel, so the same score)."""
+    if config < KERNEL_CONFIGS:
+        return job, config
+    return replace(job, tables=config_tables(job.tables, np.array([config])), chunk=1), 0
 
 
 def _own_shapes(scene: Scene, job: SweepJob) -> list[tuple[float, float]]:

@@ -221,6 +221,10 @@ class BandList:
         return np.array(self.shapes, dtype=np.float64).reshape(-1, 2)
 
 
+#: configurations a space may hold: each is numbered by a signed 64-bit integer (results.parquet's ``config``)
+MAX_CONFIGS = 2**63 - 1
+
+
 @dataclass(frozen=True)
 class SweepSpace:
     """The product of the band ranges: ``size`` configurations of one variant per band."""
@@ -235,6 +239,10 @@ class SweepSpace:
             raise InputError(f"a band appears twice: {names}", source=source, key="sweep.bands")
         for r in self.ranges:
             r.validate(source)
+        if self.size > MAX_CONFIGS:
+            raise InputError(f"{self.size:,} configurations: configuration numbers are 64-bit, at most "
+                             f"{MAX_CONFIGS:,}; narrow the bands' ranges or take a coarser sweep.step_nm",
+                             source=source, key="sweep.ranges")
         return self
 
     @property

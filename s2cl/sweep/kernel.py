@@ -34,6 +34,9 @@ def kernel_args(profile: frozenset[str] = frozenset()) -> tuple[Arg, ...]:
     """The kernel's arguments for a build with the ``profile`` switches (:data:`ARGS` without any)."""
     return ARGS + tuple(PROFILE_ARGS[p] for p in PROFILES if p in profile and p in PROFILE_ARGS)
 
+#: configuration numbers the kernel addresses (``config_start`` and ``n_configs`` are 32-bit): a design numbered
+#: beyond is evaluated through its own tables (:func:`s2cl.sweep.design_tables.design_tables`)
+KERNEL_CONFIGS = 2**32 - 1
 
 #: work-items per group at most: PoCL's own choice for few pixels and many configurations (e.g. 8 × 512 items for
 #: 120 pixels × 1,024 configurations) crashed the kernel; groups this small measured no slower

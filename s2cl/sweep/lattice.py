@@ -12,7 +12,7 @@ import numpy as np
 
 from s2cl.sweep.engine import SweepJob
 
-#: the joint neighbourhood (3 ** (2 · bands) designs) is left out of a neighbourhood above this many designs
+#: the joint neighbourhood (3 ** (2 · bands) designs) above this many designs moves centres and widths apart
 MAX_JOINT = 60_000
 
 
@@ -73,13 +73,37 @@ class Lattice:
         grid = np.array(list(itertools.product(*per)), dtype=np.int64).reshape(-1, len(self.slots))
         return grid, s
 
-    def joint(self, design: np.ndarray, step: int) -> np.ndarray:
-        """Every band's centre and width moved by -step, 0 or +step at once (inside the space)."""
+    def joint(self, design: np.ndarray, step: int, what: str = "both") -> np.ndarray:
+        """Every band moved by -step, 0 or +step at once (inside the space): centre and width (``"both"``,
+        3 ** (2 · bands) moves), or only the centres or only the widths (``"centres"``, ``"widths"``: 3 ** bands)."""
         n = len(self.slots)
-        moves = np.array(list(itertools.product((-step, 0, step), repeat=2 * n)), dtype=np.int64)
-        out = np.stack([sl.moved(np.full(len(moves), design[k]), moves[:, 2 * k], moves[:, 2 * k + 1])
+        moves = np.array(list(itertools.product((-step, 0, step), repeat=n if what != "both" else 2 * n)),
+                         dtype=np.int64)
+        zero = np.zeros((len(moves), n), dtype=np.int64)
+        dc, dw = {"both": (moves[:, 0::2], moves[:, 1::2]), "centres": (moves, zero), "widths": (zero, moves)}[what]
+        out = np.stack([sl.moved(np.full(len(moves), design[k]), dc[:, k], dw[:, k])
                         for k, sl in enumerate(self.slots)], axis=1)
         return out[(out >= 0).all(axis=1)]
+
+    def joint_moves(self, design: np.ndarray, step: int) -> np.ndarray:
+        """All bands moved together by ± ``step``: centres and widths at once when that is at most
+        :data:`MAX_JOINT` designs, else the centres together, the widths together (2 · 3 ** bands) and every two
+        bands in centre and width at once (:meth:`pairs`)."""
+        if 3 ** (2 * len(self.slots)) <= MAX_JOINT:
+            return self.joint(design, step)
+        return np.concatenate([self.joint(design, step, "centres"), self.joint(design, step, "widths"),
+                               self.pairs(design, step)])
+
+    def pairs(self, design: np.ndarray, step: int) -> np.ndarray:
+        """Every two bands moved together by -step, 0 or +step in centre and width (3⁴ moves per pair)."""
+        moves = np.array(list(itertools.product((-step, 0, step), repeat=4)), dtype=np.int64)
+        out = []
+        for k, m in itertools.combinations(range(len(self.slots)), 2):
+            d = np.repeat(design[None, :], len(moves), axis=0)
+            d[:, k] = self.slots[k].moved(d[:, k], moves[:, 0], moves[:, 1])
+            d[:, m] = self.slots[m].moved(d[:, m], moves[:, 2], moves[:, 3])
+            out.append(d[(d >= 0).all(axis=1)])
+        return np.concatenate(out)
 
     def band_box(self, design: np.ndarray, k: int, radius: int) -> np.ndarray:
         """Band ``k`` over ± ``radius`` steps of centre and width, the others as in ``design``."""
@@ -91,12 +115,10 @@ class Lattice:
         return out
 
     def neighbourhood(self, design: np.ndarray, radius: int) -> np.ndarray:
-        """The local check's designs: each band alone over ± ``radius``, all bands together over ± 1 (when
-        there are at most :data:`MAX_JOINT` of those)."""
+        """The local check's designs: each band alone over ± ``radius``, all bands together over ± 1
+        (:meth:`joint_moves`)."""
         parts = [self.band_box(design, k, radius) for k in range(len(self.slots))]
-        if 3 ** (2 * len(self.slots)) <= MAX_JOINT:
-            parts.append(self.joint(design, 1))
-        return np.concatenate(parts)
+        return np.concatenate([*parts, self.joint_moves(design, 1)])
 
 
 def unique_designs(designs: np.ndarray, lattice: Lattice) -> np.ndarray:

@@ -11,7 +11,11 @@ A space of more than :attr:`SearchSettings.start` designs starts from a coarse s
 and widths (every ``s``-th, from an offset drawn from the seed), then refines: around the eight best finalists, all
 bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above; then,
 at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre and width and
-all bands together over ``± 1`` step, from the best design, until no design there scores better.
+all bands together over ``± 1`` step, from the best design, until no design there scores better. Where moving
+every centre and width at once gives more than :data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and
+more), the refinement moves each band alone over ``± s/2`` steps, and it and the local step move all centres
+together, all widths together and every two bands in centre and width at once
+(:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
 
 Each batch of designs is one chunk file (``chunks/part-E.parquet``, ``E`` the search's running count of
 design evaluations, written atomically): the search is deterministic, so a killed search started again replays
@@ -229,7 +233,8 @@ class Halving:
             step = max(1, step // 2)
             top = best[:REFINE_AROUND]
             joint = [lattice.joint(d, step) for d in top] if 3 ** (2 * len(lattice.slots)) <= MAX_JOINT else \
-                [lattice.neighbourhood(d, step) for d in top]
+                [np.concatenate([*(lattice.band_box(d, k, step) for k in range(len(lattice.slots))),
+                                 lattice.joint_moves(d, step)]) for d in top]
             best, _ = self.halve(np.concatenate([best, *joint]), f"refine ± {step} steps")
         while True:  # at the space's own step, on every pixel, until nothing in the neighbourhood is better
             incumbent = best[0]

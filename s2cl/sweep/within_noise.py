@@ -247,14 +247,23 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
     family = FAMILIES.get(metric)
     if family is None or top is None or len(top) < 2:
         return None
-    if evaluator is None:
-        from s2cl.sweep.engine import kernel_evaluator
-
-        evaluator = kernel_evaluator(job, device)
     t0 = time.perf_counter()
     t = job.tables
     configs = top["config"].to_numpy(np.int64)
-    stats = design_stats(job, configs, family, evaluator)
+    rows = configs
+    if evaluator is None:
+        from dataclasses import replace
+
+        from s2cl.sweep.design_tables import config_tables
+        from s2cl.sweep.engine import kernel_evaluator
+        from s2cl.sweep.kernel import KERNEL_CONFIGS
+
+        if configs.max() < KERNEL_CONFIGS:
+            evaluator = kernel_evaluator(job, device)
+        else:  # numbers beyond the kernel's reach: the designs' own tables, row i for configs[i]
+            evaluator = kernel_evaluator(replace(job, tables=config_tables(t, configs), chunk=1), device)
+            rows = np.arange(len(configs))
+    stats = design_stats(job, rows, family, evaluator)
     if reference is not None:
         stats = np.concatenate([stats, family.stats(reference, job)])
     strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
