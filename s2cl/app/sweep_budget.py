@@ -103,6 +103,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
         most = largest_fitting(budget.memory_bytes, fixed + report, per_copy + spectra * per_config / pixels)
         budget.require(need(1), what=what, key="surface.copies", source=scene.source,
                        fits=f"at most {most:,} copies fit" if most else "")
+    space.check_numbered(scene.source)  # after the memory: a space too large to hold is told so first
     room = largest_fitting(budget.memory_bytes, held, per_config)
     if resumed and not chunk:
         budget.require(need(resumed), what=what + f" resumed in the chunks of {resumed:,} it started with",

@@ -239,11 +239,15 @@ class SweepSpace:
             raise InputError(f"a band appears twice: {names}", source=source, key="sweep.bands")
         for r in self.ranges:
             r.validate(source)
+        return self
+
+    def check_numbered(self, source: str | None = None) -> None:
+        """Refuse (one line) a space whose configurations cannot be numbered by a signed 64-bit integer: it can be
+        counted (``s2cl sweep count``), not run or searched."""
         if self.size > MAX_CONFIGS:
             raise InputError(f"{self.size:,} configurations: configuration numbers are 64-bit, at most "
                              f"{MAX_CONFIGS:,}; narrow the bands' ranges or take a coarser sweep.step_nm",
                              source=source, key="sweep.ranges")
-        return self
 
     @property
     def bands(self) -> list[str]:
