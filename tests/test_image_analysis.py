@@ -5,6 +5,7 @@ pixels and of non-finite reflectance, the error map and its metrics, and the fil
 from __future__ import annotations
 
 import json
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -246,20 +247,14 @@ def test_a_cube_larger_than_the_memory_limit_streams_with_a_bounded_peak(tmp_pat
     beyond the baseline, a third of what the image takes whole; it runs in row blocks and the peak it allocates
     (tracemalloc, numpy's arrays included, net of a 60 × 60 image's run) stays inside what the limit leaves, while
     the same image simulated whole allocates more than three times that. Same files either way."""
-    import tracemalloc
 
-    from s2cl.app.simulate_scene import CUBE_BYTES_GENERATED, cube_block_rows, simulate_scene
+    from s2cl.app.simulate_scene import CUBE_BYTES_GENERATED, cube_block_rows
     from s2cl.io.budget import BASELINE_BYTES, Budget
 
     def peak(cube: str, max_memory: str | None, out: str) -> tuple[int, dict]:
         toml = tmp_path / f"{out}.toml"
         toml.write_text(_toml(cube))
-        tracemalloc.start()
-        try:
-            run = simulate_scene(toml, tmp_path / out, max_memory=max_memory)
-            return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
-        finally:
-            tracemalloc.stop()
+        return _traced_simulation(toml, tmp_path / out, max_memory)
 
     limit = 400_000_000
     left = limit - BASELINE_BYTES  # what the limit leaves beyond the baseline (which the base run's peak stands for)
@@ -337,9 +332,7 @@ def test_a_cube_file_larger_than_the_memory_limit_streams_with_a_bounded_peak(tm
     100 MB beyond the baseline: the file is more than three times that, yet it is not refused; it streams in row
     blocks and the peak it allocates (tracemalloc, net of a 60 × 60 file's run) stays inside what the limit leaves, and
     below a third of the file's size."""
-    import tracemalloc
 
-    from s2cl.app.simulate_scene import simulate_scene
     from s2cl.io.budget import BASELINE_BYTES
 
     wl = np.arange(400.0, 2501.0, 10.0)
@@ -362,12 +355,7 @@ def test_a_cube_file_larger_than_the_memory_limit_streams_with_a_bounded_peak(tm
         toml.write_text(f'[scene]\nname = "{out}"\n[grid]\nstep_nm = 5\n[surface]\ncube = "{hdr.name}"\n'
                         'gsd_m = 10\nquantity = "reflectance"\n[effects]\natmosphere = true\nnoise = true\n'
                         'quantise = true\ncalibrate = true\n')
-        tracemalloc.start()
-        try:
-            run = simulate_scene(toml, tmp_path / out, max_memory=max_memory)
-            return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
-        finally:
-            tracemalloc.stop()
+        return _traced_simulation(toml, tmp_path / out, max_memory)
 
     limit = 450_000_000
     left = limit - BASELINE_BYTES
@@ -383,3 +371,16 @@ def test_a_cube_file_larger_than_the_memory_limit_streams_with_a_bounded_peak(tm
         flags = ds["flags_B2"].values
         assert np.count_nonzero(flags & PixelFlag.NODATA) == 1
         assert np.isfinite(ds["calibrated_B4"].values).sum() == 440**2 - 1
+
+
+def _traced_simulation(toml: Path, out: Path, max_memory: str | None) -> tuple[int, dict]:
+    """``s2cl simulate`` of the scene file ``toml`` into ``out`` under ``max_memory``: the peak of traced Python
+    allocations (bytes) and the run's ``simulation.json``."""
+    from s2cl.app.simulate_scene import simulate_scene
+
+    tracemalloc.start()
+    try:
+        run = simulate_scene(toml, out, max_memory=max_memory)
+        return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
+    finally:
+        tracemalloc.stop()
