@@ -72,7 +72,6 @@ class Family:
     """
 
     kind: ClassVar[str]
-    title: ClassVar[str] = ""
     metric: ClassVar[Literal["regression", "classification"]] = "regression"
     keys: ClassVar[tuple[str, ...]] = ()
     uses_every_band: ClassVar[bool] = False

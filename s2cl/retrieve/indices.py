@@ -8,10 +8,9 @@ and one validity rule (``kernels/common/stages.mako``, ``normalised_difference``
 finite and within ``max_abs``, both offset terms positive, else status INVALID and index 0. The
 index then lies in (-1, 1).
 
-:data:`INDICES` is the registry: one entry adds an index to the scene schema (``[analysis] kind``
-and its band-role keys), the design rule, ``s2cl simulate``'s analysis, the sweep kernel and its
-numpy twin. Each role names a scene key (``nir = "B8"``) and the sensor band used when the scene
-names none.
+:data:`INDICES` is the registry: one entry makes an analysis family (:mod:`s2cl.retrieve.families.index`): an
+``[analysis] kind`` with its band-role keys, its design rule, device function, sweep code and numpy twin. Each role
+names a scene key (``nir = "B8"``) and the sensor band used when the scene names none.
 """
 
 from __future__ import annotations
@@ -52,8 +51,6 @@ INDICES: dict[str, NormalisedDifference] = {
     )
 }
 
-#: every band-role key an [analysis] section may hold
-ROLE_KEYS: tuple[str, ...] = tuple(sorted({role for index in INDICES.values() for role in index.roles}))
 
 
 def index_of(kind: str) -> NormalisedDifference:

@@ -247,7 +247,6 @@ class FormulaFamily(Family):
     takes coincide is underdetermined (0, or 1, for every pixel)."""
 
     kind = "formula"
-    title = "a formula of band reflectances (your own retrieval)"
     keys = ("expression",)
     twin = "s2cl.retrieve.families.formula:twin"
 

@@ -33,7 +33,6 @@ RED_EDGE = ("B4", "B5", "B6", "B7")
 
 class IgrmFamily(Family):
     kind = "igrm"
-    title = "inverted-Gaussian red-edge model: inflection wavelength λp (nm)"
     keys = ("igrm", "regress")
     uses_every_band = True
     has_condition = True

@@ -27,7 +27,6 @@ class IndexFamily(Family):
     def __init__(self, nd: NormalisedDifference):
         self.nd = nd
         self.kind = nd.kind  # type: ignore[misc]  # one instance per index
-        self.title = nd.title  # type: ignore[misc]
         self.example_parameter = nd.parameter  # type: ignore[misc]
 
     def roles(self, spec: Any) -> tuple[str, ...]:

@@ -21,7 +21,6 @@ TEMPLATE = "common/analysis_sam.mako"
 
 class SamFamily(Family):
     kind = "sam"
-    title = "spectral angle mapper classes"
     metric = "classification"
     keys = ("classes", "angle_threshold_deg")
     uses_every_band = True
