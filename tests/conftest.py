@@ -2,8 +2,8 @@
 
 The kernel tests (those taking the ``rt`` fixture) run on every OpenCL device named by ``--device SPEC``
 (repeatable; ``all``: every device that builds) or ``$S2CL_TEST_DEVICES`` (comma-separated, or ``all``);
-by default on ``$PYOPENCL_CTX`` where it is set, else on every PoCL CPU driver that builds kernels here (the
-wheel's and the distribution's, where both are installed), so one test run covers each driver. One chosen
+by default on ``$PYOPENCL_CTX`` where it is set, else on one device of every PoCL CPU driver that builds kernels
+here (the wheel's and the distribution's, where both are installed), so one test run covers each driver. One chosen
 device also becomes ``$PYOPENCL_CTX`` for the rest of the run (the CLI's subprocesses included).
 
 Kernel builds that warn fail the tests (``S2CL_BUILD_WARNINGS=error``, inherited by the CLI runs in
@@ -47,9 +47,12 @@ def _kernel_test_devices(asked: list[str]) -> list[str]:
                 return [select(os.environ["PYOPENCL_CTX"])[1].spec]
             except S2CLError as err:
                 raise pytest.UsageError(f"$PYOPENCL_CTX: {err}") from None
-        pocl = [i.spec for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind
-                and builds_at_all(i) is None]
-        return pocl or [get_runtime().info.spec]
+        pocl = [i for i in infos if "portable computing language" in i.platform.lower() and "CPU" in i.kind]
+        per_driver = {}  # one device per driver: $POCL_DEVICES can list several of one driver
+        for info in pocl:
+            if info.platform_index not in per_driver and builds_at_all(info) is None:
+                per_driver[info.platform_index] = info.spec
+        return list(per_driver.values()) or [get_runtime().info.spec]
     if [a.strip().lower() for a in asked] == ["all"]:
         return [i.spec for i in infos if builds_at_all(i) is None]
     specs = []

@@ -23,11 +23,80 @@ def test_default_device_is_pocl_cpu(rt: Runtime) -> None:
         assert "CPU" in rt.info.kind
 
 
+def _others(rt: Runtime) -> list[devices.DeviceInfo]:
+    return [i for i in list_devices() if i != rt.info]
+
+
+def _unique_part(rt: Runtime) -> str | None:
+    """A part of the device's name that no other device here has in its name or platform (None: there is none)."""
+    name = rt.info.name
+    parts = sorted({name[a:b] for a in range(len(name)) for b in range(a + 3, len(name) + 1)}, key=len)
+    return next((part for part in parts if part.lower() != name.lower() and not any(
+        part.lower() in i.name.lower() or part.lower() in i.platform.lower() for i in _others(rt))), None)
+
+
 def test_device_by_index_and_by_name(rt: Runtime) -> None:
-    by_index = Runtime(rt.info.spec)
-    assert by_index.info == rt.info
-    by_name = Runtime(rt.info.name.split()[0][:6])
-    assert by_name.info.name == rt.info.name
+    """Indices always name the device; its full name does where no other device has that name; a part of its name
+    does where no other device has that part (computed from the devices here, whatever they are)."""
+    assert Runtime(rt.info.spec).info == rt.info
+    twins = [i for i in _others(rt) if i.name.lower() == rt.info.name.lower()]
+    if twins:
+        with pytest.raises(DeviceError, match="ambiguous") as err:
+            Runtime(rt.info.name)
+        assert all(i.spec in str(err.value) for i in [rt.info, *twins])
+    else:
+        assert Runtime(rt.info.name.upper()).info == rt.info
+    part = _unique_part(rt)
+    if part is not None:
+        assert Runtime(part).info == rt.info
+
+
+def test_a_part_of_a_name_that_several_devices_share_is_refused(rt: Runtime) -> None:
+    """On this machine: every name part that another device also has is refused, listing each match by indices."""
+    shared = [i for i in _others(rt) if rt.info.platform.lower() in i.platform.lower()]
+    if not shared:
+        pytest.skip("no other device here shares this device's platform name")
+    with pytest.raises(DeviceError, match="ambiguous") as err:
+        Runtime(rt.info.platform)
+    said = str(err.value)
+    assert "\n" not in said
+    for info in [rt.info, *shared]:
+        assert f"{info.spec} {info.name}" in said
+
+
+def _infos(*names: str) -> list[devices.DeviceInfo]:
+    """Devices with these names, one platform per name prefix before '/': 'A/x' is device x of platform A."""
+    platforms = list(dict.fromkeys(n.split("/")[0] for n in names))
+    out, counts = [], dict.fromkeys(platforms, 0)
+    for n in names:
+        platform, name = n.split("/")
+        out.append(devices.DeviceInfo(platforms.index(platform), counts[platform], platform, name, "ALL | CPU"))
+        counts[platform] += 1
+    return out
+
+
+@pytest.mark.parametrize(("names", "spec", "chosen"), [
+    (("pocl31/pthread-skylake-avx512-EPYC", "pocl30/pthread-EPYC"), "skylake", "0:0"),  # one match
+    (("pocl31/pthread-skylake-avx512-EPYC", "pocl30/pthread-EPYC"), "PTHREAD-epyc", "1:0"),  # a full name, any case
+    (("pocl31/pthread-skylake-avx512-EPYC", "pocl30/pthread-EPYC"), "pthread", None),  # two drivers: ambiguous
+    (("pocl/pthread-EPYC", "pocl/pthread-EPYC"), "pthread-EPYC", None),  # POCL_DEVICES="pthread pthread"
+    (("pocl/pthread-EPYC", "pocl/basic-EPYC"), "basic", "0:1"),  # POCL_DEVICES="pthread basic"
+    (("pocl/pthread-EPYC", "pocl/basic-EPYC"), "epyc", None),
+    (("pocl/pthread-EPYC", "pocl/basic-EPYC"), "pocl", None),  # a platform name shared by both
+    (("pocl/pthread-EPYC", "NVIDIA CUDA/NVIDIA H100"), "nvidia", "1:0"),  # device and platform of one device
+    (("pocl/pthread-EPYC", "pocl/basic-EPYC"), "1:0", None),  # no such indices: nothing matches
+])
+def test_a_name_must_name_one_device(monkeypatch, names, spec, chosen) -> None:
+    """The rule by hand, on listed devices: one match, or one device's full name; else refused with every match."""
+    infos = _infos(*names)
+    if chosen is None and ":" not in spec:
+        with pytest.raises(DeviceError, match="ambiguous") as err:
+            devices._match(spec, infos)
+        hits = [i for i in infos if spec.lower() in i.name.lower() or spec.lower() in i.platform.lower()]
+        assert len(hits) > 1 and all(str(i) in str(err.value) for i in hits)
+    else:
+        got = devices._match(spec, infos)
+        assert (got.spec if got else None) == chosen
 
 
 def test_unknown_device_lists_available(rt: Runtime) -> None:

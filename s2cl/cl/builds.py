@@ -90,7 +90,32 @@ def quiet_build(build: Callable[[], Any], device: Any) -> tuple[Any, str, Except
         log = program.get_build_info(device, cl_.program_build_info.LOG) or ""
     except cl_.Error:  # some drivers cannot report it
         log = ""
-    return program, (log.strip() or stderr_text.strip()), None
+    log = log.strip() or stderr_text.strip()
+    if "warning" in log.lower():
+        keep_context_until_exit(program)
+    return program, log, None
+
+
+_KEPT: list[Any] = []
+
+
+def keep_context_until_exit(program: Any) -> None:
+    """Never release the OpenCL context of ``program``, a build that warned.
+
+    The wheel's PoCL 3.0 (LLVM 14) leaks a reference to the build's IR when it takes a program from its kernel
+    cache whose build warned that a vector argument "changes the ABI" (a width its code target lacks):
+    releasing that context later, at any time and at the latest when the interpreter exits, aborts the process
+    ("still have references to IRs - can't release LLVM context !", status 134) after all its work is done. The context is kept with one extra Python
+    reference that nothing drops, so it is never released; other warnings are kept too (one small context per
+    warning build, once per process), as a build's log cannot tell which ones leak.
+    """
+    import ctypes
+
+    context = program.get_info(pyopencl().program_info.CONTEXT)
+    if any(context == kept for kept in _KEPT):
+        return
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(context))  # interpreter shutdown frees what a list holds
+    _KEPT.append(context)
 
 
 FAILED_BUILDS = "failed-builds"

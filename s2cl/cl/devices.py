@@ -2,8 +2,11 @@
 
 Device choice, in order: the ``device`` argument (CLI ``--device``), then the ``PYOPENCL_CTX``
 environment variable, then the first PoCL CPU device that compiles a probe kernel. A device is named
-either as ``PLATFORM:DEVICE`` indices (as ``PYOPENCL_CTX`` takes them) or by a case-insensitive
-substring of its platform or device name (``pocl``, ``nvidia``, ``H100``).
+either as ``PLATFORM:DEVICE`` indices (as ``PYOPENCL_CTX`` takes them) or by a case-insensitive part of
+its platform or device name (``nvidia``, ``H100``). A part of a name must name one device: where it
+matches several (two PoCL drivers both list ``pthread-…`` devices; ``POCL_DEVICES="pthread pthread"``
+lists two of one name) it is refused with the matches and their indices, as git refuses an ambiguous
+short hash, unless it is one device's full name exactly.
 """
 
 from __future__ import annotations
@@ -127,8 +130,7 @@ def select(spec: str | None) -> tuple[Any, DeviceInfo]:
     else:
         chosen = _match(spec, infos)
         if chosen is None:
-            origin = " ($PYOPENCL_CTX)" if spec == env_spec() else ""
-            raise DeviceError(f"no OpenCL device matches {token(spec, 40)}{origin}; available: {listing} "
+            raise DeviceError(f"no OpenCL device matches {token(spec, 40)}{_origin(spec)}; available: {listing} "
                               "(give PLATFORM:DEVICE indices or part of a name)")
     return device_of(chosen), chosen
 
@@ -198,8 +200,9 @@ _INDICES = re.compile(r"(\d+)(?::(\d*))?")
 
 
 def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
-    """The device named by ``spec``: ``P``, ``P:`` or ``P:D`` indices, or part of a device or platform
-    name. Anything else made of digits and colons (``0:0:0``) or empty matches nothing."""
+    """The device named by ``spec``: ``P``, ``P:`` or ``P:D`` indices; one device's full name (any case); or
+    part of a device or platform name that only one device has (:class:`DeviceError` listing the matches
+    where several have it). Anything else made of digits and colons (``0:0:0``) or empty matches nothing."""
     spec = spec.strip()
     if not spec:
         return None
@@ -210,7 +213,21 @@ def _match(spec: str, infos: list[DeviceInfo]) -> DeviceInfo | None:
     if re.fullmatch(r"[\d:]+", spec):
         return None
     needle = spec.lower()
-    return next((i for i in infos if needle in i.name.lower() or needle in i.platform.lower()), None)
+    exact = [i for i in infos if i.name.lower() == needle]
+    if len(exact) == 1:
+        return exact[0]
+    matches = [i for i in infos if needle in i.name.lower() or needle in i.platform.lower()]
+    if len(matches) > 1:
+        raise DeviceError(f"OpenCL device {token(spec, 40)}{_origin(spec)} is ambiguous: it matches "
+                          + "; ".join(str(i) for i in matches)
+                          + " (give PLATFORM:DEVICE indices, e.g. " + matches[0].spec + ", or a full device name "
+                          "that only one device has)")
+    return matches[0] if matches else None
+
+
+def _origin(spec: str) -> str:
+    """`` ($PYOPENCL_CTX)`` when ``spec`` came from that variable, else ''."""
+    return " ($PYOPENCL_CTX)" if spec == env_spec() else ""
 
 
 LANES_ENV = "S2CL_LANES"

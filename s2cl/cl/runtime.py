@@ -5,6 +5,8 @@ one per device spec for a process (see :mod:`s2cl.cl.devices` for how a device i
 
 from __future__ import annotations
 
+import atexit
+import gc
 import logging
 import os
 from functools import cached_property
@@ -273,6 +275,19 @@ class Runtime:
     def finish(self) -> None:
         self.queue.finish()
 
+    def release(self) -> None:
+        """Finish the queue and drop this runtime's programs and memory pool (the context and queue go with the
+        last reference to the runtime): called for every runtime at exit (:func:`release_runtimes`), so programs
+        are released while the interpreter still runs, before the contexts that built them."""
+        try:
+            self.queue.finish()
+        except pyopencl().Error:
+            pass
+        self._programs.clear()
+        pool = self.__dict__.pop("pool", None)
+        if pool is not None:
+            pool.free_held()
+
 
 _RUNTIMES: dict[str | None, Runtime] = {}
 
@@ -284,3 +299,15 @@ def get_runtime(device: str | None = None) -> Runtime:
     if runtime is None:
         runtime = _RUNTIMES[spec] = Runtime(spec)
     return runtime
+
+
+@atexit.register
+def release_runtimes() -> None:
+    """Release the process-wide runtimes' programs, pools, queues and contexts, in that order, while the
+    interpreter still runs (at exit, and where a test wants a clean slate)."""
+    runtimes = list(_RUNTIMES.values())
+    _RUNTIMES.clear()
+    for runtime in runtimes:
+        runtime.release()
+    del runtimes
+    gc.collect()
