@@ -2,16 +2,14 @@
 a probe the compiler kills is restarted past that width, verdicts are cached per driver, and the default device
 is the one whose clean width is widest.
 
-The AVX2 target is real where valgrind is installed: valgrind hides AVX-512 from CPUID, so PoCL compiles for
-``haswell`` while ``$S2CL_REPORTED_WIDTH=16`` makes the device report 16 float lanes, as the wheel's PoCL does
-on AMD Zen 4.
+Expectations come from the device under test (builds of the tests' own), never from the machine these tests
+were written on; tests/test_machines.py runs them under other drivers, a compiler that aborts, and an AVX2 target.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,7 +21,6 @@ from s2cl.cl.probe import ABORT_ENV, REPORTED_ENV, WidthCheck, Widths, first_dia
 from s2cl.errors import InputError
 
 REPO = Path(__file__).resolve().parent.parent
-AVX2_ONLY = ("haswell", "znver1", "znver2", "znver3", "skylake", "broadwell", "alderlake")  # valgrind's
 
 
 @pytest.fixture
@@ -39,7 +36,10 @@ def _measure(rt) -> Widths:
 
 def _built_apart(rt, real_t: str, width: int) -> str:
     """The build log of the probe kernel at ``width`` built in a fresh process of the test's own (not the probe's
-    child), or "FAILED: ..." where the build raised."""
+    child), or "FAILED: ..." where the build raised or the process died (as the emulated compiler of
+    ``$S2CL_PROBE_ABORT`` does at its width)."""
+    if os.environ.get(ABORT_ENV, "").strip() == str(width):
+        return "FAILED: the emulated compiler aborts at this width"
     script = ("import sys, pyopencl as cl\n"
               "from s2cl.cl.probe import probe_source\n"
               "p, d = int(sys.argv[1]), int(sys.argv[2])\n"
@@ -135,7 +135,7 @@ def test_a_probe_the_compiler_kills_is_restarted_past_that_width(rt, fresh_cache
     assert w.where == "child"
     assert w.checks[0] == WidthCheck("float32", 16, "aborted", "the compiler killed the probe (signal 6)")
     assert w.checks[1].real_t == "float32" and w.checks[1].width == 8
-    assert w.clean["float32"] == 8
+    assert w.clean["float32"] == next((n for n in (8, 4, 2, 1) if _clean_apart(rt, "float32", n)), 0)
     assert "16 aborted" in w.why("float32")
 
 
@@ -145,12 +145,13 @@ def test_a_probe_the_compiler_hangs_is_stopped_and_passed(rt, fresh_cache, monke
     if "CPU" not in rt.info.kind:
         pytest.skip("CPU plan (reported width and its halves)")
     monkeypatch.setenv(REPORTED_ENV, "16")
+    monkeypatch.delenv(ABORT_ENV, raising=False)  # this test's machine hangs at 16; it does not abort there
     monkeypatch.setenv(probe.HANG_ENV, "16")
     monkeypatch.setenv(probe.TIMEOUT_ENV, "5")
     w = _measure(rt)
     assert w.where == "child"
     assert w.checks[0] == WidthCheck("float32", 16, "aborted", "the compiler gave no verdict in 5 s")
-    assert w.clean["float32"] == 8
+    assert w.clean["float32"] == next((n for n in (8, 4, 2, 1) if _clean_apart(rt, "float32", n)), 0)
 
 
 def test_verdicts_are_cached_per_driver_and_report(rt, fresh_cache, monkeypatch) -> None:
@@ -168,6 +169,8 @@ def test_verdicts_are_cached_per_driver_and_report(rt, fresh_cache, monkeypatch)
 
 
 def test_the_probe_runs_in_process_where_no_child_can(rt, fresh_cache, monkeypatch) -> None:
+    if os.environ.get(ABORT_ENV):
+        pytest.skip(f"${ABORT_ENV} emulates a compiler that aborts: probing in this process would end it")
     child = _measure(rt)
     (fresh_cache / "devices").rename(fresh_cache / "old")
 
@@ -223,30 +226,3 @@ def test_devices_command_shows_each_width_and_why(rt) -> None:
                                      text=True, timeout=300, check=True).stdout)
     default = [row for row in data if row["default"]]
     assert len(default) == 1 and default[0]["lanes"]["float32"] == default[0]["clean"]["float32"]
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind (apt-get install valgrind)")
-def test_on_a_real_avx2_target_a_reported_16_steps_down_and_the_kernels_pass(tmp_path) -> None:
-    """Under valgrind (an AVX2 CPU as PoCL sees it) with the device reporting 16 float lanes: every PoCL driver
-    that builds there chooses 8 because 16 warns, and the vector-math kernel tests, forced to 16 lanes, pass
-    at the width chosen, with builds that must not warn."""
-    env = os.environ | {"S2CL_CACHE": str(tmp_path / "cache"), REPORTED_ENV: "16", "POCL_KERNEL_CACHE": "0",
-                        "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    env.pop("PYOPENCL_CTX", None)
-    vg = ["valgrind", "--tool=none", "-q", "--trace-children=yes", sys.executable]
-    out = subprocess.run([*vg, "-m", "s2cl", "devices", "--json"], capture_output=True, text=True, env=env,
-                         timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    rows = [r for r in json.loads(out.stdout) if r["builds"] and "Portable" in r["platform"]]
-    if not rows or any(r["target"] not in AVX2_ONLY for r in rows):
-        pytest.skip(f"valgrind did not give an AVX2 target: {[r['target'] for r in rows]}")
-    for row in rows:  # 16 floats and 8 doubles warn or kill the compiler (both step down); 8 and 4 build clean
-        assert row["clean"] == {"float32": 8, "float64": 4}, row
-        verdicts = {(r, w): v for r, w, v, _ in row["checks"]}
-        assert verdicts[("float32", 16)] in ("warns", "aborted") and verdicts[("float64", 8)] in ("warns", "aborted")
-    out = subprocess.run([*vg, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--device", "all",
-                          str(REPO / "tests" / "test_vecmath.py"), "-k", "lanes16 or lanes8"],
-                         capture_output=True, text=True, env=env, timeout=900, cwd=REPO)
-    assert out.returncode == 0, out.stdout[-3000:]
-    assert " passed" in out.stdout

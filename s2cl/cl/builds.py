@@ -105,9 +105,10 @@ def keep_context_until_exit(program: Any) -> None:
     The wheel's PoCL 3.0 (LLVM 14) leaks a reference to the build's IR when it takes a program from its kernel
     cache whose build warned that a vector argument "changes the ABI" (a width its code target lacks):
     releasing that context later, at any time and at the latest when the interpreter exits, aborts the process
-    ("still have references to IRs - can't release LLVM context !", status 134) after all its work is done. The context is kept with one extra Python
-    reference that nothing drops, so it is never released; other warnings are kept too (one small context per
-    warning build, once per process), as a build's log cannot tell which ones leak.
+    ("still have references to IRs - can't release LLVM context !", status 134) after all its work is done.
+    The context is kept with one extra Python reference that nothing drops, so it is never released; other
+    warnings are kept too (one small context per warning build, once per process), as a build's log cannot
+    tell which ones leak.
     """
     import ctypes
 
