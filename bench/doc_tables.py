@@ -684,6 +684,24 @@ def search_joint(joint: str) -> str:
     return joint_section(_load(results_path(JOINT_SCENE, joint)))
 
 
+# -- docs/devices.md --------------------------------------------------------------------------------
+
+def machines() -> str:
+    """``python -m bench.machines``: which emulated set-ups of tests/test_machines.py ran here, and how."""
+    from bench.machines import RESULTS_JSON
+
+    path = RESULTS / RESULTS_JSON
+    r = _load(path)
+    rows = [(c["test"].removeprefix("test_").replace("_", " "), c["outcome"], c["seconds"], c["why"] or "–")
+            for c in r["cases"]]
+    m = r["machine"]
+    return (md_table(("set-up (test)", "outcome", "s", "why skipped or failed"), rows)
+            + f"\n\nOn {r['cpu']}, {m['cores']} cores, {m['date'][:10]}, with the OpenCL devices "
+            + "; ".join(f"`{d}`" for d in r["drivers"]) + f"; {r['seconds']:.0f} s in all (1-minute load average "
+            f"{m['load_average_before'][0]:.1f} before, {m['load_average_after'][0]:.1f} after). From "
+            f"`{_rel(path)}` (written by `{r['command']}`).")
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -724,6 +742,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "instrument.costs": instrument_costs,
     "search.joint-b3-b8a": lambda: search_joint("split"),
     "search.joint-b3-b8a-full": lambda: search_joint("full"),
+    "machines": machines,
 }
 
 # pages generated whole (path relative to the repository → its text)

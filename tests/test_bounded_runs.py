@@ -244,13 +244,13 @@ def test_a_bad_cube_creates_no_folder(tmp_path) -> None:
 
 
 def test_an_unreachable_scheduler_is_refused_before_anything_is_created(tmp_path) -> None:
+    """Refused in one line that bounds the wait (no wall-clock assertion: a hang ends at run()'s time limit)."""
     pytest.importorskip("dask.distributed")
-    t0 = time.monotonic()
     for address, why in (("tcp://127.0.0.1:1", "cannot connect to the Dask scheduler 'tcp://127.0.0.1:1'"),
                          ("bogus", "'bogus' is not a scheduler address")):
-        one_line_error(run("optimise", "-q", str(scene(tmp_path)), "--scheduler", address, "-o", "out",
-                           cwd=tmp_path), "--scheduler: " + why)
-    assert time.monotonic() - t0 < 60
+        line = one_line_error(run("optimise", "-q", str(scene(tmp_path)), "--scheduler", address, "-o", "out",
+                                  cwd=tmp_path), "--scheduler: " + why)
+        assert address == "bogus" or "waited at most" in line
     assert not (tmp_path / "out").exists()
 
 
