@@ -27,6 +27,7 @@ from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST
 from s2cl.scene.scene import Scene
+from s2cl.status import PixelFlag
 
 
 def _cube(rows: int = 24, cols: int = 24, seed: int = 0) -> np.ndarray:
@@ -114,21 +115,42 @@ def test_integer_shift_is_a_roll_and_fraction_moves_a_sine() -> None:
                        atol=2e-3)
 
 
-def test_nodata_pixels_stay_local() -> None:
-    """A NaN pixel does not spread through the FFT: away from it the result is the one of the image with that pixel
-    filled in; at its shifted place it is NaN."""
+def test_a_nan_pixel_reaches_exactly_the_filters_support() -> None:
+    """σ = 1 px, shift (2, -0.7) px: the filter reaches R = ⌈|d| + 4σ + taper + 1⌉ - 1 pixels along each axis (the
+    taper, round(8·exp(-π²σ²/2)) = round(0.058), is 0): 6 along rows, 5 along columns, by hand. A NaN pixel makes
+    NaN exactly that rectangle around it; every other pixel is the hole-free image's, bit for bit. Changing the
+    pixel's value instead changes only pixels inside the rectangle, out to its edge on the side the image moves to."""
     img = _cube(30, 30)[:, :, 400].astype(np.float64)
     holed = img.copy()
     holed[10, 12] = np.nan
-    out = spatial_response(holed, 1.0, 2.0, 0.0)
-    ref = spatial_response(img, 1.0, 2.0, 0.0)
-    assert np.isnan(out[10, 14]) or abs(out[10, 14] - ref[10, 14]) < 0.2 * abs(ref[10, 14])
-    far = np.ones_like(img, bool)
-    far[4:17, 6:22] = False
-    assert np.isfinite(out[far]).all()
-    assert np.allclose(out[far], ref[far], rtol=1e-3)
-    shifted = spatial_response(holed, 0.0, 2.0, 0.0)
-    assert np.isnan(shifted[10, 14]) and np.isfinite(np.delete(shifted.ravel(), 10 * 30 + 14)).all()
+    out = spatial_response(holed, 1.0, 2.0, -0.7)
+    ref = spatial_response(img, 1.0, 2.0, -0.7)
+    rect = np.zeros(img.shape, bool)
+    rect[10 - 5 : 10 + 5 + 1, 12 - 6 : 12 + 6 + 1] = True
+    assert np.array_equal(np.isnan(out), rect)
+    assert np.array_equal(out[~rect], ref[~rect])
+    other = img.copy()
+    other[10, 12] += 50.0
+    changed = spatial_response(other, 1.0, 2.0, -0.7) != ref
+    assert not (changed & ~rect).any()
+    rows, cols = np.nonzero(changed)
+    assert rows.min() == 10 - 5 and cols.max() == 12 + 6  # content moves up (dy < 0) and right (dx > 0)
+
+
+def test_instrument_passes_each_band_its_own_psf_and_shift_in_input_pixels() -> None:
+    """What :meth:`Instrument.spatial` hands the filter, by hand: a 20 m band over a 10 m cube (2 input pixels per
+    band pixel) with its own MTF at Nyquist (0.3) and shift; a 10 m band with the scene's MTF (0.15)."""
+    scene = _scene({"mtf": True, "mtf_nyquist_bands": {"B5": 0.3}, "coregistration": True,
+                    "coregistration_shifts": {"B5": [0.4, -0.25], "B4": [0.0, 0.5]}})
+    a = Instrument.of(scene)
+    b5, b4 = a.band_names.index("B5"), a.band_names.index("B4")
+    sigma_b5 = math.sqrt(-2.0 * math.log(0.3 * math.pi / 2.0)) / math.pi  # exp(-2π²σ²/4)·2/π = 0.3
+    sigma_b4 = math.sqrt(-2.0 * math.log(0.15 * math.pi / 2.0)) / math.pi
+    assert a.mtf_sigma(b5) == pytest.approx(sigma_b5, rel=1e-12) and a.band_attrs(b5)["mtf_nyquist"] == 0.3
+    img = _cube(40, 40)[:, :, 600].astype(np.float64)
+    np.testing.assert_array_equal(a.spatial(img, b5, 2), spatial_response(img, 2 * sigma_b5, 0.8, -0.5))
+    np.testing.assert_array_equal(a.spatial(img.astype(np.float32), b4, 1),
+                                  spatial_response(img, sigma_b4, 0.0, 0.5).astype(np.float32))
 
 
 def test_shifts_from_seed_have_the_given_magnitude() -> None:
@@ -144,14 +166,21 @@ def test_shifts_from_seed_have_the_given_magnitude() -> None:
 
 
 def test_shifted_band_in_the_cube(rt) -> None:
-    """B4 shifted by exactly one band pixel (10 m) in x: its radiance image is the ideal one moved by a column."""
+    """B4 (10 m) shifted by one band pixel in x, B5 (20 m: 2 input pixels per band pixel) by one band pixel in x
+    and -1 in y, B1 (60 m: 6 input pixels) by -1 in x: each radiance image is the ideal one moved by whole band
+    pixels, ``moved(y, x) = ideal(y - dy, x - dx)``, away from the borders the filter mirrors."""
     cube = _cube()
-    ideal = simulate_cube(rt, _scene(effects={"noise": False, "quantise": False, "calibrate": False}), cube)
-    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {"B4": [1.0, 0.0]}},
-                                     effects={"noise": False, "quantise": False, "calibrate": False}), cube)
+    off = {"noise": False, "quantise": False, "calibrate": False}
+    ideal = simulate_cube(rt, _scene(effects=off), cube)
+    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {
+        "B4": [1.0, 0.0], "B5": [1.0, -1.0], "B1": [-1.0, 0.0]}}, effects=off), cube)
     assert moved["radiance_B4"].attrs["shift_x_px"] == 1.0 and "shift_x_px" not in ideal["radiance_B4"].attrs
     a, b = ideal["radiance_B4"].values, moved["radiance_B4"].values
     assert np.allclose(b[:, 1:], a[:, :-1], rtol=1e-5)
+    a, b = ideal["radiance_B5"].values, moved["radiance_B5"].values  # 12 × 12
+    assert np.allclose(b[:-1, 1:], a[1:, :-1], rtol=1e-5)
+    a, b = ideal["radiance_B1"].values, moved["radiance_B1"].values  # 4 × 4
+    assert np.allclose(b[:, :-1], a[:, 1:], rtol=1e-5)
     # bands without a given shift keep their seeded one (0.15 px): changed, but not by a whole pixel
     assert not np.allclose(moved["radiance_B3"].values, ideal["radiance_B3"].values, rtol=1e-4)
 
@@ -322,31 +351,86 @@ def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
 # -- row blocks and no-data ----------------------------------------------------------------------------------
 
 def test_row_blocks_match_the_whole_image(rt) -> None:
-    """Every effect on, simulated in blocks of 12 rows (read with the instrument's halo) and whole: the same band
-    radiance (to float32 rounding) and attributes."""
+    """Every effect on, simulated in blocks of 12 rows (read with the halo of the spatial filters) and whole: the
+    same variables, bit for bit, and the same band attributes."""
     cube = _cube(48, 48)
-    scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True},
-                   effects={"noise": False, "quantise": False, "calibrate": False})
+    scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True})
     whole = simulate_cube(rt, scene, cube)
     blocks = simulate_cube(rt, scene, cube, block_rows=12)
+    assert set(whole.data_vars) == set(blocks.data_vars)
+    for name in whole.data_vars:
+        np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
     for name in scene.sensor.band_names:
-        a, b = whole[f"radiance_{name}"].values, blocks[f"radiance_{name}"].values
-        assert np.allclose(a, b, rtol=1e-6, atol=1e-6), name
         assert whole[f"radiance_{name}"].attrs == blocks[f"radiance_{name}"].attrs
 
 
-def test_nodata_footprint_grows_with_the_psf_and_shift(rt) -> None:
-    """A NaN input pixel makes NODATA every output pixel whose PSF and shift reach it: more of them with the MTF
-    on than without."""
+def test_row_blocks_with_a_shift_and_a_psf_read_both_reaches(rt) -> None:
+    """Co-registration and the [spatial] PSF one after the other: a block is read with the sum of their reaches
+    (the 60 m bands: a shift of 1.5 band pixels along y, 9 input pixels, reaches 9 + 8 taper + 1 - 1 = 17 rows; the
+    PSF of FWHM 1 band pixel, σ = 6 / 2.355 = 2.548 input pixels, int(4 σ + 0.5) = 10 more): blocks of 6 rows give
+    the whole image's bands bit for bit, and a NaN pixel's footprint spans both reaches."""
+    from s2cl.forward.cube import cube_halo, spatial_reach
+
+    scene = _scene({"coregistration": True, "coregistration_shifts": {"B1": [0.0, 1.5], "B9": [0.0, 1.5],
+                                                                      "B10": [0.0, 1.5]}},
+                   spatial={"psf": "gaussian", "psf_fwhm": 1.0})
+    b1 = [scene.sensor.band_names.index(n) for n in ("B1", "B9", "B10")]
+    assert spatial_reach(scene, b1, 6) == (17 + 10, 0 + 10) and cube_halo(scene) == 27
+    cube = _cube(72, 24)
+    cube[40, 7, :] = np.nan
+    whole = simulate_cube(rt, scene, cube)
+    blocks = simulate_cube(rt, scene, cube, block_rows=6)
+    for name in whole.data_vars:
+        np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
+    # B1 (12 × 4): rows whose box [6i, 6i + 5] lies within 27 rows of row 40, columns within 10 of column 7
+    expected = np.zeros((12, 4), bool)
+    expected[[i for i in range(12) if 6 * i - 27 <= 40 <= 6 * i + 5 + 27], :] = True
+    expected[:, [j for j in range(4) if not 6 * j - 10 <= 7 <= 6 * j + 5 + 10]] = False
+    assert np.array_equal(np.isnan(whole["radiance_B1"].values), expected)
+
+
+#: the no-data test's bands and their shifts [dx, dy] (band pixels)
+HOLE_SHIFTS = {"B4": [0.6, -1.3], "B5": [-0.35, 0.8], "B1": [0.2, 0.45]}
+#: their filters' reach (rows, cols) in input pixels, by hand: σ = √(-2 ln(0.15·π/2)) / π = 0.54123 band pixels
+#: (the MTF at Nyquist 0.15), taper round(8·exp(-π²σ²/2)) for σ in input pixels, R = ⌈|d| + 4σ + taper + 1⌉ - 1.
+#: B4 (1 input pixel per band pixel): σ 0.54123, taper 2; rows ⌈1.3 + 2.16491 + 3⌉ - 1 = 6, cols ⌈0.6 + 5.16491⌉ - 1
+#: = 5. B5 (2): σ 1.08245, taper 0; rows ⌈1.6 + 4.32982 + 1⌉ - 1 = 6, cols ⌈0.7 + 5.32982⌉ - 1 = 6. B1 (6): σ
+#: 3.24736, taper 0; rows ⌈2.7 + 12.98946 + 1⌉ - 1 = 16, cols ⌈1.2 + 13.98946⌉ - 1 = 15
+HOLE_REACH = {"B4": (1, 6, 5), "B5": (2, 6, 6), "B1": (6, 16, 15)}
+
+
+def _footprint(hole: tuple[int, int], shape: tuple[int, int], factor: int, rows: int, cols: int) -> np.ndarray:
+    """Output pixels whose box, widened by ``rows`` / ``cols`` input pixels, holds the input pixel ``hole``."""
+    out = np.zeros(shape, bool)
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            out[i, j] = (i * factor - rows <= hole[0] <= (i + 1) * factor - 1 + rows
+                         and j * factor - cols <= hole[1] <= (j + 1) * factor - 1 + cols)
+    return out
+
+
+def test_valid_pixels_near_a_hole_equal_the_hole_free_cube(rt) -> None:
+    """The MTF and fractional shifts of a 10, a 20 and a 60 m band, noise on: a NaN input pixel makes NODATA exactly
+    the output pixels whose box its filters reach (:data:`HOLE_REACH`, by hand), and every other pixel of every
+    variable equals the hole-free cube's, bit for bit. Changing the pixel's spectrum instead changes only pixels
+    inside that footprint, and reaches its edge on the side the image moves to."""
+    scene = _scene({"mtf": True, "coregistration": True, "coregistration_shifts": HOLE_SHIFTS},
+                   sensor={"bands": list(HOLE_SHIFTS)})
     cube = _cube(48, 48)
-    cube[20, 20, :] = np.nan
-    off = {"noise": False, "quantise": False, "calibrate": False}
-    plain = simulate_cube(rt, _scene(effects=off), cube)
-    blurred = simulate_cube(rt, _scene({"mtf": True}, effects=off), cube)
-    for ds in (plain, blurred):
-        assert np.isnan(ds["radiance_B4"].values[20, 20])
-    n_plain = int(np.isnan(plain["radiance_B4"].values).sum())
-    n_blurred = int(np.isnan(blurred["radiance_B4"].values).sum())
-    assert n_plain == 1 < n_blurred
-    assert blurred["radiance_B4"].attrs["nodata_pixels"] == n_blurred
-    assert np.isfinite(blurred["radiance_B4"].values[:10]).all()
+    holed, other = cube.copy(), cube.copy()
+    holed[20, 20, :] = np.nan
+    other[20, 20, :] *= 3.0
+    ref, ds, changed = (simulate_cube(rt, scene, c) for c in (cube, holed, other))
+    for band, (factor, rows, cols) in HOLE_REACH.items():
+        nodata = _footprint((20, 20), ds[f"radiance_{band}"].shape, factor, rows, cols)
+        assert np.array_equal((ds[f"flags_{band}"].values & PixelFlag.NODATA) != 0, nodata), band
+        assert ds[f"radiance_{band}"].attrs["nodata_pixels"] == nodata.sum() > 0
+        for var in ("radiance", "noisy", "dn", "calibrated", "reflectance"):
+            if f"{var}_{band}" in ds:
+                np.testing.assert_array_equal(ds[f"{var}_{band}"].values[~nodata],
+                                              ref[f"{var}_{band}"].values[~nodata], err_msg=f"{var}_{band}")
+        moved = changed[f"radiance_{band}"].values != ref[f"radiance_{band}"].values
+        assert moved.any() and not (moved & ~nodata).any(), band
+    moved = np.nonzero(changed["radiance_B4"].values != ref["radiance_B4"].values)
+    assert moved[0].min() == 20 - 6 and moved[1].max() == 20 + 5  # B4 moves up (dy < 0) and right (dx > 0)
+
