@@ -3,7 +3,9 @@ detector non-uniformity — each against its float64 twin or its defining proper
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -434,3 +436,90 @@ def test_valid_pixels_near_a_hole_equal_the_hole_free_cube(rt) -> None:
     moved = np.nonzero(changed["radiance_B4"].values != ref["radiance_B4"].values)
     assert moved[0].min() == 20 - 6 and moved[1].max() == 20 + 5  # B4 moves up (dy < 0) and right (dx > 0)
 
+
+# -- memory ------------------------------------------------------------------------------------------------------
+
+#: the memory test's cube file: rows, columns, wavelengths (10 nm, float64) and the grid step (nm)
+MEM_ROWS, MEM_COLS, MEM_WL, MEM_STEP = 96, 120, np.arange(400.0, 2501.0, 10.0), 5
+#: rows its filters reach, by hand: the 60 m bands (6 input pixels per band pixel) with the MTF at Nyquist 0.15
+#: (σ = 6 · 0.54123 = 3.24736, no taper) and a shift of 0.5 band pixels along y (3 input pixels): ⌈3 + 12.98946 +
+#: 1⌉ - 1 = 16; the 20 m bands (σ 1.08245, seeded shifts of 0.3 input pixels at most) ⌈0.3 + 4.32982 + 1⌉ - 1 = 5,
+#: the 10 m bands (σ 0.54123, taper 2, 0.15 at most) ⌈0.15 + 2.16491 + 3⌉ - 1 = 5
+MEM_HALO = 16
+
+
+def _memory_scene(tmp_path, name: str, rows: int, cols: int) -> Path:
+    """An ENVI float64 cube of ``rows × cols`` pixels with one NaN pixel, and its scene file (MTF and
+    co-registration on, the 60 m bands shifted by [0.1, 0.5] band pixels)."""
+    data = np.memmap(tmp_path / f"{name}.bip", dtype="<f8", mode="w+", shape=(rows, cols, MEM_WL.size))
+    shape = 0.05 + 0.4 / (1 + np.exp(-(MEM_WL - 715) / 12))
+    for r in range(rows):
+        data[r] = np.linspace(0.5, 1.3, cols)[:, None] * shape * (1.0 + 0.1 * math.sin(r))
+    data[rows // 2, cols // 3, 7] = np.nan
+    data.flush()
+    del data
+    (tmp_path / f"{name}.hdr").write_text(
+        f"ENVI\nsamples = {cols}\nlines = {rows}\nbands = {MEM_WL.size}\nheader offset = 0\ndata type = 5\n"
+        f"interleave = bip\nbyte order = 0\nwavelength = {{{', '.join(f'{w:g}' for w in MEM_WL)}}}\n")
+    toml = tmp_path / f"{name}.toml"
+    toml.write_text(f'[scene]\nname = "{name}"\n[grid]\nstep_nm = {MEM_STEP}\n[surface]\ncube = "{name}.hdr"\n'
+                    'gsd_m = 10\nquantity = "reflectance"\n[effects]\natmosphere = true\nnoise = true\n'
+                    'quantise = true\ncalibrate = true\n[instrument]\nmtf = true\ncoregistration = true\n'
+                    'coregistration_shifts = {B1 = [0.1, 0.5], B9 = [0.1, 0.5], B10 = [0.1, 0.5]}\n')
+    return toml
+
+
+def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path, monkeypatch) -> None:
+    """``s2cl simulate`` of a cube file with the MTF and co-registration under a --max-memory that leaves the bytes
+    of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand): the memory rule picks blocks of
+    6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured on the
+    reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves.
+    Left out of the estimate, the halo would let blocks of 38 rows read 70."""
+    import tracemalloc
+
+    from s2cl.app.simulate_scene import (
+        CUBE_BYTES_PER_BAND,
+        CUBE_BYTES_PER_GRID,
+        CUBE_BYTES_PER_INPUT,
+        cube_block_rows,
+        cube_whole_bytes,
+        simulate_scene,
+    )
+    from s2cl.errors import ResourceError
+    from s2cl.forward.cube import SceneCube
+    from s2cl.io.budget import BASELINE_BYTES, Budget
+
+    toml = _memory_scene(tmp_path, "big", MEM_ROWS, MEM_COLS)
+    small = _memory_scene(tmp_path, "small", 30, 30)
+    sc = Scene.load(str(toml))
+    per_row = MEM_COLS * (CUBE_BYTES_PER_BAND * sc.sensor.size + CUBE_BYTES_PER_INPUT * MEM_WL.size
+                          + CUBE_BYTES_PER_GRID * sc.grid.size)
+    fixed = BASELINE_BYTES + cube_whole_bytes(sc, MEM_ROWS * MEM_COLS, MEM_WL.size)
+    limit = math.ceil(fixed + (6 + 2 * MEM_HALO) * per_row)
+    assert cube_block_rows(sc, Budget.of(str(limit)), MEM_ROWS, MEM_COLS, MEM_WL.size) == 6
+    with pytest.raises(ResourceError, match=r"surface\.cube"):
+        cube_block_rows(sc, Budget.of(str(limit - per_row)), MEM_ROWS, MEM_COLS, MEM_WL.size)
+
+    held: list[int] = []
+    block = SceneCube.block
+
+    def measured(self, start: int, stop: int) -> np.ndarray:
+        held.append(stop - start)
+        return block(self, start, stop)
+
+    def traced(scene: Path, out: str, max_memory: str | None) -> tuple[int, dict]:
+        tracemalloc.start()
+        try:
+            run = simulate_scene(scene, tmp_path / out, max_memory=max_memory)
+            return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
+        finally:
+            tracemalloc.stop()
+
+    traced(small, "warm", None)  # one-time costs: kernel builds
+    base, _ = traced(small, "base", None)
+    monkeypatch.setattr(SceneCube, "block", measured)
+    peak, run = traced(toml, "streamed", str(limit))
+    assert run["block_rows"] == 6 and run["attrs"]["nodata_input_pixels"] == 1
+    assert max(held) == 6 + 2 * MEM_HALO
+    assert fixed + max(held) * per_row <= limit
+    assert peak - base < limit - BASELINE_BYTES, (peak, base, limit)
