@@ -189,6 +189,43 @@ def test_shifted_band_in_the_cube(rt) -> None:
 
 # -- smile ---------------------------------------------------------------------------------------------------
 
+def test_smile_per_column_by_hand() -> None:
+    """Column positions x = 2 (i + 1/2) / cols - 1 (4 columns: -0.75, -0.25, 0.25, 0.75), Δλ = 1 + 0·x + 2x² nm,
+    width change 5·x %."""
+    smile = Smile.of(_scene({"smile": True, "smile_centre_nm": [1.0, 0.0, 2.0], "smile_width_pct": [0.0, 5.0]})
+                     .spec.instrument, 4)
+    np.testing.assert_allclose(smile.shift_nm, [2.125, 1.125, 1.125, 2.125], rtol=1e-15)
+    np.testing.assert_allclose(smile.width_factor, [0.9625, 0.9875, 1.0125, 1.0375], rtol=1e-15)
+
+
+@pytest.mark.parametrize("tabulated", [False, True])
+def test_moved_weights_move_and_stretch_the_srf(tabulated: bool) -> None:
+    """A band's SRF moved by Δ nm and stretched by w about its centre c: its centroid goes from m to c + (m - c)·w
+    + Δ and its standard deviation from s to w·s (moments of the weights on the 1 nm grid), for B4's model SRF and
+    for a lopsided tabulated one."""
+    from dataclasses import replace
+
+    from s2cl.sensor.srf import TabulatedResponse
+
+    band = _scene().sensor.band("B4")
+    if tabulated:
+        wl = np.arange(610.0, 720.5, 0.5)
+        band = replace(band, tabulated=TabulatedResponse(wl, np.exp(-(((wl - 660.0) / 12.0) ** 2))
+                                                         * (1.0 + (wl - 610.0) / 40.0), "test"))
+
+    def moments(w) -> tuple[float, float]:
+        wl, v = DEFAULT_GRID.wavelengths[w.start : w.stop], w.weights
+        m = float((v * wl).sum() / v.sum())
+        return m, float(np.sqrt((v * (wl - m) ** 2).sum() / v.sum()))
+
+    m, sd = moments(inst.moved_weights(band, DEFAULT_GRID, 0.0, 1.0, 1.0))
+    c = band.centre_nm
+    for shift, width in ((3.0, 1.0), (0.0, 1.2), (-2.5, 0.9)):
+        m2, sd2 = moments(inst.moved_weights(band, DEFAULT_GRID, shift, width, 1.0))
+        assert m2 == pytest.approx(c + (m - c) * width + shift, abs=1e-3), (shift, width)
+        assert sd2 == pytest.approx(width * sd, rel=1e-3), (shift, width)
+
+
 def test_lagrange_reproduces_a_quadratic() -> None:
     nodes = np.array([-1.0, 0.2, 1.5])
     x = np.linspace(-1, 1.5, 11)
@@ -213,6 +250,18 @@ def test_smile_against_per_column_twin(rt, spec, tol) -> None:
     err = np.abs(ours - twin) / np.abs(twin)
     assert err.max() < tol
     assert np.max(np.abs(nominal - twin) / np.abs(twin)) > 1e3 * tol  # the smile itself is far above that
+
+
+def test_smile_in_the_cube_against_per_column_twin(rt) -> None:
+    """The cube path (node bands per block of 2 rows, combined per column, then the 20 m box average) against each
+    column's own SRF integral in float64 (:func:`smile_twin`), box-averaged by hand for B5: within 1e-6."""
+    scene = _scene({"smile": True}, sensor={"bands": ["B4", "B5"]}, compute={"precision": "float64"},
+                   effects={"noise": False, "quantise": False, "calibrate": False})
+    cube = _cube(6, 40)
+    ds = simulate_cube(rt, scene, cube, block_rows=2)
+    twin = smile_twin(scene, load_scene_cube(scene, cube, None).spectra, 6, 40)
+    np.testing.assert_allclose(ds["radiance_B4"].values, twin[0], rtol=1e-6)
+    np.testing.assert_allclose(ds["radiance_B5"].values, twin[1].reshape(3, 2, 20, 2).mean(axis=(1, 3)), rtol=1e-6)
 
 
 def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
@@ -264,13 +313,25 @@ def test_nonuniformity_columns_from_seed() -> None:
 
 
 def test_nonuniformity_stripes_columns_in_the_cube(rt) -> None:
+    """A flat cube: each band constant down its columns and striped across them, B5 (20 m, 12 columns over the 24 of
+    the cube; band index 4) by its own equalised residual, written out from its draws: L · (g L + o - (o + δ)) /
+    (g (1 + ε)) / L on the band's columns."""
     cube = np.broadcast_to(_cube(1, 1), (24, 24, DEFAULT_GRID.size)).copy()
     off = {"noise": False, "quantise": False, "calibrate": False}
-    ds = simulate_cube(rt, _scene({"nonuniformity": True}, effects=off), cube)
+    scene = _scene({"nonuniformity": True}, effects=off)
+    ds = simulate_cube(rt, scene, cube)
+    ideal = simulate_cube(rt, _scene(effects=off), cube)
     img = ds["radiance_B4"].values
     assert np.allclose(img, img[0:1, :], rtol=1e-6)  # constant down each column
     assert np.std(img[0]) / img[0].mean() > 5e-4  # but varying across
     assert ds.attrs["instrument"] == "nonuniformity"
+    k = scene.sensor.band_names.index("B5")
+    z = np.random.default_rng([3, inst._NU_TAG, k]).standard_normal((4, 12))
+    lref = scene.sensor.bands[k].lref
+    g, o, eps, delta = 1 + 0.02 * z[0], 0.005 * lref * z[1], 0.002 * z[2], 0.0005 * lref * z[3]
+    flat = float(ideal["radiance_B5"].values[0, 0])
+    expect = (g * flat + o - (o + delta)) / (g * (1 + eps))
+    np.testing.assert_allclose(ds["radiance_B5"].values, np.broadcast_to(expect, (12, 12)), rtol=2e-6)
 
 
 # -- off means skipped ---------------------------------------------------------------------------------------
