@@ -432,7 +432,7 @@ def test_row_blocks_with_a_shift_and_a_psf_read_both_reaches(rt) -> None:
     (the 60 m bands: a shift of 1.5 band pixels along y, 9 input pixels, reaches 9 + 8 taper + 1 - 1 = 17 rows; the
     PSF of FWHM 1 band pixel, σ = 6 / 2.355 = 2.548 input pixels, int(4 σ + 0.5) = 10 more): blocks of 6 rows give
     the whole image's bands bit for bit, and a NaN pixel's footprint spans both reaches."""
-    from s2cl.forward.cube import cube_halo, spatial_reach
+    from s2cl.forward.reach import cube_halo, spatial_reach
 
     scene = _scene({"coregistration": True, "coregistration_shifts": {"B1": [0.0, 1.5], "B9": [0.0, 1.5],
                                                                       "B10": [0.0, 1.5]}},

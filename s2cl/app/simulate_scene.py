@@ -92,10 +92,10 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     What does not stream (:func:`cube_whole_bytes`): a cube file's NODATA mask, a generated cube's labels and parcel
     ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of the rows it
     is read with on each side (the halo of its spatial filters, [spatial] PSF and [instrument] MTF and shift:
-    :func:`s2cl.forward.cube.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
+    :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
     and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra, read by rows and put on the grid on their
     way through the resampler."""
-    from s2cl.forward.cube import band_groups, cube_halo
+    from s2cl.forward.reach import band_groups, cube_halo
     from s2cl.io.budget import BASELINE_BYTES
 
     spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0

@@ -13,13 +13,13 @@ any no-data sample is NODATA and an output pixel whose footprint touches one is 
 (:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
 
 The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the halo of the spatial
-filters, :func:`cube_halo`) into a store (:mod:`s2cl.io.image_store`): the result is the same, bit for bit. A
-generated cube (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its
-spectrum's band radiance.
+filters, :func:`s2cl.forward.reach.cube_halo`) into a store (:mod:`s2cl.io.image_store`): the result is the
+same, bit for bit. A generated cube (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each
+pixel taking its spectrum's band radiance.
 
 The scene's [instrument] effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
 (node bands, interpolated per column), each band's PSF and shift before its box average (finite filters: blocks
-are read with their halo, and the NODATA footprint is their support, :func:`spatial_reach`), the detector
+are read with their halo, and the NODATA footprint is their support, :mod:`s2cl.forward.reach`), the detector
 non-uniformity per column after it.
 """
 
@@ -38,6 +38,7 @@ from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.instrument import Instrument, SmileResampler
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
+from s2cl.forward.reach import FWHM_TO_SIGMA, band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
@@ -50,51 +51,10 @@ from s2cl.scene.scene import Scene
 from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
-FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
 #: bytes of a cube file's values read at a time (as stored, and as floating) by the NODATA pass over its rows
 NODATA_PASS_BYTES = 8_000_000
-__all__ = ["SceneCube", "aggregate", "band_groups", "cube_halo", "cube_size", "load_cube", "load_scene_cube",
-           "simulate_cube", "spatial_reach", "to_grid"]
-
-
-def band_groups(scene: Scene) -> list[tuple[int, list[int]]]:
-    """The scene's bands by GSD, finest first: ``(factor, band indices)``, ``factor`` the cube's pixels per band
-    pixel (an :class:`InputError` when a band's GSD is not a whole multiple of the cube's)."""
-    bands, gsd_in = scene.sensor.bands, scene.spec.surface.gsd_m
-    if gsd_in is None:
-        raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
-    out = []
-    for gsd in sorted({b.gsd_m for b in bands}):
-        ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        out.append((_factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source), ids))
-    return out
-
-
-def spatial_reach(scene: Scene, ids: list[int], factor: int) -> tuple[int, int]:
-    """Input pixels ``(rows, cols)`` on each side that the spatial filters of bands ``ids`` (``factor`` input pixels
-    per band pixel) reach: the [instrument] MTF and shift's finite filter
-    (:meth:`s2cl.forward.instrument.Instrument.reach`) and then the [spatial] Gaussian PSF (its kernel radius,
-    :func:`s2cl.forward.row_blocks.gaussian_radius`); one runs after the other, so their reaches add. No input pixel
-    farther from an output pixel's box enters it: this is the NODATA footprint's widening, and its row count the
-    halo of a block of rows (:func:`cube_halo`)."""
-    rows, cols = Instrument.of(scene).reach(ids, factor)
-    sigma = _psf_sigma(scene, factor)
-    psf = gaussian_radius(sigma) if sigma else 0
-    return rows + psf, cols + psf
-
-
-def cube_halo(scene: Scene) -> int:
-    """Input rows a block of rows is read with on each side (the longest row reach of :func:`spatial_reach` over
-    the band groups), so that its output rows equal those of the whole image: the block reader of
-    :func:`simulate_cube` and the memory rule of ``s2cl simulate`` both take it from here."""
-    return max(spatial_reach(scene, ids, factor)[0] for factor, ids in band_groups(scene))
-
-
-def _psf_sigma(scene: Scene, factor: int) -> float | None:
-    """σ (input pixels) of the scene's [spatial] Gaussian PSF for bands of ``factor`` input pixels per band pixel;
-    None without one."""
-    s = scene.spec.spatial
-    return s.psf_fwhm * factor * FWHM_TO_SIGMA if s.psf == "gaussian" else None
+__all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube",
+           "to_grid"]
 
 
 def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str, *,
@@ -246,7 +206,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
     bands = scene.sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
-        factor = _factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
+        factor = gsd_factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
@@ -288,7 +248,8 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
     already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
     written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
-    default all), read with the spatial filters' halo (:func:`cube_halo`), so the result does not depend on it."""
+    default all), read with the spatial filters' halo (:func:`s2cl.forward.reach.cube_halo`), so the result does
+    not depend on it."""
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
     rows, cols = prepared.rows, prepared.cols
@@ -328,15 +289,6 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     return out.dataset() if store is None else None
 
 
-def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
-    ratio = gsd / gsd_in
-    factor = round(ratio)
-    if factor < 1 or abs(ratio - factor) > 1e-6:
-        raise InputError(f"band GSD {gsd:g} m is not a whole multiple of the cube's GSD {gsd_in:g} m "
-                         f"(bands {', '.join(names)})", source=source, key="surface.gsd_m")
-    return factor
-
-
 class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
@@ -359,8 +311,9 @@ class _Group:
                 correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
             self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
                                    scene.effects, sim.precision, correction=correction)
-        #: output pixels whose footprint (box and the spatial filters' support, :func:`spatial_reach`) holds a NODATA
-        #: input pixel (:func:`s2cl.forward.nodata.footprint_nodata`)
+        #: output pixels whose footprint (box and the spatial filters' support,
+        #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
+        #: (:func:`s2cl.forward.nodata.footprint_nodata`)
         self.nodata = footprint_nodata(nodata, self.factor, spatial_reach(scene, self.ids, self.factor))[:, :nx]
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
