@@ -534,8 +534,9 @@ def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path
     """``s2cl simulate`` of a cube file with the MTF and co-registration under a --max-memory that leaves the bytes
     of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand): the memory rule picks blocks of
     6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured on the
-    reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves.
-    Left out of the estimate, the halo would let blocks of 38 rows read 70."""
+    reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves
+    (18.8 of 80.5 MB when written: the bytes per row are an upper bound, some 4× what is traced). Left out of the
+    estimate, the halo would let blocks of 36 rows read up to 68, 131 MB by the estimate's own bytes per row."""
     import tracemalloc
 
     from s2cl.app.simulate_scene import (
