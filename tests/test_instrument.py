@@ -3,7 +3,9 @@ detector non-uniformity — each against its float64 twin or its defining proper
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +29,7 @@ from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST
 from s2cl.scene.scene import Scene
+from s2cl.status import PixelFlag
 
 
 def _cube(rows: int = 24, cols: int = 24, seed: int = 0) -> np.ndarray:
@@ -114,21 +117,42 @@ def test_integer_shift_is_a_roll_and_fraction_moves_a_sine() -> None:
                        atol=2e-3)
 
 
-def test_nodata_pixels_stay_local() -> None:
-    """A NaN pixel does not spread through the FFT: away from it the result is the one of the image with that pixel
-    filled in; at its shifted place it is NaN."""
+def test_a_nan_pixel_reaches_exactly_the_filters_support() -> None:
+    """σ = 1 px, shift (2, -0.7) px: the filter reaches R = ⌈|d| + 4σ + taper + 1⌉ - 1 pixels along each axis (the
+    taper, round(8·exp(-π²σ²/2)) = round(0.058), is 0): 6 along rows, 5 along columns, by hand. A NaN pixel makes
+    NaN exactly that rectangle around it; every other pixel is the hole-free image's, bit for bit. Changing the
+    pixel's value instead changes only pixels inside the rectangle, out to its edge on the side the image moves to."""
     img = _cube(30, 30)[:, :, 400].astype(np.float64)
     holed = img.copy()
     holed[10, 12] = np.nan
-    out = spatial_response(holed, 1.0, 2.0, 0.0)
-    ref = spatial_response(img, 1.0, 2.0, 0.0)
-    assert np.isnan(out[10, 14]) or abs(out[10, 14] - ref[10, 14]) < 0.2 * abs(ref[10, 14])
-    far = np.ones_like(img, bool)
-    far[4:17, 6:22] = False
-    assert np.isfinite(out[far]).all()
-    assert np.allclose(out[far], ref[far], rtol=1e-3)
-    shifted = spatial_response(holed, 0.0, 2.0, 0.0)
-    assert np.isnan(shifted[10, 14]) and np.isfinite(np.delete(shifted.ravel(), 10 * 30 + 14)).all()
+    out = spatial_response(holed, 1.0, 2.0, -0.7)
+    ref = spatial_response(img, 1.0, 2.0, -0.7)
+    rect = np.zeros(img.shape, bool)
+    rect[10 - 5 : 10 + 5 + 1, 12 - 6 : 12 + 6 + 1] = True
+    assert np.array_equal(np.isnan(out), rect)
+    assert np.array_equal(out[~rect], ref[~rect])
+    other = img.copy()
+    other[10, 12] += 50.0
+    changed = spatial_response(other, 1.0, 2.0, -0.7) != ref
+    assert not (changed & ~rect).any()
+    rows, cols = np.nonzero(changed)
+    assert rows.min() == 10 - 5 and cols.max() == 12 + 6  # content moves up (dy < 0) and right (dx > 0)
+
+
+def test_instrument_passes_each_band_its_own_psf_and_shift_in_input_pixels() -> None:
+    """What :meth:`Instrument.spatial` hands the filter, by hand: a 20 m band over a 10 m cube (2 input pixels per
+    band pixel) with its own MTF at Nyquist (0.3) and shift; a 10 m band with the scene's MTF (0.15)."""
+    scene = _scene({"mtf": True, "mtf_nyquist_bands": {"B5": 0.3}, "coregistration": True,
+                    "coregistration_shifts": {"B5": [0.4, -0.25], "B4": [0.0, 0.5]}})
+    a = Instrument.of(scene)
+    b5, b4 = a.band_names.index("B5"), a.band_names.index("B4")
+    sigma_b5 = math.sqrt(-2.0 * math.log(0.3 * math.pi / 2.0)) / math.pi  # exp(-2π²σ²/4)·2/π = 0.3
+    sigma_b4 = math.sqrt(-2.0 * math.log(0.15 * math.pi / 2.0)) / math.pi
+    assert a.mtf_sigma(b5) == pytest.approx(sigma_b5, rel=1e-12) and a.band_attrs(b5)["mtf_nyquist"] == 0.3
+    img = _cube(40, 40)[:, :, 600].astype(np.float64)
+    np.testing.assert_array_equal(a.spatial(img, b5, 2), spatial_response(img, 2 * sigma_b5, 0.8, -0.5))
+    np.testing.assert_array_equal(a.spatial(img.astype(np.float32), b4, 1),
+                                  spatial_response(img, sigma_b4, 0.0, 0.5).astype(np.float32))
 
 
 def test_shifts_from_seed_have_the_given_magnitude() -> None:
@@ -144,19 +168,63 @@ def test_shifts_from_seed_have_the_given_magnitude() -> None:
 
 
 def test_shifted_band_in_the_cube(rt) -> None:
-    """B4 shifted by exactly one band pixel (10 m) in x: its radiance image is the ideal one moved by a column."""
+    """B4 (10 m) shifted by one band pixel in x, B5 (20 m: 2 input pixels per band pixel) by one band pixel in x
+    and -1 in y, B1 (60 m: 6 input pixels) by -1 in x: each radiance image is the ideal one moved by whole band
+    pixels, ``moved(y, x) = ideal(y - dy, x - dx)``, away from the borders the filter mirrors."""
     cube = _cube()
-    ideal = simulate_cube(rt, _scene(effects={"noise": False, "quantise": False, "calibrate": False}), cube)
-    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {"B4": [1.0, 0.0]}},
-                                     effects={"noise": False, "quantise": False, "calibrate": False}), cube)
+    off = {"noise": False, "quantise": False, "calibrate": False}
+    ideal = simulate_cube(rt, _scene(effects=off), cube)
+    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {
+        "B4": [1.0, 0.0], "B5": [1.0, -1.0], "B1": [-1.0, 0.0]}}, effects=off), cube)
     assert moved["radiance_B4"].attrs["shift_x_px"] == 1.0 and "shift_x_px" not in ideal["radiance_B4"].attrs
     a, b = ideal["radiance_B4"].values, moved["radiance_B4"].values
     assert np.allclose(b[:, 1:], a[:, :-1], rtol=1e-5)
+    a, b = ideal["radiance_B5"].values, moved["radiance_B5"].values  # 12 × 12
+    assert np.allclose(b[:-1, 1:], a[1:, :-1], rtol=1e-5)
+    a, b = ideal["radiance_B1"].values, moved["radiance_B1"].values  # 4 × 4
+    assert np.allclose(b[:, :-1], a[:, 1:], rtol=1e-5)
     # bands without a given shift keep their seeded one (0.15 px): changed, but not by a whole pixel
     assert not np.allclose(moved["radiance_B3"].values, ideal["radiance_B3"].values, rtol=1e-4)
 
 
 # -- smile ---------------------------------------------------------------------------------------------------
+
+def test_smile_per_column_by_hand() -> None:
+    """Column positions x = 2 (i + 1/2) / cols - 1 (4 columns: -0.75, -0.25, 0.25, 0.75), Δλ = 1 + 0·x + 2x² nm,
+    width change 5·x %."""
+    smile = Smile.of(_scene({"smile": True, "smile_centre_nm": [1.0, 0.0, 2.0], "smile_width_pct": [0.0, 5.0]})
+                     .spec.instrument, 4)
+    np.testing.assert_allclose(smile.shift_nm, [2.125, 1.125, 1.125, 2.125], rtol=1e-15)
+    np.testing.assert_allclose(smile.width_factor, [0.9625, 0.9875, 1.0125, 1.0375], rtol=1e-15)
+
+
+@pytest.mark.parametrize("tabulated", [False, True])
+def test_moved_weights_move_and_stretch_the_srf(tabulated: bool) -> None:
+    """A band's SRF moved by Δ nm and stretched by w about its centre c: its centroid goes from m to c + (m - c)·w
+    + Δ and its standard deviation from s to w·s (moments of the weights on the 1 nm grid), for B4's model SRF and
+    for a lopsided tabulated one."""
+    from dataclasses import replace
+
+    from s2cl.sensor.srf import TabulatedResponse
+
+    band = _scene().sensor.band("B4")
+    if tabulated:
+        wl = np.arange(610.0, 720.5, 0.5)
+        band = replace(band, tabulated=TabulatedResponse(wl, np.exp(-(((wl - 660.0) / 12.0) ** 2))
+                                                         * (1.0 + (wl - 610.0) / 40.0), "test"))
+
+    def moments(w) -> tuple[float, float]:
+        wl, v = DEFAULT_GRID.wavelengths[w.start : w.stop], w.weights
+        m = float((v * wl).sum() / v.sum())
+        return m, float(np.sqrt((v * (wl - m) ** 2).sum() / v.sum()))
+
+    m, sd = moments(inst.moved_weights(band, DEFAULT_GRID, 0.0, 1.0, 1.0))
+    c = band.centre_nm
+    for shift, width in ((3.0, 1.0), (0.0, 1.2), (-2.5, 0.9)):
+        m2, sd2 = moments(inst.moved_weights(band, DEFAULT_GRID, shift, width, 1.0))
+        assert m2 == pytest.approx(c + (m - c) * width + shift, abs=1e-3), (shift, width)
+        assert sd2 == pytest.approx(width * sd, rel=1e-3), (shift, width)
+
 
 def test_lagrange_reproduces_a_quadratic() -> None:
     nodes = np.array([-1.0, 0.2, 1.5])
@@ -182,6 +250,18 @@ def test_smile_against_per_column_twin(rt, spec, tol) -> None:
     err = np.abs(ours - twin) / np.abs(twin)
     assert err.max() < tol
     assert np.max(np.abs(nominal - twin) / np.abs(twin)) > 1e3 * tol  # the smile itself is far above that
+
+
+def test_smile_in_the_cube_against_per_column_twin(rt) -> None:
+    """The cube path (node bands per block of 2 rows, combined per column, then the 20 m box average) against each
+    column's own SRF integral in float64 (:func:`smile_twin`), box-averaged by hand for B5: within 1e-6."""
+    scene = _scene({"smile": True}, sensor={"bands": ["B4", "B5"]}, compute={"precision": "float64"},
+                   effects={"noise": False, "quantise": False, "calibrate": False})
+    cube = _cube(6, 40)
+    ds = simulate_cube(rt, scene, cube, block_rows=2)
+    twin = smile_twin(scene, load_scene_cube(scene, cube, None).spectra, 6, 40)
+    np.testing.assert_allclose(ds["radiance_B4"].values, twin[0], rtol=1e-6)
+    np.testing.assert_allclose(ds["radiance_B5"].values, twin[1].reshape(3, 2, 20, 2).mean(axis=(1, 3)), rtol=1e-6)
 
 
 def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
@@ -233,13 +313,25 @@ def test_nonuniformity_columns_from_seed() -> None:
 
 
 def test_nonuniformity_stripes_columns_in_the_cube(rt) -> None:
+    """A flat cube: each band constant down its columns and striped across them, B5 (20 m, 12 columns over the 24 of
+    the cube; band index 4) by its own equalised residual, written out from its draws: L · (g L + o - (o + δ)) /
+    (g (1 + ε)) / L on the band's columns."""
     cube = np.broadcast_to(_cube(1, 1), (24, 24, DEFAULT_GRID.size)).copy()
     off = {"noise": False, "quantise": False, "calibrate": False}
-    ds = simulate_cube(rt, _scene({"nonuniformity": True}, effects=off), cube)
+    scene = _scene({"nonuniformity": True}, effects=off)
+    ds = simulate_cube(rt, scene, cube)
+    ideal = simulate_cube(rt, _scene(effects=off), cube)
     img = ds["radiance_B4"].values
     assert np.allclose(img, img[0:1, :], rtol=1e-6)  # constant down each column
     assert np.std(img[0]) / img[0].mean() > 5e-4  # but varying across
     assert ds.attrs["instrument"] == "nonuniformity"
+    k = scene.sensor.band_names.index("B5")
+    z = np.random.default_rng([3, inst._NU_TAG, k]).standard_normal((4, 12))
+    lref = scene.sensor.bands[k].lref
+    g, o, eps, delta = 1 + 0.02 * z[0], 0.005 * lref * z[1], 0.002 * z[2], 0.0005 * lref * z[3]
+    flat = float(ideal["radiance_B5"].values[0, 0])
+    expect = (g * flat + o - (o + delta)) / (g * (1 + eps))
+    np.testing.assert_allclose(ds["radiance_B5"].values, np.broadcast_to(expect, (12, 12)), rtol=2e-6)
 
 
 # -- off means skipped ---------------------------------------------------------------------------------------
@@ -322,31 +414,174 @@ def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
 # -- row blocks and no-data ----------------------------------------------------------------------------------
 
 def test_row_blocks_match_the_whole_image(rt) -> None:
-    """Every effect on, simulated in blocks of 12 rows (read with the instrument's halo) and whole: the same band
-    radiance (to float32 rounding) and attributes."""
+    """Every effect on, simulated in blocks of 12 rows (read with the halo of the spatial filters) and whole: the
+    same variables, bit for bit, and the same band attributes."""
     cube = _cube(48, 48)
-    scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True},
-                   effects={"noise": False, "quantise": False, "calibrate": False})
+    scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True})
     whole = simulate_cube(rt, scene, cube)
     blocks = simulate_cube(rt, scene, cube, block_rows=12)
+    assert set(whole.data_vars) == set(blocks.data_vars)
+    for name in whole.data_vars:
+        np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
     for name in scene.sensor.band_names:
-        a, b = whole[f"radiance_{name}"].values, blocks[f"radiance_{name}"].values
-        assert np.allclose(a, b, rtol=1e-6, atol=1e-6), name
         assert whole[f"radiance_{name}"].attrs == blocks[f"radiance_{name}"].attrs
 
 
-def test_nodata_footprint_grows_with_the_psf_and_shift(rt) -> None:
-    """A NaN input pixel makes NODATA every output pixel whose PSF and shift reach it: more of them with the MTF
-    on than without."""
+def test_row_blocks_with_a_shift_and_a_psf_read_both_reaches(rt) -> None:
+    """Co-registration and the [spatial] PSF one after the other: a block is read with the sum of their reaches
+    (the 60 m bands: a shift of 1.5 band pixels along y, 9 input pixels, reaches 9 + 8 taper + 1 - 1 = 17 rows; the
+    PSF of FWHM 1 band pixel, σ = 6 / 2.355 = 2.548 input pixels, int(4 σ + 0.5) = 10 more): blocks of 6 rows give
+    the whole image's bands bit for bit, and a NaN pixel's footprint spans both reaches."""
+    from s2cl.forward.reach import cube_halo, spatial_reach
+
+    scene = _scene({"coregistration": True, "coregistration_shifts": {"B1": [0.0, 1.5], "B9": [0.0, 1.5],
+                                                                      "B10": [0.0, 1.5]}},
+                   spatial={"psf": "gaussian", "psf_fwhm": 1.0})
+    b1 = [scene.sensor.band_names.index(n) for n in ("B1", "B9", "B10")]
+    assert spatial_reach(scene, b1, 6) == (17 + 10, 0 + 10) and cube_halo(scene) == 27
+    cube = _cube(72, 24)
+    cube[40, 7, :] = np.nan
+    whole = simulate_cube(rt, scene, cube)
+    blocks = simulate_cube(rt, scene, cube, block_rows=6)
+    for name in whole.data_vars:
+        np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
+    # B1 (12 × 4): rows whose box [6i, 6i + 5] lies within 27 rows of row 40, columns within 10 of column 7
+    expected = np.zeros((12, 4), bool)
+    expected[[i for i in range(12) if 6 * i - 27 <= 40 <= 6 * i + 5 + 27], :] = True
+    expected[:, [j for j in range(4) if not 6 * j - 10 <= 7 <= 6 * j + 5 + 10]] = False
+    assert np.array_equal(np.isnan(whole["radiance_B1"].values), expected)
+
+
+#: the no-data test's bands and their shifts [dx, dy] (band pixels)
+HOLE_SHIFTS = {"B4": [0.6, -1.3], "B5": [-0.35, 0.8], "B1": [0.2, 0.45]}
+#: their filters' reach (rows, cols) in input pixels, by hand: σ = √(-2 ln(0.15·π/2)) / π = 0.54123 band pixels
+#: (the MTF at Nyquist 0.15), taper round(8·exp(-π²σ²/2)) for σ in input pixels, R = ⌈|d| + 4σ + taper + 1⌉ - 1.
+#: B4 (1 input pixel per band pixel): σ 0.54123, taper 2; rows ⌈1.3 + 2.16491 + 3⌉ - 1 = 6, cols ⌈0.6 + 5.16491⌉ - 1
+#: = 5. B5 (2): σ 1.08245, taper 0; rows ⌈1.6 + 4.32982 + 1⌉ - 1 = 6, cols ⌈0.7 + 5.32982⌉ - 1 = 6. B1 (6): σ
+#: 3.24736, taper 0; rows ⌈2.7 + 12.98946 + 1⌉ - 1 = 16, cols ⌈1.2 + 13.98946⌉ - 1 = 15
+HOLE_REACH = {"B4": (1, 6, 5), "B5": (2, 6, 6), "B1": (6, 16, 15)}
+
+
+def _footprint(hole: tuple[int, int], shape: tuple[int, int], factor: int, rows: int, cols: int) -> np.ndarray:
+    """Output pixels whose box, widened by ``rows`` / ``cols`` input pixels, holds the input pixel ``hole``."""
+    out = np.zeros(shape, bool)
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            out[i, j] = (i * factor - rows <= hole[0] <= (i + 1) * factor - 1 + rows
+                         and j * factor - cols <= hole[1] <= (j + 1) * factor - 1 + cols)
+    return out
+
+
+def test_valid_pixels_near_a_hole_equal_the_hole_free_cube(rt) -> None:
+    """The MTF and fractional shifts of a 10, a 20 and a 60 m band, noise on: a NaN input pixel makes NODATA exactly
+    the output pixels whose box its filters reach (:data:`HOLE_REACH`, by hand), and every other pixel of every
+    variable equals the hole-free cube's, bit for bit. Changing the pixel's spectrum instead changes only pixels
+    inside that footprint, and reaches its edge on the side the image moves to."""
+    scene = _scene({"mtf": True, "coregistration": True, "coregistration_shifts": HOLE_SHIFTS},
+                   sensor={"bands": list(HOLE_SHIFTS)})
     cube = _cube(48, 48)
-    cube[20, 20, :] = np.nan
-    off = {"noise": False, "quantise": False, "calibrate": False}
-    plain = simulate_cube(rt, _scene(effects=off), cube)
-    blurred = simulate_cube(rt, _scene({"mtf": True}, effects=off), cube)
-    for ds in (plain, blurred):
-        assert np.isnan(ds["radiance_B4"].values[20, 20])
-    n_plain = int(np.isnan(plain["radiance_B4"].values).sum())
-    n_blurred = int(np.isnan(blurred["radiance_B4"].values).sum())
-    assert n_plain == 1 < n_blurred
-    assert blurred["radiance_B4"].attrs["nodata_pixels"] == n_blurred
-    assert np.isfinite(blurred["radiance_B4"].values[:10]).all()
+    holed, other = cube.copy(), cube.copy()
+    holed[20, 20, :] = np.nan
+    other[20, 20, :] *= 3.0
+    ref, ds, changed = (simulate_cube(rt, scene, c) for c in (cube, holed, other))
+    for band, (factor, rows, cols) in HOLE_REACH.items():
+        nodata = _footprint((20, 20), ds[f"radiance_{band}"].shape, factor, rows, cols)
+        assert np.array_equal((ds[f"flags_{band}"].values & PixelFlag.NODATA) != 0, nodata), band
+        assert ds[f"radiance_{band}"].attrs["nodata_pixels"] == nodata.sum() > 0
+        for var in ("radiance", "noisy", "dn", "calibrated", "reflectance"):
+            if f"{var}_{band}" in ds:
+                np.testing.assert_array_equal(ds[f"{var}_{band}"].values[~nodata],
+                                              ref[f"{var}_{band}"].values[~nodata], err_msg=f"{var}_{band}")
+        moved = changed[f"radiance_{band}"].values != ref[f"radiance_{band}"].values
+        assert moved.any() and not (moved & ~nodata).any(), band
+    moved = np.nonzero(changed["radiance_B4"].values != ref["radiance_B4"].values)
+    assert moved[0].min() == 20 - 6 and moved[1].max() == 20 + 5  # B4 moves up (dy < 0) and right (dx > 0)
+
+
+# -- memory ------------------------------------------------------------------------------------------------------
+
+#: the memory test's cube file: rows, columns, wavelengths (10 nm, float64) and the grid step (nm)
+MEM_ROWS, MEM_COLS, MEM_WL, MEM_STEP = 96, 120, np.arange(400.0, 2501.0, 10.0), 5
+#: rows its filters reach, by hand: the 60 m bands (6 input pixels per band pixel) with the MTF at Nyquist 0.15
+#: (σ = 6 · 0.54123 = 3.24736, no taper) and a shift of 0.5 band pixels along y (3 input pixels): ⌈3 + 12.98946 +
+#: 1⌉ - 1 = 16; the 20 m bands (σ 1.08245, seeded shifts of 0.3 input pixels at most) ⌈0.3 + 4.32982 + 1⌉ - 1 = 5,
+#: the 10 m bands (σ 0.54123, taper 2, 0.15 at most) ⌈0.15 + 2.16491 + 3⌉ - 1 = 5
+MEM_HALO = 16
+
+
+def _memory_scene(tmp_path, name: str, rows: int, cols: int) -> Path:
+    """An ENVI float64 cube of ``rows × cols`` pixels with one NaN pixel, and its scene file (MTF and
+    co-registration on, the 60 m bands shifted by [0.1, 0.5] band pixels)."""
+    data = np.memmap(tmp_path / f"{name}.bip", dtype="<f8", mode="w+", shape=(rows, cols, MEM_WL.size))
+    shape = 0.05 + 0.4 / (1 + np.exp(-(MEM_WL - 715) / 12))
+    for r in range(rows):
+        data[r] = np.linspace(0.5, 1.3, cols)[:, None] * shape * (1.0 + 0.1 * math.sin(r))
+    data[rows // 2, cols // 3, 7] = np.nan
+    data.flush()
+    del data
+    (tmp_path / f"{name}.hdr").write_text(
+        f"ENVI\nsamples = {cols}\nlines = {rows}\nbands = {MEM_WL.size}\nheader offset = 0\ndata type = 5\n"
+        f"interleave = bip\nbyte order = 0\nwavelength = {{{', '.join(f'{w:g}' for w in MEM_WL)}}}\n")
+    toml = tmp_path / f"{name}.toml"
+    toml.write_text(f'[scene]\nname = "{name}"\n[grid]\nstep_nm = {MEM_STEP}\n[surface]\ncube = "{name}.hdr"\n'
+                    'gsd_m = 10\nquantity = "reflectance"\n[effects]\natmosphere = true\nnoise = true\n'
+                    'quantise = true\ncalibrate = true\n[instrument]\nmtf = true\ncoregistration = true\n'
+                    'coregistration_shifts = {B1 = [0.1, 0.5], B9 = [0.1, 0.5], B10 = [0.1, 0.5]}\n')
+    return toml
+
+
+def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path, monkeypatch) -> None:
+    """``s2cl simulate`` of a cube file with the MTF and co-registration under a --max-memory that leaves the bytes
+    of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand): the memory rule picks blocks of
+    6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured on the
+    reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves
+    (18.8 of 80.5 MB when written: the bytes per row are an upper bound, some 4× what is traced). Left out of the
+    estimate, the halo would let blocks of 36 rows read up to 68, 131 MB by the estimate's own bytes per row."""
+    import tracemalloc
+
+    from s2cl.app.simulate_scene import (
+        CUBE_BYTES_PER_BAND,
+        CUBE_BYTES_PER_GRID,
+        CUBE_BYTES_PER_INPUT,
+        cube_block_rows,
+        cube_whole_bytes,
+        simulate_scene,
+    )
+    from s2cl.errors import ResourceError
+    from s2cl.forward.cube import SceneCube
+    from s2cl.io.budget import BASELINE_BYTES, Budget
+
+    toml = _memory_scene(tmp_path, "big", MEM_ROWS, MEM_COLS)
+    small = _memory_scene(tmp_path, "small", 30, 30)
+    sc = Scene.load(str(toml))
+    per_row = MEM_COLS * (CUBE_BYTES_PER_BAND * sc.sensor.size + CUBE_BYTES_PER_INPUT * MEM_WL.size
+                          + CUBE_BYTES_PER_GRID * sc.grid.size)
+    fixed = BASELINE_BYTES + cube_whole_bytes(sc, MEM_ROWS * MEM_COLS, MEM_WL.size)
+    limit = math.ceil(fixed + (6 + 2 * MEM_HALO) * per_row)
+    assert cube_block_rows(sc, Budget.of(str(limit)), MEM_ROWS, MEM_COLS, MEM_WL.size) == 6
+    with pytest.raises(ResourceError, match=r"surface\.cube"):
+        cube_block_rows(sc, Budget.of(str(limit - per_row)), MEM_ROWS, MEM_COLS, MEM_WL.size)
+
+    held: list[int] = []
+    block = SceneCube.block
+
+    def measured(self, start: int, stop: int) -> np.ndarray:
+        held.append(stop - start)
+        return block(self, start, stop)
+
+    def traced(scene: Path, out: str, max_memory: str | None) -> tuple[int, dict]:
+        tracemalloc.start()
+        try:
+            run = simulate_scene(scene, tmp_path / out, max_memory=max_memory)
+            return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
+        finally:
+            tracemalloc.stop()
+
+    traced(small, "warm", None)  # one-time costs: kernel builds
+    base, _ = traced(small, "base", None)
+    monkeypatch.setattr(SceneCube, "block", measured)
+    peak, run = traced(toml, "streamed", str(limit))
+    assert run["block_rows"] == 6 and run["attrs"]["nodata_input_pixels"] == 1
+    assert max(held) == 6 + 2 * MEM_HALO
+    assert fixed + max(held) * per_row <= limit
+    assert peak - base < limit - BASELINE_BYTES, (peak, base, limit)

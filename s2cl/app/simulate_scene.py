@@ -90,18 +90,18 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     ``surface.cube`` when not even one block of rows fits.
 
     What does not stream (:func:`cube_whole_bytes`): a cube file's NODATA mask, a generated cube's labels and parcel
-    ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of its PSF
-    halo, the band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a
-    file's spectra, read by rows and put on the grid on their way through the resampler."""
-    from s2cl.forward.cube import FWHM_TO_SIGMA
-    from s2cl.forward.row_blocks import gaussian_radius
+    ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of the rows it
+    is read with on each side (the halo of its spatial filters, [spatial] PSF and [instrument] MTF and shift:
+    :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
+    and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra, read by rows and put on the grid on their
+    way through the resampler."""
+    from s2cl.forward.reach import band_groups, cube_halo
     from s2cl.io.budget import BASELINE_BYTES
 
     spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
-    s = sc.spec
-    factors = [round(b.gsd_m / (s.surface.gsd_m or 1.0)) for b in sc.sensor.bands]
-    halo = gaussian_radius(s.spatial.psf_fwhm * max(factors) * FWHM_TO_SIGMA) if s.spatial.psf == "gaussian" else 0
+    factors = [factor for factor, _ in band_groups(sc)]
+    halo = cube_halo(sc)
     unit = math.lcm(*factors)
     fixed = BASELINE_BYTES + cube_whole_bytes(sc, rows * cols, wavelengths)
     if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:

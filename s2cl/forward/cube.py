@@ -12,14 +12,15 @@ any no-data sample is NODATA and an output pixel whose footprint touches one is 
 (:mod:`s2cl.forward.nodata` says why), flagged in every band's ``flags_<band>`` variable
 (:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
 
-The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the PSF's
-halo) into a store (:mod:`s2cl.io.image_store`): the result is the same. A generated cube
-(:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each pixel taking its spectrum's band
-radiance.
+The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the halo of the spatial
+filters, :func:`s2cl.forward.reach.cube_halo`) into a store (:mod:`s2cl.io.image_store`): the result is the
+same, bit for bit. A generated cube (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each
+pixel taking its spectrum's band radiance.
 
 The scene's [instrument] effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
-(node bands, interpolated per column), each band's PSF and shift before its box average (blocks are read with
-their halo too, and the NODATA footprint reaches as far), the detector non-uniformity per column after it.
+(node bands, interpolated per column), each band's PSF and shift before its box average (finite filters: blocks
+are read with their halo, and the NODATA footprint is their support, :mod:`s2cl.forward.reach`), the detector
+non-uniformity per column after it.
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.instrument import Instrument, SmileResampler
-from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows, psf_radius
+from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
+from s2cl.forward.reach import FWHM_TO_SIGMA, band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
@@ -49,10 +51,10 @@ from s2cl.scene.scene import Scene
 from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
-FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
 #: bytes of a cube file's values read at a time (as stored, and as floating) by the NODATA pass over its rows
 NODATA_PASS_BYTES = 8_000_000
-__all__ = ["SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube", "to_grid"]
+__all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube",
+           "to_grid"]
 
 
 def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str, *,
@@ -204,7 +206,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
         raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
     bands = scene.sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
-        factor = _factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
+        factor = gsd_factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
@@ -246,7 +248,8 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
     already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
     written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
-    default all), read with the PSF's halo, so the result does not depend on it."""
+    default all), read with the spatial filters' halo (:func:`s2cl.forward.reach.cube_halo`), so the result does
+    not depend on it."""
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
     rows, cols = prepared.rows, prepared.cols
@@ -264,10 +267,9 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
                       "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum()),
                       "instrument": instrument.spec.describe()})
     nodata = prepared.nodata_image
-    groups = [_Group(scene, sim, gsd, gsd_in, rows, cols, out, nodata, psf, instrument)
-              for gsd in sorted({b.gsd_m for b in scene.sensor.bands})]
-    halo = max(gaussian_radius(psf * g.factor * FWHM_TO_SIGMA) for g in groups) if psf else 0
-    halo = max([halo] + [instrument.halo(g.ids, g.factor) for g in groups])
+    groups = [_Group(scene, sim, factor, ids, rows, cols, out, nodata, instrument)
+              for factor, ids in band_groups(scene)]
+    halo = cube_halo(scene)
     distinct = band_values(prepared.spectra) if prepared.labels is not None else None
     labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
     for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
@@ -287,24 +289,15 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     return out.dataset() if store is None else None
 
 
-def _factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
-    ratio = gsd / gsd_in
-    factor = round(ratio)
-    if factor < 1 or abs(ratio - factor) > 1e-6:
-        raise InputError(f"band GSD {gsd:g} m is not a whole multiple of the cube's GSD {gsd_in:g} m "
-                         f"(bands {', '.join(names)})", source=source, key="surface.gsd_m")
-    return factor
-
-
 class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
-    def __init__(self, scene: Scene, sim: Simulator, gsd: float, gsd_in: float, rows: int, cols: int,
-                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, psf: float | None, instrument: Instrument):
+    def __init__(self, scene: Scene, sim: Simulator, factor: int, ids: list[int], rows: int, cols: int,
+                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, instrument: Instrument):
         bands = scene.sensor.bands
+        gsd = bands[ids[0]].gsd_m
         self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
-        self.ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        self.factor = _factor(gsd, gsd_in, [bands[k].name for k in self.ids], scene.source)
+        self.ids, self.factor = ids, factor
         ny, nx = rows // self.factor, cols // self.factor
         self.nx = nx
         self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
@@ -318,9 +311,10 @@ class _Group:
                 correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
             self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
                                    scene.effects, sim.precision, correction=correction)
-        #: output pixels whose footprint holds a NODATA input pixel (:func:`s2cl.forward.nodata.footprint_nodata`)
-        radius = max(psf_radius(self.factor, psf, FWHM_TO_SIGMA), instrument.reach(self.ids, self.factor))
-        self.nodata = footprint_nodata(nodata, self.factor, radius)[:, :nx]
+        #: output pixels whose footprint (box and the spatial filters' support,
+        #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
+        #: (:func:`s2cl.forward.nodata.footprint_nodata`)
+        self.nodata = footprint_nodata(nodata, self.factor, spatial_reach(scene, self.ids, self.factor))[:, :nx]
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
 
@@ -380,7 +374,9 @@ class _Group:
 
 
 def _psf(image: np.ndarray, factor: int, psf_fwhm: float | None) -> np.ndarray:
-    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), or the image itself."""
+    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), its kernel
+    :func:`s2cl.forward.row_blocks.gaussian_radius` long on each side, or the image itself."""
     if not psf_fwhm:
         return image
-    return gaussian_filter(image.astype(np.float64), sigma=psf_fwhm * factor * FWHM_TO_SIGMA, mode="nearest")
+    sigma = psf_fwhm * factor * FWHM_TO_SIGMA
+    return gaussian_filter(image.astype(np.float64), sigma=sigma, mode="nearest", radius=gaussian_radius(sigma))

@@ -8,14 +8,17 @@ Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
   :data:`SMILE_NODES` node SRFs spanning the smile's range (per axis: their product when the width varies too) in
   one pass, and each column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`).
   Its error against the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
-* **mtf** and **coregistration** — on the input grid before the box average: the band's image is multiplied, in
-  frequency, by a Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at
-  Nyquist, :func:`gaussian_sigma`) and by the phase ramp of the band's sub-pixel shift (a Fourier shift: it moves
-  the image without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at half a
-  pixel): along rows by an FFT of each mirrored row (no step at its wrap-around; borders act as a mirror), along
-  columns by the same transfer function as a finite filter (its inverse DFT, tapered at its ends), so that an
-  image simulated in blocks of rows gives the same bands as the whole image. The twin :func:`spatial_twin` uses
-  FFTs along both axes. Off: the band's image is returned as it is, no filter runs.
+* **mtf** and **coregistration** — on the input grid before the box average: the band's image goes through a
+  Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at Nyquist,
+  :func:`gaussian_sigma`) and the phase ramp of the band's sub-pixel shift (a band-limited shift: it moves the image
+  without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at half a pixel), as a
+  finite filter along each axis (:func:`fir_kernel`: the transfer function's inverse DFT, kept whole over the
+  Gaussian's reach around the shifted centre and tapered to 0 over a few more taps, :func:`taper_taps`; borders act
+  as a half-sample mirror). The filter reaches :func:`fir_radius` pixels and no further: that is the halo of a block of
+  rows (so blocks give the same bands as the whole image, bit for bit) and how far a NODATA input pixel reaches
+  (so a valid pixel is the same as from a cube without the hole). The twin :func:`spatial_twin` applies the
+  transfer function exactly, by FFTs of the mirrored image along both axes. Off: the band's image is returned as
+  it is, no filter runs.
 * **nonuniformity** — on each band's grid after the box average: per-column gain ``g`` and offset ``o``; a relative
   calibration estimates them with errors ``ε`` (relative) and ``δ``, so the product holds
   ``(g·L + o − (o + δ)) / (g·(1 + ε))`` (or ``g·L + o`` without equalisation). Drawn from the scene's seed.
@@ -44,9 +47,10 @@ from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
 SMILE_NODES = 4
 #: how far the Gaussian is taken to reach (σ), as scipy.ndimage truncates it
 GAUSSIAN_TRUNCATE = 4.0
-#: taps of the along-column filter beyond the Gaussian's reach and the shift: room for the shift's (sinc)
-#: interpolation, under a cosine taper
-HALO_MARGIN = 8
+#: taps of an axis's filter beyond the Gaussian's reach and the shift, over which its window tapers to 0 (a
+#: cosine), when the Gaussian leaves the signal at Nyquist whole: room for the tails of the shift's band-limited
+#: (sinc) interpolation (:func:`taper_taps`)
+TAPER_TAPS = 8
 #: random-stream tags (the second word of each generator's seed), one per effect
 _COREG_TAG, _NU_TAG = 0x636F7267, 0x6E756E69
 
@@ -78,62 +82,66 @@ def _fft_axis(a: np.ndarray, sigma: float, d: float, axis: int) -> np.ndarray:
     return out[:, :n] if axis == 1 else out[:n]
 
 
+def taper_taps(sigma: float) -> int:
+    """Taps over which the filter of a Gaussian of ``sigma`` (pixels) and a shift tapers to 0 beyond the Gaussian's
+    reach: the shift's band-limited interpolation has tails only as strong as the signal near Nyquist, which the
+    Gaussian keeps in the proportion exp(−π²σ²/2), so :data:`TAPER_TAPS` times that, rounded (8 for a pure shift,
+    2 at σ = 0.54, none from σ ≈ 0.8 on, where the Gaussian truncated at 4 σ is within 1e-2 of its transfer
+    function)."""
+    return round(TAPER_TAPS * math.exp(-(math.pi**2) * sigma**2 / 2.0))
+
+
 def fir_radius(sigma: float, d: float) -> int:
-    """Half-length (pixels) of the along-column filter of a Gaussian of ``sigma`` and a shift ``d`` (pixels): the
-    Gaussian to :data:`GAUSSIAN_TRUNCATE` σ, the shift, and :data:`HALO_MARGIN` for the shift's interpolation."""
-    return math.ceil(GAUSSIAN_TRUNCATE * sigma + abs(d)) + HALO_MARGIN
+    """Half-length R (pixels) of the filter along one axis of a Gaussian of ``sigma`` and a shift ``d`` (pixels):
+    the farthest tap its window (:func:`fir_kernel`) leaves non-zero, ``|d|`` + 4 σ + :func:`taper_taps` + 1 rounded
+    up, less one; 0 when both are 0 (no filter runs along that axis). An output pixel depends on the input pixels
+    within R of it and on no other."""
+    if sigma == 0.0 and d == 0.0:
+        return 0
+    return math.ceil(abs(d) + GAUSSIAN_TRUNCATE * sigma + taper_taps(sigma) + 1) - 1
 
 
 def fir_kernel(sigma: float, d: float) -> np.ndarray:
-    """Taps ``h[-R … R]`` (R = :func:`fir_radius`) of the same transfer function as :func:`_fft_axis`: its inverse
-    DFT on a fine grid, kept whole over the Gaussian's reach around the shifted centre and tapered by a cosine over
-    the :data:`HALO_MARGIN` taps beyond, normalised to a sum of 1."""
+    """Taps ``h[-R … R]`` (R = :func:`fir_radius`) of the transfer function of a Gaussian of ``sigma`` and a shift
+    ``d`` (pixels): its inverse DFT on a fine grid times a window centred on the shift, 1 over the Gaussian's reach
+    (:data:`GAUSSIAN_TRUNCATE` σ) and a cosine down to 0 over :func:`taper_taps` + 1 taps beyond, normalised to a
+    sum of 1 (``[1]`` when both are 0). The taps on the side away from the shift that the window does not reach
+    are 0."""
     radius = fir_radius(sigma, d)
-    core = radius - HALO_MARGIN
+    if radius == 0:
+        return np.ones(1)
+    core, margin = GAUSSIAN_TRUNCATE * sigma, taper_taps(sigma)
     n = max(4096, 8 * radius)
     full = np.real(np.fft.ifft(_transfer(np.fft.fftfreq(n), sigma, d)))
     taps = np.arange(-radius, radius + 1)
-    beyond = np.clip(np.abs(taps - d) - core, 0.0, None)  # the window: 1 over the core, a cosine over the margin
-    h = full[taps % n] * 0.5 * (1.0 + np.cos(np.pi * np.minimum(beyond / (HALO_MARGIN + 1), 1.0)))
+    beyond = np.clip(np.abs(taps - d) - core, 0.0, None)
+    h = full[taps % n] * 0.5 * (1.0 + np.cos(np.pi * np.minimum(beyond / (margin + 1), 1.0)))
     return h / h.sum()
 
 
-def _fir_rows(a: np.ndarray, sigma: float, d: float) -> np.ndarray:
-    """``a`` filtered along its columns (axis 0) by :func:`fir_kernel`, borders as a half-sample mirror."""
-    if sigma == 0.0 and d == 0.0:
+def _fir_axis(a: np.ndarray, sigma: float, d: float, axis: int) -> np.ndarray:
+    """``a`` filtered along ``axis`` by :func:`fir_kernel` (content at ``i`` goes to ``i + d``), borders as a
+    half-sample mirror; ``a`` itself when the filter is the identity."""
+    if fir_radius(sigma, d) == 0:
         return a
-    return correlate1d(a, fir_kernel(sigma, d)[::-1], axis=0, mode="reflect")
-
-
-def _filter(img: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
-    """``img`` through the Gaussian and the shift, axis by axis (both are separable; an axis with neither is
-    skipped): along rows by FFT, along columns by the finite filter :func:`fir_kernel`, which reaches only
-    :func:`fir_radius` rows, so an image simulated in blocks of rows read with that halo gives the same result as
-    the whole image (float64)."""
-    return _fir_rows(_fft_axis(img, sigma, dx, 1), sigma, dy)
+    return correlate1d(a, fir_kernel(sigma, d)[::-1], axis=axis, mode="reflect")
 
 
 def spatial_twin(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
-    """float64 twin of :func:`spatial_response` (finite images): FFTs along both axes, no finite filter."""
+    """float64 twin of :func:`spatial_response` (finite images): the transfer function applied exactly, by FFTs
+    along both axes, no finite filter."""
     img = np.asarray(image, dtype=np.float64)
     return _fft_axis(_fft_axis(img, sigma, dx, 1), sigma, dy, 0)
 
 
 def spatial_response(image: np.ndarray, sigma: float, dx: float, dy: float) -> np.ndarray:
     """``image`` (rows, cols) blurred by a Gaussian of ``sigma`` and moved by ``(dx, dy)`` (content at x goes to
-    x + dx), all in input pixels (:func:`_filter`; borders act as a half-sample mirror, ``scipy.ndimage`` mode
-    ``reflect``).
-
-    No-data (non-finite) pixels are left out: the image with them at 0 is divided by the same response of the
-    valid-pixel mask (normalised convolution), and a pixel whose response is less than half valid is NaN."""
+    x + dx), all in input pixels, in float64: the finite filter :func:`fir_kernel` along rows (``sigma``, ``dx``),
+    then along columns (``sigma``, ``dy``); borders act as a half-sample mirror (``scipy.ndimage`` mode
+    ``reflect``). An output pixel depends on the input pixels within :func:`fir_radius` of it along each axis and
+    on no other: a NaN input pixel makes NaN exactly the output pixels that reach it."""
     img = np.asarray(image, dtype=np.float64)
-    valid = np.isfinite(img)
-    if valid.all():
-        return _filter(img, sigma, dx, dy)
-    weight = _filter(valid.astype(np.float64), sigma, dx, dy)
-    out = _filter(np.where(valid, img, 0.0), sigma, dx, dy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(weight >= 0.5, out / weight, np.nan)
+    return _fir_axis(_fir_axis(img, sigma, dx, 1), sigma, dy, 0)
 
 
 def lagrange(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -286,35 +294,30 @@ class Instrument:
     def spatial_on(self) -> bool:
         return self.spec.mtf or self.spec.coregistration
 
-    def reach(self, ids: list[int], factor: int) -> int:
-        """Input pixels the PSF and shift of bands ``ids`` (``factor`` input pixels per band pixel) reach on each
-        side: the Gaussian to :data:`GAUSSIAN_TRUNCATE` σ plus the shift (0 when both are off). An output pixel
-        is NODATA when a NODATA input pixel lies this close to its box."""
-        if not self.spatial_on:
-            return 0
-        out = 0.0
-        for k in ids:
-            sigma, shift = self.mtf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
-            out = max(out, (GAUSSIAN_TRUNCATE * sigma + max(abs(shift[0]), abs(shift[1]))) * factor)
-        return math.ceil(out)
+    def response(self, k: int, factor: int) -> tuple[float, float, float]:
+        """Band ``k``'s Gaussian σ and shift ``(dx, dy)`` in input pixels (``factor`` input pixels per band pixel),
+        0 for an effect that is off: what its filter (:func:`spatial_response`) and its reach are made of."""
+        sigma, (dx, dy) = self.mtf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
+        return sigma * factor, dx * factor, dy * factor
 
-    def halo(self, ids: list[int], factor: int) -> int:
-        """Rows a block of the image is read with beyond its own for bands ``ids``: the longest along-column
-        filter's half-length (:func:`fir_radius`; 0 when the spatial effects are off)."""
+    def reach(self, ids: list[int], factor: int) -> tuple[int, int]:
+        """Input pixels ``(rows, cols)`` the filters of bands ``ids`` (``factor`` input pixels per band pixel) reach
+        on each side along columns and along rows: the longest :func:`fir_radius` per axis, ``(0, 0)`` when the
+        spatial effects are off. No input pixel farther away enters an output pixel."""
         if not self.spatial_on:
-            return 0
-        return max(fir_radius((self.mtf_sigma(k) or 0.0) * factor, (self.shift(k) or (0.0, 0.0))[1] * factor)
-                   for k in ids)
+            return 0, 0
+        rows = cols = 0
+        for k in ids:
+            sigma, dx, dy = self.response(k, factor)
+            rows, cols = max(rows, fir_radius(sigma, dy)), max(cols, fir_radius(sigma, dx))
+        return rows, cols
 
     def spatial(self, image: np.ndarray, k: int, factor: int) -> np.ndarray:
         """Band ``k``'s image on the input grid through its PSF and shift (``factor`` input pixels per band
-        pixel); returned untouched when both are off."""
-        sigma, shift = self.mtf_sigma(k), self.shift(k)
-        if sigma is None and shift is None:
+        pixel), in ``image``'s dtype; returned untouched when both are off."""
+        if not self.spatial_on:
             return image
-        dx, dy = shift or (0.0, 0.0)
-        out = spatial_response(image, (sigma or 0.0) * factor, dx * factor, dy * factor)
-        return out.astype(image.dtype, copy=False)
+        return spatial_response(image, *self.response(k, factor)).astype(image.dtype, copy=False)
 
     def column_response(self, k: int, cols: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Band ``k``'s per-column (gain, offset) as the product sees them — ``L' = gain · L + offset`` on the

@@ -3,14 +3,17 @@ bands draw on wavelengths a bad band list dropped.
 
 **Rule.** An input pixel is NODATA when any of its spectral samples is NaN (the file readers of
 :mod:`s2cl.io.cubes` turn every marked no-data value into NaN). An output pixel of a band is NODATA when
-any input pixel inside its footprint is: the ``factor × factor`` box it averages, widened by the Gaussian
-PSF's kernel radius (``scipy.ndimage.gaussian_filter``'s own, 4 σ) when the PSF is on. A mean of the
-valid inputs alone would be a different pixel (the footprint's missing ground is assumed to look like
-the rest, and the PSF weights no longer sum to one), so a valid output pixel is always the pixel the
-instrument would see, bit for bit the same as from a cube without holes, and an output pixel the
-holes touch is reported as no data (flag :attr:`s2cl.status.PixelFlag.NODATA`, NaN radiance), never
-as a biased value. The kernels never see NaN spectra: no-data spectra enter them as zeros and their
-radiance is set to NaN after, so no kernel (or PSF) spreads NaN into valid neighbours.
+any input pixel inside its footprint is: the ``factor × factor`` box it averages, widened on each side by
+the reach of the spatial filters that run before the box average (:func:`s2cl.forward.reach.spatial_reach`:
+the Gaussian PSF's kernel radius, as ``scipy.ndimage.gaussian_filter`` truncates it, and the finite filter of
+the [instrument] MTF and shift, :func:`s2cl.forward.instrument.fir_radius`). Every one of these filters has a
+finite support, and the footprint is exactly that support: no input pixel beyond it enters the output pixel.
+A mean of the valid inputs alone would be a different pixel (the footprint's missing ground is assumed to
+look like the rest, and the PSF weights no longer sum to one), so a valid output pixel is always the pixel
+the instrument would see, bit for bit the same as from a cube without holes, and an output pixel the holes
+touch is reported as no data (flag :attr:`s2cl.status.PixelFlag.NODATA`, NaN radiance), never as a biased
+value. The kernels never see NaN spectra: no-data spectra enter them as zeros and their radiance is set to
+NaN after, so no kernel (or PSF) spreads NaN into valid neighbours.
 """
 
 from __future__ import annotations
@@ -24,8 +27,6 @@ from s2cl.errors import InputError
 from s2cl.grid import SpectralGrid
 from s2cl.sensor.srf import BandWeights
 
-#: ``scipy.ndimage.gaussian_filter``'s default kernel radius, in standard deviations
-GAUSSIAN_TRUNCATE = 4.0
 #: a band drawing more than this fraction of its SRF weight from a bad-band gap is reported
 GAP_WEIGHT_REPORTED = 0.01
 
@@ -43,19 +44,13 @@ def nodata_rows(flat: np.ndarray, step: int = 4096) -> np.ndarray:
     return mask
 
 
-def psf_radius(factor: int, psf_fwhm: float | None, fwhm_to_sigma: float) -> int:
-    """Input pixels the Gaussian PSF reaches on each side (0 without a PSF), as ``gaussian_filter`` truncates it."""
-    if not psf_fwhm:
-        return 0
-    return int(GAUSSIAN_TRUNCATE * psf_fwhm * factor * fwhm_to_sigma + 0.5)
-
-
-def footprint_nodata(nodata: np.ndarray, factor: int, radius: int) -> np.ndarray:
-    """Output-pixel NODATA mask: any NODATA input pixel within ``radius`` of the ``factor × factor`` box
-    (trailing partial boxes dropped, as the box average drops them)."""
-    reach = maximum_filter(nodata, size=2 * radius + 1, mode="nearest") if radius else nodata
-    rows, cols = (reach.shape[0] // factor) * factor, (reach.shape[1] // factor) * factor
-    return reach[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor).any(axis=(1, 3))
+def footprint_nodata(nodata: np.ndarray, factor: int, reach: tuple[int, int]) -> np.ndarray:
+    """Output-pixel NODATA mask: any NODATA input pixel within ``reach`` ``(rows, cols)`` input pixels of the
+    ``factor × factor`` box (trailing partial boxes dropped, as the box average drops them)."""
+    rows, cols = reach
+    near = maximum_filter(nodata, size=(2 * rows + 1, 2 * cols + 1), mode="nearest") if rows or cols else nodata
+    ny, nx = (near.shape[0] // factor) * factor, (near.shape[1] // factor) * factor
+    return near[:ny, :nx].reshape(ny // factor, factor, nx // factor, factor).any(axis=(1, 3))
 
 
 def gap_weights(weights: list[BandWeights], grid: SpectralGrid, kept_nm: np.ndarray,

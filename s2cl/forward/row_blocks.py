@@ -1,5 +1,6 @@
-"""Row blocks of an image cube: which input rows each block simulates and which it reads around them (the PSF's
-halo), so that a block's output rows equal those of the whole image simulated at once (tested)."""
+"""Row blocks of an image cube: which input rows each block simulates and which it reads around them (the halo of
+the spatial filters, :func:`s2cl.forward.reach.cube_halo`), so that a block's output rows equal those of the whole
+image simulated at once (tested)."""
 
 from __future__ import annotations
 

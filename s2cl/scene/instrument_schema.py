@@ -54,7 +54,7 @@ class InstrumentSpec(Section):
     mtf_nyquist_bands: dict[str, float] = Field(default_factory=dict, description="per-band MTF at Nyquist, "
                                                 "e.g. {B2 = 0.25}; other bands take mtf_nyquist")
     coregistration: bool = Field(False, description="band-to-band co-registration error: each band shifted by a "
-                                 "sub-pixel amount (Fourier shift on the input grid)")
+                                 "sub-pixel amount (band-limited shift by a finite filter on the input grid)")
     coregistration_px: float = Field(0.15, ge=0, le=2, description="each band's shift, band pixels, in a direction "
                                      "drawn from the seed (0.15: half the 0.3-pixel band-to-band requirement)")
     coregistration_shifts: dict[str, list[float]] = Field(

@@ -1,0 +1,72 @@
+"""How far the spatial filters of a band group reach on the input grid: the one rule that the NODATA footprint
+(:mod:`s2cl.forward.nodata`), the halo a block of rows is read with (:func:`s2cl.forward.cube.simulate_cube`) and
+the memory rule of ``s2cl simulate`` (:func:`s2cl.app.simulate_scene.cube_block_rows`) all take.
+
+The filters before the box average are the [instrument] MTF and shift (a finite filter along each axis,
+:func:`s2cl.forward.instrument.fir_radius`) and then the [spatial] Gaussian PSF (``scipy.ndimage.gaussian_filter``
+with its kernel radius, :func:`s2cl.forward.row_blocks.gaussian_radius`). No input pixel beyond their reach enters an
+output pixel, so a block read with the row reach gives the whole image's rows, and a valid pixel outside a no-data
+pixel's reach is the pixel of the cube without the hole, bit for bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from s2cl.errors import InputError
+from s2cl.forward.instrument import Instrument
+from s2cl.forward.row_blocks import gaussian_radius
+from s2cl.scene.scene import Scene
+
+FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+
+
+def gsd_factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
+    """Input pixels per band pixel of the bands ``names`` of ``gsd`` m over a cube of ``gsd_in`` m: an
+    :class:`InputError` when it is not a whole number."""
+    ratio = gsd / gsd_in
+    factor = round(ratio)
+    if factor < 1 or abs(ratio - factor) > 1e-6:
+        raise InputError(f"band GSD {gsd:g} m is not a whole multiple of the cube's GSD {gsd_in:g} m "
+                         f"(bands {', '.join(names)})", source=source, key="surface.gsd_m")
+    return factor
+
+
+def band_groups(scene: Scene) -> list[tuple[int, list[int]]]:
+    """The scene's bands by GSD, finest first: ``(factor, band indices)``, ``factor`` the cube's pixels per band
+    pixel (an :class:`InputError` when a band's GSD is not a whole multiple of the cube's)."""
+    bands, gsd_in = scene.sensor.bands, scene.spec.surface.gsd_m
+    if gsd_in is None:
+        raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
+    out = []
+    for gsd in sorted({b.gsd_m for b in bands}):
+        ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
+        out.append((gsd_factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source), ids))
+    return out
+
+
+def spatial_reach(scene: Scene, ids: list[int], factor: int) -> tuple[int, int]:
+    """Input pixels ``(rows, cols)`` on each side that the spatial filters of bands ``ids`` (``factor`` input pixels
+    per band pixel) reach: the [instrument] MTF and shift's finite filter
+    (:meth:`s2cl.forward.instrument.Instrument.reach`) and then the [spatial] Gaussian PSF (its kernel radius,
+    :func:`s2cl.forward.row_blocks.gaussian_radius`); one runs after the other, so their reaches add. No input pixel
+    farther from an output pixel's box enters it: this is the NODATA footprint's widening, and its row count the
+    halo of a block of rows (:func:`cube_halo`)."""
+    rows, cols = Instrument.of(scene).reach(ids, factor)
+    sigma = _psf_sigma(scene, factor)
+    psf = gaussian_radius(sigma) if sigma else 0
+    return rows + psf, cols + psf
+
+
+def cube_halo(scene: Scene) -> int:
+    """Input rows a block of rows is read with on each side (the longest row reach of :func:`spatial_reach` over
+    the band groups), so that its output rows equal those of the whole image: the block reader of
+    :func:`s2cl.forward.cube.simulate_cube` and the memory rule of ``s2cl simulate`` both take it from here."""
+    return max(spatial_reach(scene, ids, factor)[0] for factor, ids in band_groups(scene))
+
+
+def _psf_sigma(scene: Scene, factor: int) -> float | None:
+    """σ (input pixels) of the scene's [spatial] Gaussian PSF for bands of ``factor`` input pixels per band pixel;
+    None without one."""
+    s = scene.spec.spatial
+    return s.psf_fwhm * factor * FWHM_TO_SIGMA if s.psf == "gaussian" else None
