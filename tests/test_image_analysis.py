@@ -428,7 +428,7 @@ def test_pure_pixels_lie_inside_one_parcel() -> None:
                         [6, 6, 7, 7, 8, 8]])
     np.testing.assert_array_equal(pure_pixels(parcels, 2, 3), [[True, False, False], [True, True, True]])
     np.testing.assert_array_equal(pure_pixels(parcels, 2, 2), [[True, False], [True, True]])
-    np.testing.assert_array_equal(pure_pixels(parcels, 1, 6), np.ones((4, 6), bool))
+    np.testing.assert_array_equal(pure_pixels(parcels, 1, 4), np.ones((4, 4), bool))  # every pixel, nx wide
 
 
 def test_common_grid_box_averages_and_ors_the_flags_by_hand() -> None:
@@ -479,7 +479,7 @@ HAND_STATUS = np.array([[Status.OK, Status.OK, Status.OK, Status.OK, Status.STAL
                         [Status.OK, Status.OK, Status.DEGENERATE, Status.OK, Status.INVALID]], np.uint8)
 
 
-def _hand_truth_run(status: np.ndarray, step: int) -> tuple[dict, MemoryStore]:
+def _hand_truth_run(status: np.ndarray, step: int, bounds: np.ndarray | None = None) -> tuple[dict, MemoryStore]:
     from s2cl.app.image_analysis import _against_truth
     from s2cl.forward.cube import SceneCube
     from s2cl.retrieve.family import AnalysisSettings
@@ -490,8 +490,8 @@ def _hand_truth_run(status: np.ndarray, step: int) -> tuple[dict, MemoryStore]:
     for d, n in zip(grid.dims, (2, 5), strict=True):
         store.dimension(d, np.arange(n), {})
     settings = AnalysisSettings("igrm", "cab", regress=(int(Status.OK),))
-    out = _against_truth(store, _hand_scene(), cube, (HAND_INDEX, status, np.zeros((2, 5), np.uint8)), grid,
-                         settings, step)
+    bounds = np.zeros((2, 5), np.uint8) if bounds is None else bounds
+    out = _against_truth(store, _hand_scene(), cube, (HAND_INDEX, status, bounds), grid, settings, step)
     return out, store
 
 
@@ -522,3 +522,17 @@ def test_fewer_than_three_calibration_pixels_make_no_map() -> None:
     assert out == {"parameter": "cab", "calibration_pixels": 2,
                    "note": "fewer than 3 pure pixels with a fit: no calibration, no parameter map"}
     assert "cab_map" not in store
+
+
+def test_the_calibration_refits_without_the_fits_on_a_bound() -> None:
+    """The STALLED pixel made OK but on a bound (index 5, cab 20): four calibration pixels, off any parabola, so
+    the calibration RMS is numpy's least-squares parabola's; without the bound pixel three remain, which a parabola
+    fits exactly (RMS 0 on the bounds' refit)."""
+    status, bounds = HAND_STATUS.copy(), np.zeros((2, 5), np.uint8)
+    status[0, 4], bounds[0, 4] = Status.OK, 1
+    out, _ = _hand_truth_run(status, 2, bounds)
+    x, t = np.array([1.0, 2.0, 3.0, 5.0]), np.array([10.0, 20.0, 30.0, 20.0])
+    resid = np.polyval(np.polyfit(x, t, 2), x) - t
+    assert out["calibration_pixels"] == 4
+    assert out["calibration_rms"] == pytest.approx(np.sqrt(np.mean(resid**2)), rel=1e-9) and out["calibration_rms"] > 1
+    assert out["calibration_rms_unbounded"] == pytest.approx(0.0, abs=1e-9)
