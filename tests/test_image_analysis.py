@@ -190,6 +190,13 @@ def test_error_map_and_metrics_against_the_truth(rt) -> None:
     assert np.sqrt(np.mean(resid**2)) == pytest.approx(float(m["rms"][0]), rel=1e-9)
     total = a["fitted_pixels"] + a["invalid_pixels"] + a["degenerate_pixels"]
     assert total == a["pixels"] == 900
+    # the CF attributes a reader decodes the status and the flags with
+    st = ds["analysis_status"].attrs
+    assert dict(zip(st["flag_values"].tolist(), st["flag_meanings"].split(), strict=True)) == {
+        0: "ok", 1: "iteration_limit", 2: "degenerate", 3: "invalid", 4: "stalled", 5: "unclassified"}
+    fl = ds["analysis_flags"].attrs
+    assert fl["flag_masks"].tolist() == [1, 2, 4]
+    assert fl["flag_meanings"] == "below_lmin above_lmax_saturated no_data_nan_radiance"
 
 
 def test_a_classification_on_an_image_is_refused() -> None:
