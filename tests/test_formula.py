@@ -443,3 +443,17 @@ def test_band_names_match_without_regard_to_case() -> None:
     """As every band key of a scene: ``b6 - b5`` is B6 - B5, under the sensor's spelling."""
     f = Formula.parse("(b6 - B5) / b8A", ["B5", "B6", "B8A"])
     assert f.bands == ("B6", "B5", "B8A") and f.subtracted_pairs() == (("B6", "B5"),)
+
+
+def test_the_family_reads_each_band_from_its_slot(rt) -> None:
+    """``B5 / B4`` on the analysis bands B4, B8, B5: its bands in the order it names them sit in slots 2 and 0."""
+    from s2cl.retrieve.families.formula import FAMILY
+    from s2cl.retrieve.family import AnalysisSettings
+
+    settings = AnalysisSettings("formula", "cab", slots=(2, 0), options=(("expression", "B5 / B4"),))
+    refl = np.array([[0.1, 0.2, 0.0], [0.5, 0.5, 0.5], [0.3, 0.3, 0.3]])  # B4, B8, B5
+    out = FAMILY.run(rt, settings, ["B4", "B8", "B5"], refl, np.array([665.0, 842.0, 705.0]), real_t="float32",
+                     lanes=None)
+    np.testing.assert_allclose(out.index, [3.0, 1.5, 0.0], rtol=1e-6)
+    np.testing.assert_array_equal(out.status, [Status.OK, Status.OK, Status.INVALID])
+    np.testing.assert_array_equal(out.bounds, [0, 0, 0])
