@@ -307,6 +307,62 @@ def test_twin_hard_cases_are_invalid_with_value_zero() -> None:
         assert np.all(np.isfinite(value)) and np.all(value[status == Status.INVALID] == 0.0), text
 
 
+#: Each guard at and around its boundary, values computed by hand (None: INVALID, value 0). Reflectances are
+#: float32-exact or float32-rounded within the tolerance of ``test_guard_boundaries_by_hand``; the exact LIMIT
+#: boundary (1e30, which float32 and float64 round differently) is left out.
+GUARD_CASES: dict[str, list[tuple[dict[str, float], float | None]]] = {
+    # sqrt: the argument may be 0 (or -0), not below
+    "sqrt(B4)": [({"B4": 0.0}, 0.0), ({"B4": -0.0}, 0.0), ({"B4": 0.25}, 0.5), ({"B4": 1e-30}, 1e-15),
+                 ({"B4": -1e-30}, None), ({"B4": -0.25}, None)],
+    "sqrt(B4 - B5)": [({"B4": 0.25, "B5": 0.25}, 0.0), ({"B4": 0.5, "B5": 0.25}, 0.5),
+                      ({"B4": 0.25, "B5": 0.5}, None)],
+    # log: the argument must be > 0; ln(1e-30) = -30 ln 10
+    "log(B4)": [({"B4": 1.0}, 0.0), ({"B4": 0.0}, None), ({"B4": -0.0}, None), ({"B4": 1e-30}, -69.07755278982137),
+                ({"B4": -1e-30}, None), ({"B4": 10.0}, 2.302585092994046), ({"B4": 0.5}, -0.6931471805599453)],
+    # /: the denominator (not the numerator) must be non-zero; the quotient must stay within LIMIT (1e30)
+    "B5 / B4": [({"B5": 1.0, "B4": 0.0}, None), ({"B5": 1.0, "B4": -0.0}, None), ({"B5": 0.0, "B4": 0.0}, None),
+                ({"B5": 0.0, "B4": 0.5}, 0.0), ({"B5": 1.0, "B4": 0.5}, 2.0), ({"B5": 1.0, "B4": 1.0}, 1.0),
+                ({"B5": 1.0, "B4": 1e-29}, 1e29),
+                ({"B5": 1.0, "B4": -1e-29}, -1e29), ({"B5": 1.0, "B4": 1e-31}, None),
+                ({"B5": 1.0, "B4": -1e-31}, None)],
+    # exp: e^69 = 9.2538e29 stays within LIMIT, e^69.1 = 1.0227e30 does not; e^-100 underflows harmlessly
+    "exp(B4 * 10)": [({"B4": 6.9}, 9.253781725587787e29), ({"B4": 6.91}, None), ({"B4": 0.0}, 1.0),
+                     ({"B4": -10.0}, 3.720075976020836e-44)],
+    # |intermediate| <= LIMIT on both sides
+    "B4 * 2e29": [({"B4": 4.9}, 9.8e29), ({"B4": -4.9}, -9.8e29), ({"B4": 5.1}, None), ({"B4": -5.1}, None)],
+    # |rho| <= max_abs (10) on both sides, NaN and inf out
+    "B4": [({"B4": 10.0}, 10.0), ({"B4": -10.0}, -10.0), ({"B4": 10.5}, None), ({"B4": -10.5}, None),
+           ({"B4": np.nan}, None), ({"B4": np.inf}, None), ({"B4": -np.inf}, None)],
+}
+
+
+def _guard_case(text: str) -> tuple[Formula, dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """The formula, its band values per pixel, the hand values (0 where invalid) and statuses."""
+    formula, cases = parse(text), GUARD_CASES[text]
+    values = {b: np.array([c[b] for c, _ in cases]) for b in formula.bands}
+    want = np.array([0.0 if v is None else v for _, v in cases])
+    status = np.array([Status.INVALID if v is None else Status.OK for _, v in cases], np.uint8)
+    return formula, values, want, status
+
+
+@pytest.mark.parametrize("text", list(GUARD_CASES))
+def test_twin_guard_boundaries_by_hand(text: str) -> None:
+    formula, values, want, status = _guard_case(text)
+    value, got = formula.evaluate(values)
+    np.testing.assert_array_equal(got, status)
+    np.testing.assert_allclose(value, want, rtol=1e-14, atol=0)
+
+
+@pytest.mark.parametrize("text", list(GUARD_CASES))
+def test_kernel_guard_boundaries_by_hand(rt, real_t, text: str) -> None:
+    """The same cases in the kernel, float32 and float64, 4 lanes (a partly filled last vector included)."""
+    formula, values, want, status = _guard_case(text)
+    got = FormulaKernel(rt, formula, real_t, 4)(rows_of(formula, values))
+    np.testing.assert_array_equal(got.status, status)
+    rtol = 1e-12 if real_t == "float64" else 1e-5  # float32: the inputs rounded (6.9 -> 6.9000001), then exp
+    np.testing.assert_allclose(got.value, want, rtol=rtol, atol=1e-40)
+
+
 def test_twin_needs_every_band() -> None:
     with pytest.raises(InputError, match="no reflectance for band"):
         parse("B4 + B5").evaluate({"B4": np.zeros(3)})
@@ -387,3 +443,17 @@ def test_band_names_match_without_regard_to_case() -> None:
     """As every band key of a scene: ``b6 - b5`` is B6 - B5, under the sensor's spelling."""
     f = Formula.parse("(b6 - B5) / b8A", ["B5", "B6", "B8A"])
     assert f.bands == ("B6", "B5", "B8A") and f.subtracted_pairs() == (("B6", "B5"),)
+
+
+def test_the_family_reads_each_band_from_its_slot(rt) -> None:
+    """``B5 / B4`` on the analysis bands B4, B8, B5: its bands in the order it names them sit in slots 2 and 0."""
+    from s2cl.retrieve.families.formula import FAMILY
+    from s2cl.retrieve.family import AnalysisSettings
+
+    settings = AnalysisSettings("formula", "cab", slots=(2, 0), options=(("expression", "B5 / B4"),))
+    refl = np.array([[0.1, 0.2, 0.0], [0.5, 0.5, 0.5], [0.3, 0.3, 0.3]])  # B4, B8, B5
+    out = FAMILY.run(rt, settings, ["B4", "B8", "B5"], refl, np.array([665.0, 842.0, 705.0]), real_t="float32",
+                     lanes=None)
+    np.testing.assert_allclose(out.index, [3.0, 1.5, 0.0], rtol=1e-6)
+    np.testing.assert_array_equal(out.status, [Status.OK, Status.OK, Status.INVALID])
+    np.testing.assert_array_equal(out.bounds, [0, 0, 0])

@@ -14,7 +14,7 @@ import xarray as xr
 
 from s2cl.app.analysis import analysis_design, pixel_results, retrieve_pixels
 from s2cl.app.checks import check_simulate
-from s2cl.app.image_analysis import analyse_image, common_grid, pure_pixels, truth_on_grid
+from s2cl.app.image_analysis import CommonGrid, analyse_image, common_grid, pure_pixels, truth_on_grid
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube, simulate_cube
 from s2cl.forward.simulate import Simulator, scene_atmosphere
@@ -167,7 +167,8 @@ def test_non_finite_reflectance_is_invalid_and_leaves_neighbours(rt) -> None:
 def test_error_map_and_metrics_against_the_truth(rt) -> None:
     scene = _scene("builtin:fields:60x60")
     ds, a, cube, _ = _run(rt, scene)
-    truth = truth_on_grid(cube.truth("cab"), 2, 30)
+    truth = cube.truth("cab").reshape(30, 2, 30, 2).mean(axis=(1, 3))  # NaN where any of the four has none
+    assert np.isnan(truth).sum() > np.all(np.isnan(cube.truth("cab").reshape(30, 2, 30, 2)), axis=(1, 3)).sum()
     np.testing.assert_allclose(ds["cab_truth"].values, truth, rtol=1e-6)
     err = ds["cab_error"].values.astype(np.float64)
     np.testing.assert_allclose(err, ds["cab_map"].values - truth, atol=1e-3, equal_nan=True)
@@ -189,6 +190,13 @@ def test_error_map_and_metrics_against_the_truth(rt) -> None:
     assert np.sqrt(np.mean(resid**2)) == pytest.approx(float(m["rms"][0]), rel=1e-9)
     total = a["fitted_pixels"] + a["invalid_pixels"] + a["degenerate_pixels"]
     assert total == a["pixels"] == 900
+    # the CF attributes a reader decodes the status and the flags with
+    st = ds["analysis_status"].attrs
+    assert dict(zip(st["flag_values"].tolist(), st["flag_meanings"].split(), strict=True)) == {
+        0: "ok", 1: "iteration_limit", 2: "degenerate", 3: "invalid", 4: "stalled", 5: "unclassified"}
+    fl = ds["analysis_flags"].attrs
+    assert fl["flag_masks"].tolist() == [1, 2, 4]
+    assert fl["flag_meanings"] == "below_lmin above_lmax_saturated no_data_nan_radiance"
 
 
 def test_a_classification_on_an_image_is_refused() -> None:
@@ -384,3 +392,154 @@ def _traced_simulation(toml: Path, out: Path, max_memory: str | None) -> tuple[i
         return tracemalloc.get_traced_memory()[1], json.loads((run.folder / "simulation.json").read_text())
     finally:
         tracemalloc.stop()
+
+
+# ---- the common grid, the truth and the scoring, on images written by hand --------------------------------------
+
+N = np.nan
+
+
+def _hand_scene() -> Scene:
+    """Only its input GSD (10 m) and its sensor's bands (B4 at 10 m, B5 at 20 m) are read."""
+    return Scene.from_dict({"scene": {"name": "hand"}, "effects": {"atmosphere": True, "correct": True},
+                            "surface": {"cube": "builtin:fields:4x10", "gsd_m": 10, "quantity": "reflectance"}})
+
+
+def _hand_store(**variables: np.ndarray) -> MemoryStore:
+    """A store holding ``variables`` (name: 2-D array; dimensions named after their shape)."""
+    store = MemoryStore()
+    for name, arr in variables.items():
+        dims = (f"y{arr.shape[0]}", f"x{arr.shape[1]}")
+        for d, n in zip(dims, arr.shape, strict=True):
+            store.dimension(d, np.arange(n), {})
+        store.create(name, dims, arr.dtype, {})
+        store.write(name, slice(None), arr)
+    return store
+
+
+def test_truth_on_grid_is_nan_where_any_part_of_the_box_has_none() -> None:
+    truth = np.array([[1.0, 3.0, 10.0, N, 7.0, 7.0],
+                      [5.0, 7.0, 30.0, 40.0, 7.0, 7.0],
+                      [N, N, 2.0, 2.0, 1.0, 2.0],
+                      [N, N, 4.0, 4.0, 3.0, 4.0],
+                      [9.0, 9.0, 9.0, 9.0, 9.0, 9.0]])  # the last row fills no 2 x 2 box
+    np.testing.assert_array_equal(truth_on_grid(truth, 2, 3), [[4.0, N, 7.0], [N, 3.0, 2.5]])
+    np.testing.assert_array_equal(truth_on_grid(truth, 2, 2), [[4.0, N], [N, 3.0]])
+    np.testing.assert_array_equal(truth_on_grid(truth[:2, :2], 1, 2), [[1.0, 3.0], [5.0, 7.0]])
+
+
+def test_pure_pixels_lie_inside_one_parcel() -> None:
+    parcels = np.array([[1, 1, 2, 2, 3, 4],
+                        [1, 1, 2, 5, 3, 4],
+                        [6, 6, 7, 7, 8, 8],
+                        [6, 6, 7, 7, 8, 8]])
+    np.testing.assert_array_equal(pure_pixels(parcels, 2, 3), [[True, False, False], [True, True, True]])
+    np.testing.assert_array_equal(pure_pixels(parcels, 2, 2), [[True, False], [True, True]])
+    np.testing.assert_array_equal(pure_pixels(parcels, 1, 4), np.ones((4, 4), bool))  # every pixel, nx wide
+
+
+def test_common_grid_box_averages_and_ors_the_flags_by_hand() -> None:
+    """B4 (10 m, 5 x 11 pixels) and B5 (20 m, 3 x 4): the grid is 20 m, 2 rows (B4's whole boxes) by 4 columns (B5's);
+    B4[r, c] = 11 r + c, so its 2 x 2 box (i, j) averages to 22 i + 2 j + 6."""
+    b4 = (11 * np.arange(5)[:, None] + np.arange(11)[None, :]).astype(np.float32)
+    b4[3, 5] = N  # box (1, 2)
+    b5 = np.array([[0.5, 0.6, 0.7, 0.8], [0.1, 0.2, 0.3, 0.4], [9.0, 9.0, 9.0, 9.0]], np.float32)
+    f4, f5 = np.zeros((5, 11), np.uint8), np.zeros((3, 4), np.uint8)
+    f4[0, 0], f4[1, 3], f4[2, 2], f4[3, 7], f4[4, 0], f4[0, 8] = 1, 2, 4, 8, 16, 32  # rows 4 and col 8+: no box
+    f5[0, 0], f5[1, 2], f5[2, 1] = 64, 1, 128  # B5 row 2: beyond the grid
+    store = _hand_store(reflectance_B4=b4, reflectance_B5=b5, flags_B4=f4, flags_B5=f5)
+    grid = CommonGrid.of(store, _hand_scene(), ["B4", "B5"])
+    assert (grid.bands, grid.factors, grid.gsd_m, grid.ny, grid.nx) == (["B4", "B5"], [2, 1], 20.0, 2, 4)
+    assert grid.dims == ("y_20m", "x_20m")
+    want = np.array([[[6.0, 8.0, 10.0, 12.0], [28.0, 30.0, N, 34.0]],
+                     [[0.5, 0.6, 0.7, 0.8], [0.1, 0.2, 0.3, 0.4]]], np.float32)
+    np.testing.assert_array_equal(grid.reflectance(store, slice(0, 2)), want)
+    np.testing.assert_array_equal(grid.reflectance(store, slice(1, 2)), want[:, 1:])
+    np.testing.assert_array_equal(grid.flags(store, slice(0, 2)), [[1 | 64, 2, 0, 0], [0, 4, 1, 8]])
+    np.testing.assert_array_equal(grid.flags(store, slice(1, 2)), [[0, 4, 1, 8]])
+    plain = _hand_store(reflectance_B4=b4, reflectance_B5=b5)  # a chain that does not quantise: no flags
+    assert CommonGrid.of(plain, _hand_scene(), ["B4", "B5"]).flags(plain, slice(0, 2)) is None
+
+
+def test_fit_accounting_counts_each_status_by_hand() -> None:
+    from s2cl.app.image_analysis import _accounting
+
+    status = np.array([Status.OK, Status.STALLED, Status.ITERATION_LIMIT, Status.DEGENERATE, Status.INVALID,
+                       Status.OK, Status.INVALID, Status.OK], np.uint8)
+    bounds = np.array([0, 1, 0, 0, 0, 2, 0, 0], np.uint8)
+    a = _accounting(status, bounds)
+    assert (a["fitted_pixels"], a["invalid_pixels"], a["degenerate_pixels"], a["bound_pixels"]) == (5, 2, 1, 2)
+    assert (a["converged_fraction"], a["stalled_fraction"], a["failed_fraction"], a["bound_fraction"]) == (
+        3 / 8, 1 / 8, 3 / 8, 2 / 8)
+
+
+#: labels of a 4 x 10 image at 10 m (also its parcels); the truth (cab) of each label; label 3 is bare (no cab)
+LABELS = np.array([[0, 0, 1, 1, 2, 2, 0, 1, 1, 1],
+                   [0, 0, 1, 1, 2, 2, 0, 1, 1, 1],
+                   [3, 3, 2, 3, 1, 1, 1, 2, 0, 0],
+                   [3, 3, 2, 3, 1, 1, 1, 2, 0, 0]])
+CAB = np.array([10.0, 20.0, 30.0, N])
+#: the 20 m map's index and status: the pure pixels that enter the regression (OK, pure, with a truth) lie on
+#: cab = 10 index; a STALLED fit (not regressed on here), a DEGENERATE one with a value, an INVALID one
+HAND_INDEX = np.array([[1.0, 2.0, 3.0, 1.625, 5.0], [0.5, 2.5, 4.0, 2.625, N]], np.float32)
+HAND_STATUS = np.array([[Status.OK, Status.OK, Status.OK, Status.OK, Status.STALLED],
+                        [Status.OK, Status.OK, Status.DEGENERATE, Status.OK, Status.INVALID]], np.uint8)
+
+
+def _hand_truth_run(status: np.ndarray, step: int, bounds: np.ndarray | None = None) -> tuple[dict, MemoryStore]:
+    from s2cl.app.image_analysis import _against_truth
+    from s2cl.forward.cube import SceneCube
+    from s2cl.retrieve.family import AnalysisSettings
+
+    cube = SceneCube(None, 4, 10, "hand", labels=LABELS.reshape(-1), truth_params={"cab": CAB}, parcels=LABELS)
+    grid = CommonGrid(["B4", "B5"], [2, 1], 20.0, 2, 5)
+    store = MemoryStore()
+    for d, n in zip(grid.dims, (2, 5), strict=True):
+        store.dimension(d, np.arange(n), {})
+    settings = AnalysisSettings("igrm", "cab", regress=(int(Status.OK),))
+    bounds = np.zeros((2, 5), np.uint8) if bounds is None else bounds
+    out = _against_truth(store, _hand_scene(), cube, (HAND_INDEX, status, bounds), grid, settings, step)
+    return out, store
+
+
+@pytest.mark.parametrize("step", [1, 2])
+def test_the_map_is_scored_where_a_regressed_fit_meets_a_whole_truth(step: int) -> None:
+    """Truth box means: [[10, 20, 30, 15, 20], [-, - (half bare), 20, 25, 10]]; calibration on the three pure OK
+    pixels with a truth (index 1, 2, 3: cab = 10 index exactly). Scored: the five OK pixels with a truth, edges
+    included (errors 0, 0, 0, +1.25, +1.25); not the bare ones, nor the STALLED, DEGENERATE or INVALID fits."""
+    out, store = _hand_truth_run(HAND_STATUS, step)
+    ds = store.dataset()
+    np.testing.assert_allclose(ds["cab_truth"].values, [[10, 20, 30, 15, 20], [N, N, 20, 25, 10]], rtol=1e-7)
+    np.testing.assert_allclose(ds["cab_map"].values, [[10, 20, 30, 16.25, N], [5, 25, N, 26.25, N]], rtol=1e-6)
+    np.testing.assert_allclose(ds["cab_error"].values, [[0, 0, 0, 1.25, N], [N, N, N, 1.25, N]], atol=1e-5)
+    np.testing.assert_array_equal(ds["pure_pixel"].values, [[1, 1, 1, 0, 1], [1, 0, 1, 0, 1]])
+    assert out["calibration_pixels"] == 3 and out["calibration_rms"] == pytest.approx(0.0, abs=1e-9)
+    assert out["scored_pixels"] == 5
+    assert out["rms"] == pytest.approx(np.sqrt(2 * 1.25**2 / 5), rel=1e-9)
+    assert out["bias"] == pytest.approx(2 * 1.25 / 5, rel=1e-9)
+    # truths scored 10, 20, 30, 15, 25: mean 20, sum of squares about it 250
+    assert out["r2"] == pytest.approx(1 - 2 * 1.25**2 / 250, rel=1e-9)
+    assert out["map"] == "cab_map" and out["parameter"] == "cab"
+
+
+def test_fewer_than_three_calibration_pixels_make_no_map() -> None:
+    status = HAND_STATUS.copy()
+    status[0, 2] = Status.DEGENERATE  # leaves two pure OK pixels with a truth
+    out, store = _hand_truth_run(status, 2)
+    assert out == {"parameter": "cab", "calibration_pixels": 2,
+                   "note": "fewer than 3 pure pixels with a fit: no calibration, no parameter map"}
+    assert "cab_map" not in store
+
+
+def test_the_calibration_refits_without_the_fits_on_a_bound() -> None:
+    """The STALLED pixel made OK but on a bound (index 5, cab 20): four calibration pixels, off any parabola, so
+    the calibration RMS is numpy's least-squares parabola's; without the bound pixel three remain, which a parabola
+    fits exactly (RMS 0 on the bounds' refit)."""
+    status, bounds = HAND_STATUS.copy(), np.zeros((2, 5), np.uint8)
+    status[0, 4], bounds[0, 4] = Status.OK, 1
+    out, _ = _hand_truth_run(status, 2, bounds)
+    x, t = np.array([1.0, 2.0, 3.0, 5.0]), np.array([10.0, 20.0, 30.0, 20.0])
+    resid = np.polyval(np.polyfit(x, t, 2), x) - t
+    assert out["calibration_pixels"] == 4
+    assert out["calibration_rms"] == pytest.approx(np.sqrt(np.mean(resid**2)), rel=1e-9) and out["calibration_rms"] > 1
+    assert out["calibration_rms_unbounded"] == pytest.approx(0.0, abs=1e-9)

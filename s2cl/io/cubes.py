@@ -11,7 +11,8 @@ What each format may mark:
   interleave (``bsq``/``bil``/``bip``, from the header), data file ``NAME``, ``NAME.img``, ``NAME.bsq`` ….
 - **NetCDF**: CF ``_FillValue``/``missing_value`` and ``scale_factor``/``add_offset`` (decoded by xarray);
   a CF flag variable named in the cube's ``ancillary_variables`` whose ``flag_meanings`` hold a no-data
-  meaning (:data:`NODATA_MEANINGS`) marks the pixels it flags with ``flag_values`` or ``flag_masks``.
+  meaning (:data:`NODATA_MEANINGS`) marks the pixels it flags: equal to its ``flag_values`` entry, with a bit of
+  its ``flag_masks`` entry set, or, where both are given, with ``flags & mask == value`` (CF 1.10 §3.5).
 """
 
 from __future__ import annotations
@@ -194,19 +195,29 @@ def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str,
                              source=p, key=flag_name)
         flags = np.asarray(f.isel(window).transpose(*spatial).values)
         known = np.isfinite(flags) if flags.dtype.kind == "f" else np.ones(flags.shape, bool)
-        flags_int = np.where(known, flags, 0).astype(np.int64)
-        for attr in ("flag_values", "flag_masks"):
-            table = np.atleast_1d(np.asarray(f.attrs.get(attr, []), dtype=np.int64))
-            if table.size == 0:
+        flags_int = np.where(known, flags, 0).astype(np.int64)[..., None]
+        values, masks = (_flag_table(f, attr, len(meanings), p, flag_name) for attr in ("flag_values", "flag_masks"))
+        if masks is None:  # enumerated values
+            if values is None:
                 continue
-            if table.size != len(meanings):
-                raise InputError(f"{attr} has {table.size} values for {len(meanings)} flag_meanings", source=p,
-                                 key=flag_name)
-            marks = table[hits]
-            hit = (np.isin(flags_int, marks) if attr == "flag_values"
-                   else (flags_int[..., None] & marks).any(axis=-1)) & known
-            mask = hit if mask is None else mask | hit
+            marked = flags_int == values[hits]
+        elif values is None:  # bits
+            marked = (flags_int & masks[hits]) != 0
+        else:  # CF: the meaning holds where the masked flags equal its value
+            marked = (flags_int & masks[hits]) == values[hits]
+        hit = marked.any(axis=-1) & known
+        mask = hit if mask is None else mask | hit
     return mask
+
+
+def _flag_table(f: xr.DataArray, attr: str, n_meanings: int, p: Path, flag_name: str) -> np.ndarray | None:
+    """The flag variable's ``flag_values`` or ``flag_masks`` as integers, one per meaning (None when absent)."""
+    table = np.atleast_1d(np.asarray(f.attrs.get(attr, []), dtype=np.int64))
+    if table.size == 0:
+        return None
+    if table.size != n_meanings:
+        raise InputError(f"{attr} has {table.size} values for {n_meanings} flag_meanings", source=p, key=flag_name)
+    return table
 
 
 def _envi_wavelengths(meta: dict, bands: int, p: Path) -> np.ndarray:
