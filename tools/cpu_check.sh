@@ -7,7 +7,8 @@
 # on AMD Zen 4 while compiling for an AVX2 target: the width probe must step down to 8, the kernel tests
 # must pass with builds that may not warn, and `s2cl simulate -q` (the README's main job, PoCL's kernel
 # cache off) must print nothing but its result line. The lines, headed by the CPU's model and family, go to
-# bench/results/cpu-check.txt and into docs/devices.md (between its cpu-check markers).
+# bench/results/cpu-check-family<F>-model<M>.txt (one per CPU) and, with every other CPU's, into docs/devices.md
+# (between its cpu-check markers).
 #   bash tools/cpu_check.sh                   (about 10 minutes on 2 cores; needs valgrind for the AVX2
 #                                              part: apt-get install valgrind, else that part is skipped)
 set -euo pipefail
@@ -89,13 +90,17 @@ simd = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "no A
 head = (f"# bash tools/cpu_check.sh, {datetime.date.today().isoformat()}: {field('model name')} "
         f"(CPU family {field('cpu family')}, model {field('model')}, {simd}), {platform.machine()}")
 text = head + "\n" + pathlib.Path(sys.argv[1]).read_text()
-pathlib.Path("bench/results/cpu-check.txt").write_text(text)
+# one file per CPU (family and model), so that the page keeps every CPU this check has run on
+slug = re.sub(r"[^0-9a-z]+", "", field("cpu family")) + "-model" + re.sub(r"[^0-9a-z]+", "", field("model"))
+pathlib.Path(f"bench/results/cpu-check-family{slug}.txt").write_text(text)
+everything = "\n".join(p.read_text() for p in sorted(pathlib.Path("bench/results").glob("cpu-check-*.txt")))
 docs = pathlib.Path("docs/devices.md")
 page = docs.read_text(encoding="utf-8")
 start, end = "<!-- cpu-check: written by tools/cpu_check.sh -->", "<!-- /cpu-check -->"
 if start in page and end in page:
     before, rest = page.split(start, 1)
-    docs.write_text(before + start + "\n```\n" + text + "```\n" + end + rest.split(end, 1)[1], encoding="utf-8")
+    docs.write_text(before + start + "\n```\n" + everything + "```\n" + end + rest.split(end, 1)[1],
+                    encoding="utf-8")
 print("\n" + text, end="")
 EOF
 exit $status
