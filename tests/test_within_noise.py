@@ -270,3 +270,17 @@ def test_heatmap_hatches_the_within_noise_cells(tmp_path) -> None:
     from s2cl.sweep.report import heatmap
 
     assert heatmap(d, "B4", tmp_path / "h.png", hatch=[(675.0, 30.0)]).exists()
+
+
+def test_a_design_alike_to_the_best_is_within_noise_and_as_good() -> None:
+    """A candidate whose every pixel equals the best's differs from it by exactly 0 in every replicate: its interval
+    is [0, 0], which reaches zero (within noise), and it is as good as the best in every replicate (the rounding of
+    two matrix products once made it as good in 50-90 % of them); a design with four times the noise is in none."""
+    rng = np.random.default_rng(7)
+    index, status, y = _regression_case(rng, n_spectra=30, copies=3, noise=(0.5, 2.0))
+    index, status = np.stack([index[0], index[0], index[1]]), status[[0, 0, 1]]
+    stats = regression_stats(index, status, y, 3, REGRESS)
+    boot = paired_bootstrap(stats, regression_score, 0, replicates=200, seed=3)
+    assert boot.low[1] == 0.0 and boot.high[1] == 0.0 and boot.difference[1] == 0.0
+    assert boot.within[1] and boot.as_good[1] == 1.0
+    assert not boot.within[2] and boot.as_good[2] == 0.0
