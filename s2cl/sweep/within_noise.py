@@ -221,7 +221,7 @@ def paired_bootstrap(stats: np.ndarray, score: Callable[[np.ndarray], np.ndarray
             low[a:a + block.shape[0]], high[a:a + block.shape[0]] = np.nanquantile(diff, [alpha, 1.0 - alpha],
                                                                                    axis=0)
             as_good[a:a + block.shape[0]] = np.mean(diff <= 0.0, axis=0)
-    difference = np.where(alike, 0.0, full - full[best])
+    difference = full - full[best]
     within = np.asarray(low <= 0.0)
     within[best] = True
     return Bootstrap(full, difference, low, high, as_good, within, level, replicates)
