@@ -349,7 +349,7 @@ def test_refinement_moves_around_the_eight_best_of_more_finalists(tmp_path: Path
     assert all(s.startswith("local") for s in stages[3:]) and len(stages) > 3
     designs = variant_indices(job.tables, 0, job.n_configs)
     for (_, _, before), (_, pool, _), step in zip(calls[:2], calls[1:3], (2, 1), strict=True):
-        assert len(before) >= 16
+        assert len(before) == len(set(before)) >= 16  # 16 distinct finalists
         eight = sorted(before, key=lambda c: (exhaustive[c], c))[:8]
         moved = {c for e in eight for c in lat.configs(lat.joint(designs[e], step)).tolist()}
         assert pool == set(before) | moved
@@ -375,6 +375,7 @@ def test_the_record_counts_what_the_chunk_files_hold(tmp_path: Path) -> None:
     assert record["pixel_evaluation_fraction"] == record["pixel_evaluations"] / (641 * 246 * 20)
     df = pd.read_parquet(path)
     assert (df["pixels"] == df["copies"] * 246).all()
+    assert df["config"].tolist() == sorted(set(chunks["config"]))  # each design once, in configuration order
     assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 641), (4, 161), (16, 41),
                                                                                     (20, 11)]
     _, record = run_search(_job(finalists=161), tmp_path / "161", evaluator_of=numpy_evaluator)
