@@ -412,3 +412,25 @@ def test_a_rung_ranks_nan_scores_and_left_out_designs_last(tmp_path: Path, polic
     scorer._remember(rows, 4)
     left_out = np.inf if policy == "exclude" else 1.0
     assert scorer.memo == {4: {3: 2.0, 1: left_out, 2: np.inf, 0: np.inf}}
+
+
+def test_a_classification_search_ranks_by_omission_error(tmp_path: Path) -> None:
+    """A SAM search (minerals, B12 over 5 centres × 3 widths) ranks its rungs by the mean omission error, the
+    sweep's metric for classes: the exhaustive sweep's best, scored as the sweep scores it."""
+    from s2cl.app.plan import plan_sweep
+    from s2cl.scene.scene import Scene
+
+    scene = Scene.from_dict({
+        "scene": {"name": "search-sam"}, "sensor": {"bands": ["B11", "B12"]},
+        "surface": {"library": "builtin:minerals-swir", "quantity": "reflectance", "copies": 6},
+        "effects": {"atmosphere": True, "correct": True, "seed": 3}, "grid": {"start_nm": 1500, "stop_nm": 2500},
+        "sweep": {"bands": ["B11", "B12"], "ranges": {"B11": {"centre": 1610, "width": 90}, "B12": {
+            "centres": [2150, 2170, 2190, 2210, 2230], "widths": [60, 120, 180]}}},
+        "analysis": {"kind": "sam"}})
+    job = replace(plan_sweep(scene), search=SearchSettings(finalists=2).record())
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")["omission_error_pct"]
+    path, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    assert record["best_config"] == exhaustive.idxmin() and (exhaustive > exhaustive.min()).sum() == 14  # one best
+    assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 15), (4, 4), (6, 2)]
+    full = pd.read_parquet(path).query("full_fidelity").set_index("config")["omission_error_pct"]
+    assert full.to_dict() == exhaustive[full.index].to_dict()

@@ -172,6 +172,10 @@ FAMILY_CASES = {
              {"centres": [1610, 1650], "widths": [50, 90]}),
     "sam": ({"library": "builtin:minerals-swir", "copies": 6}, ["B11", "B12"], {"kind": "sam"}, "B12",
             {"centres": [2190, 2210], "widths": [60, 180]}),
+    # the converged fits only (analysis.regress): a fifth of the pixels stop at max_iter = 5 and are left out
+    "igrm-converged": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"],
+                       {"kind": "igrm", "parameter": "cab", "igrm": {"max_iter": 5}, "regress": ["converged"]}, "B4",
+                       {"centres": [665, 680], "widths": [20, 30]}),
     "formula": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"],
                 {"kind": "formula", "expression": "705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)", "parameter": "cab"},
                 "B5", {"centres": [700, 710], "widths": [10, 15]}),
@@ -339,17 +343,17 @@ def test_within_noise_resamples_the_sweeps_library_spectra(kind: str, monkeypatc
     top = rows.sort_values([metric, "config"]).reset_index(drop=True)
     order = top["config"].tolist()
     references = order[1], order[0]  # the sensor's own bands may be one of the sweep's designs: #2, or #1 itself
-    replicates, seed = 300, 17
-    twin = _twin_within_noise(job, [*order, *references], replicates, seed)
+    replicates, seed, level = 300, 17, 0.9
+    twin = _twin_within_noise(job, [*order, *references], replicates, seed, level)
     assert twin["within"][1]  # #2 is within noise of #1 in every family
     completes = set()
     for n in range(2, len(order) + 1):
         for r, reference in enumerate(references, start=len(order)):
             out = within_noise(job, top.head(n), metric, evaluator=ev, reference=ev(reference, reference + 1),
-                               ranked=len(order), replicates=replicates, seed=seed)
+                               ranked=len(order), replicates=replicates, seed=seed, level=level)
             assert out is not None and out["candidates"] == n
-            assert (out["spectra"], out["copies"], out["seed"], out["replicates"]) == (t.n_spectra, t.copies, seed,
-                                                                                        replicates)
+            assert (out["spectra"], out["copies"], out["seed"], out["replicates"], out["level"]) == (
+                t.n_spectra, t.copies, seed, replicates, level)
             assert out["resampled"] == "library spectra" + (" within each class" if t.class_names else "")
             designs = out["designs"]
             assert [d["config"] for d in designs] == order[:n]
@@ -420,10 +424,13 @@ def test_a_report_keeps_the_within_noise_set_only_of_the_same_best() -> None:
     assert "within_noise" not in other and [e["within_noise"] for e in other["top"]] == [None, None]
 
 
-def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("candidates", [3, 0])
+def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    candidates: int) -> None:
     """`s2cl optimise` with ``within_noise_top = 3`` of 6 ranked designs: within_noise() is given the 3 best rows,
     the count of designs the sweep ranked (6: the set is complete only if the third is told apart) and the
-    sensor's own bands' pixels; the designs it did not test are marked neither within nor outside."""
+    sensor's own bands' pixels; the designs it did not test are marked neither within nor outside. With
+    ``within_noise_top = 0`` nothing is tested and nothing marked."""
     import s2cl
     from s2cl.sweep import within_noise as module
 
@@ -437,8 +444,12 @@ def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch:
     monkeypatch.setattr(module, "within_noise", spy)
     scene = tmp_path / "small.toml"
     scene.write_text(SMALL_SWEEP_TOML.format(copies=4).replace("[sweep.ranges]",
-                                                               "within_noise_top = 3\n[sweep.ranges]"))
+                                                               f"within_noise_top = {candidates}\n[sweep.ranges]"))
     result = s2cl.optimise(scene, tmp_path / "out")
+    if not candidates:
+        assert seen == [] and "within_noise" not in result.summary
+        assert all("within_noise" not in e for e in [*result.summary["top"], result.summary["reference"]])
+        return
     results = pd.read_parquet(tmp_path / "out" / "results.parquet")
     best3 = results.sort_values(["rms", "config"])["config"].head(3).tolist()
     (call,) = seen
