@@ -489,3 +489,17 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
         out[k] = {key: v for key, v in within_noise(job, top, metric, replicates=200).items() if key != "seconds"}
     assert own == [top["config"].tolist()]  # at the limit only, every candidate
     assert out[limit] == out[limit + 1]
+
+
+def test_the_printed_note_says_when_more_designs_may_be_within_noise(capsys: pytest.CaptureFixture[str]) -> None:
+    """`s2cl optimise` prints the count, and when the set is not complete (the last design tested is within noise
+    and more were ranked), that more may be."""
+    from s2cl.cli.ranking import _print_within_noise
+
+    wn = {"complete": True, "count": 2, "candidates": 3, "metric": "rms", "spectra": 120,
+          "resampled": "library spectra", "replicates": 2000, "level": 0.95}
+    _print_within_noise(wn)
+    _print_within_noise({**wn, "complete": False, "count": 3})
+    complete, incomplete = capsys.readouterr().out.splitlines()
+    assert complete.startswith("within noise of #1: 2 of the 3 best designs — a paired bootstrap of the rms")
+    assert incomplete.startswith("within noise of #1: 3 of the 3 best designs (the last one tested too: more may be")
