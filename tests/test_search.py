@@ -3,7 +3,11 @@ halving against the exhaustive answer, refinement to a local optimum, resume and
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -293,3 +297,140 @@ def test_search_wide_checks_the_joint_step_at_once_or_centres_and_widths_apart(b
     assert all(r["centres"] == [best[b][0]] for b, r in split[7].items())
     assert results_path(SCENE).name == "search-wide.json"
     assert results_path("search-lib1-b3-b8a-1nm", "split").name == "search-wide-search-lib1-b3-b8a-1nm-split.json"
+
+
+def test_a_design_without_a_valid_pixel_ranks_last(tmp_path: Path) -> None:
+    """B11 variant 2 has no valid radiance (NaN: no pixel enters its regression, its RMS is NaN): the search's
+    winner is the exhaustive sweep's best finite RMS, never the design without a score, which is left at the first
+    rung."""
+    job = _job(finalists=4)
+    t = job.tables
+    radiance = [r.copy() for r in t.radiance]
+    radiance[1][2] = np.nan
+    job = replace(job, tables=replace(t, radiance=tuple(radiance)))
+    (nan_config,) = np.flatnonzero(variant_indices(t, 0, t.n_configs)[:, 1] == 2)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    assert np.isnan(exhaustive.loc[nan_config, "rms"]) and exhaustive["rms"].notna().sum() == job.n_configs - 1
+    path, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    assert record["best_config"] == int(exhaustive["rms"].idxmin()) != nan_config
+    row = pd.read_parquet(path).set_index("config").loc[nan_config]
+    assert row["copies"] == 1 and np.isnan(row["rms"])
+
+
+def test_refinement_moves_around_the_eight_best_of_more_finalists(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the default 16 finalists, each refinement stage scores the stage before it and every design one joint
+    move (± step, every band at once) from each of its REFINE_AROUND = 8 best — the best by the exhaustive sweep's
+    RMS, not any 8 of the 16 — with the step halved from the sub-grid's stride down to 1; the local stage scores
+    the incumbent's neighbourhood at the search radius. MAX_JOINT at exactly 3 ** (2 · bands) still moves every
+    band at once."""
+    from s2cl.sweep import search as module
+
+    job = _job(copies=6, start=40, radius=2)  # finalists: the default 16
+    assert SearchSettings().finalists == 16 > module.REFINE_AROUND == 8
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")["rms"]
+    lat = Lattice(job)
+    monkeypatch.setattr(module, "MAX_JOINT", 3 ** (2 * len(lat.slots)))
+    calls: list[tuple[str, set[int], list[int]]] = []
+    real_halve, real_full = module.Halving.halve, module.Halving.full
+
+    def spy(real: Callable[..., tuple[np.ndarray, np.ndarray]]) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+        def method(self: Any, pool: np.ndarray, stage: str) -> tuple[np.ndarray, np.ndarray]:
+            best, scores = real(self, pool, stage)
+            calls.append((stage, set(lat.configs(pool).tolist()), lat.configs(best).tolist()))
+            return best, scores
+        return method
+
+    monkeypatch.setattr(module.Halving, "halve", spy(real_halve))
+    monkeypatch.setattr(module.Halving, "full", spy(real_full))
+    _, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    stages = [c[0] for c in calls]
+    assert stages[:3] == ["start: sub-grid every 5 steps", "refine ± 2 steps", "refine ± 1 steps"]
+    assert all(s.startswith("local") for s in stages[3:]) and len(stages) > 3
+    designs = variant_indices(job.tables, 0, job.n_configs)
+    for (_, _, before), (_, pool, _), step in zip(calls[:2], calls[1:3], (2, 1), strict=True):
+        assert len(before) == len(set(before)) >= 16  # 16 distinct finalists
+        eight = sorted(before, key=lambda c: (exhaustive[c], c))[:8]
+        moved = {c for e in eight for c in lat.configs(lat.joint(designs[e], step)).tolist()}
+        assert pool == set(before) | moved
+    for (_, _, before), (_, pool, _) in itertools.pairwise(calls[2:]):
+        incumbent = before[0]
+        around = lat.neighbourhood(designs[incumbent], 2)
+        assert pool == {incumbent, *lat.configs(around).tolist()}
+    assert calls[-1][2][0] == calls[-2][2][0] == record["best_config"]
+
+
+def test_the_record_counts_what_the_chunk_files_hold(tmp_path: Path) -> None:
+    """The search's evaluations and pixel-evaluations are those of its chunk files (each row a design scored on
+    ``copies`` copies of every spectrum); the exhaustive count is every design on every pixel; results.parquet
+    says how many pixels each design was scored on. Rung sizes: each rung keeps max(finalists, ⌈keep · n⌉), and
+    designs no more than the finalists go straight to every copy."""
+    job = _job(finalists=4)
+    t = job.tables
+    path, record = run_search(job, tmp_path / "s", evaluator_of=numpy_evaluator)
+    chunks = pd.concat([pd.read_parquet(p) for p in sorted((tmp_path / "s" / "chunks").glob("*.parquet"))])
+    assert record["evaluations"] == len(chunks)
+    assert record["pixel_evaluations"] == int(chunks["copies"].sum()) * t.n_spectra
+    assert record["exhaustive_pixel_evaluations"] == job.n_configs * t.n_spectra * t.copies == 641 * 246 * 20
+    assert record["pixel_evaluation_fraction"] == record["pixel_evaluations"] / (641 * 246 * 20)
+    df = pd.read_parquet(path)
+    assert (df["pixels"] == df["copies"] * 246).all()
+    assert df["config"].tolist() == sorted(set(chunks["config"]))  # each design once, in configuration order
+    assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 641), (4, 161), (16, 41),
+                                                                                    (20, 11)]
+    _, record = run_search(_job(finalists=161), tmp_path / "161", evaluator_of=numpy_evaluator)
+    assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 641), (20, 161)]
+
+
+def test_a_scenes_search_keys_reach_the_settings() -> None:
+    """Every [sweep] search key reaches its own setting (values all different, so a swap shows)."""
+    from sweep_fixtures import gvmi_scene
+
+    from s2cl.scene.scene import Scene
+
+    raw = gvmi_scene().spec.model_dump(exclude_none=True)
+    keys = {"search": "halving", "search_keep": 0.5, "search_finalists": 7, "search_start": 300, "search_radius": 3,
+            "search_seed": 11}
+    raw["sweep"].update(keys)
+    settings = SearchSettings.of_spec(Scene.from_dict(raw).spec.sweep)
+    assert settings is not None and settings.record() == {"strategy": "halving", "keep": 0.5, "finalists": 7,
+                                                          "start": 300, "radius": 3, "seed": 11}
+    assert SearchSettings.of_spec(gvmi_scene().spec.sweep) is None  # exhaustive
+
+
+@pytest.mark.parametrize("policy", ["exclude", "keep"])
+def test_a_rung_ranks_nan_scores_and_left_out_designs_last(tmp_path: Path, policy: str) -> None:
+    """What a rung ranks by, from a batch's rows: the metric; +inf for a NaN score, and for a design the analysis
+    cannot fit when the ranking leaves those out (sweep.underdetermined = "exclude"), as digest.rankable_rows does."""
+    from s2cl.sweep.search import Scorer, _local
+
+    job = replace(_job(), underdetermined=policy)
+    scorer = Scorer(job, tmp_path, _local(None, numpy_evaluator), Lattice(job))
+    scorer.memo[4] = {}
+    rows = {"config": np.array([3, 1, 2, 0]), "underdetermined": np.array([False, True, False, True]),
+            "rms": np.array([2.0, 1.0, np.nan, np.nan]), "r2": np.array([0.5, 0.9, np.nan, np.nan])}
+    scorer._remember(rows, 4)
+    left_out = np.inf if policy == "exclude" else 1.0
+    assert scorer.memo == {4: {3: 2.0, 1: left_out, 2: np.inf, 0: np.inf}}
+
+
+def test_a_classification_search_ranks_by_omission_error(tmp_path: Path) -> None:
+    """A SAM search (minerals, B12 over 5 centres × 3 widths) ranks its rungs by the mean omission error, the
+    sweep's metric for classes: the exhaustive sweep's best, scored as the sweep scores it."""
+    from s2cl.app.plan import plan_sweep
+    from s2cl.scene.scene import Scene
+
+    scene = Scene.from_dict({
+        "scene": {"name": "search-sam"}, "sensor": {"bands": ["B11", "B12"]},
+        "surface": {"library": "builtin:minerals-swir", "quantity": "reflectance", "copies": 6},
+        "effects": {"atmosphere": True, "correct": True, "seed": 3}, "grid": {"start_nm": 1500, "stop_nm": 2500},
+        "sweep": {"bands": ["B11", "B12"], "ranges": {"B11": {"centre": 1610, "width": 90}, "B12": {
+            "centres": [2150, 2170, 2190, 2210, 2230], "widths": [60, 120, 180]}}},
+        "analysis": {"kind": "sam"}})
+    job = replace(plan_sweep(scene), search=SearchSettings(finalists=2).record())
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")["omission_error_pct"]
+    path, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    assert record["best_config"] == exhaustive.idxmin() and (exhaustive > exhaustive.min()).sum() == 14  # one best
+    assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 15), (4, 4), (6, 2)]
+    full = pd.read_parquet(path).query("full_fidelity").set_index("config")["omission_error_pct"]
+    assert full.to_dict() == exhaustive[full.index].to_dict()

@@ -9,6 +9,8 @@ import json
 import subprocess
 import sys
 from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -18,15 +20,20 @@ from sweep_fixtures import SMALL_SWEEP_TOML
 from s2cl.reference.sweep import NumpyEvaluator
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.status import Status
+from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.within_noise import (
     FAMILIES,
     classification_score,
     classification_stats,
+    kept_within_noise,
+    mark_top,
     paired_bootstrap,
     regression_score,
     regression_stats,
     resample_indices,
+    within_column,
     within_noise,
+    within_pairs,
 )
 
 REGRESS = (int(Status.OK), int(Status.STALLED), int(Status.ITERATION_LIMIT))
@@ -165,6 +172,10 @@ FAMILY_CASES = {
              {"centres": [1610, 1650], "widths": [50, 90]}),
     "sam": ({"library": "builtin:minerals-swir", "copies": 6}, ["B11", "B12"], {"kind": "sam"}, "B12",
             {"centres": [2190, 2210], "widths": [60, 180]}),
+    # the converged fits only (analysis.regress): a fifth of the pixels stop at max_iter = 5 and are left out
+    "igrm-converged": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"],
+                       {"kind": "igrm", "parameter": "cab", "igrm": {"max_iter": 5}, "regress": ["converged"]}, "B4",
+                       {"centres": [665, 680], "widths": [20, 30]}),
     "formula": ({"library": "builtin:lib1", "copies": 4}, ["B4", "B5", "B6", "B7"],
                 {"kind": "formula", "expression": "705 + 35 * ((B4 + B7) / 2 - B5) / (B6 - B5)", "parameter": "cab"},
                 "B5", {"centres": [700, 710], "widths": [10, 15]}),
@@ -270,3 +281,225 @@ def test_heatmap_hatches_the_within_noise_cells(tmp_path) -> None:
     from s2cl.sweep.report import heatmap
 
     assert heatmap(d, "B4", tmp_path / "h.png", hatch=[(675.0, 30.0)]).exists()
+
+
+# -- what within_noise() passes to its parts: its output against a twin that resamples the sweep's spectra -------
+
+def _twin_within_noise(job: SweepJob, configs: list[int], replicates: int, seed: int,
+                       level: float = 0.95) -> dict[str, np.ndarray]:
+    """The within-noise test of ``configs`` (the first is #1) written from the definition: every design's pixels
+    from the numpy twin; per replicate the drawn library spectra, each with all of its noisy copies, gathered and
+    the sweep's metric recomputed from scratch (regression_metrics or classification_metrics); SAM draws within
+    each class (the class of each spectrum read off its copies' targets)."""
+    t = job.tables
+    raws = [NumpyEvaluator(t, job.analysis)(c, c + 1) for c in configs]
+    index = np.concatenate([r.index for r in raws])
+    status = np.concatenate([r.status for r in raws])
+    bounds = np.concatenate([r.bounds for r in raws])
+    per_spectrum = np.asarray(t.target).reshape(t.n_spectra, t.copies)  # pixel p is a copy of spectrum p // copies
+    classify = bool(t.class_names)
+    if classify:
+        assert (per_spectrum == per_spectrum[:, :1]).all()  # every copy of a spectrum has its class
+
+    def metric(pixels: np.ndarray) -> np.ndarray:
+        if classify:
+            pred = np.where(status[:, pixels] == Status.OK, index[:, pixels], 0).astype(np.int64)
+            return classification_metrics(pred, status[:, pixels], t.target[pixels].astype(np.int64),
+                                          len(t.class_names))["omission_error_pct"]
+        return regression_metrics(index[:, pixels], status[:, pixels], bounds[:, pixels], t.target[pixels],
+                                  regress=tuple(int(r) for r in job.analysis.regress))["rms"]
+
+    score = metric(np.arange(t.n_pixels))
+    draws = resample_indices(t.n_spectra, replicates, seed, per_spectrum[:, 0] if classify else None)
+    diff = np.empty((replicates, len(configs)))
+    for r, spectra in enumerate(draws):
+        m = metric((spectra[:, None] * t.copies + np.arange(t.copies)).ravel())
+        diff[r] = m - m[0]
+    low, high = np.quantile(diff, [(1 - level) / 2, (1 + level) / 2], axis=0)
+    within = low <= 0
+    within[0] = True
+    return {"score": score, "difference": score - score[0], "low": low, "high": high,
+            "as_good": np.mean(diff <= 0, axis=0), "within": within}
+
+
+@pytest.mark.parametrize("kind", list(FAMILY_CASES))
+def test_within_noise_resamples_the_sweeps_library_spectra(kind: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """within_noise() on a real sweep's tables against the twin above: the statistics of each spectrum over all
+    of its copies (not per pixel), SAM's classes per spectrum, the candidates' and the reference's intervals,
+    shares and verdicts (a reference that is #1 itself: a difference of 0 in every replicate), the count, and
+    ``complete`` — False exactly when the last candidate tested is within noise and the sweep ranked more designs
+    than were tested. The bootstrap in blocks of two designs (the default block splits only more candidates than
+    these)."""
+    from s2cl.sweep import within_noise as module
+    from s2cl.sweep.engine import evaluate_chunk
+    from s2cl.sweep.report import metric_of
+
+    monkeypatch.setattr(module, "DESIGN_BLOCK", 2)
+    job = _family_job(kind)
+    t = job.tables
+    ev = NumpyEvaluator(t, job.analysis)
+    rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=ev))
+    metric = metric_of(list(rows.columns))
+    top = rows.sort_values([metric, "config"]).reset_index(drop=True)
+    order = top["config"].tolist()
+    references = order[1], order[0]  # the sensor's own bands may be one of the sweep's designs: #2, or #1 itself
+    replicates, seed, level = 300, 17, 0.9
+    twin = _twin_within_noise(job, [*order, *references], replicates, seed, level)
+    assert twin["within"][1]  # #2 is within noise of #1 in every family
+    completes = set()
+    for n in range(2, len(order) + 1):
+        for r, reference in enumerate(references, start=len(order)):
+            out = within_noise(job, top.head(n), metric, evaluator=ev, reference=ev(reference, reference + 1),
+                               ranked=len(order), replicates=replicates, seed=seed, level=level)
+            assert out is not None and out["candidates"] == n
+            assert (out["spectra"], out["copies"], out["seed"], out["replicates"], out["level"]) == (
+                t.n_spectra, t.copies, seed, replicates, level)
+            assert out["resampled"] == "library spectra" + (" within each class" if t.class_names else "")
+            designs = out["designs"]
+            assert [d["config"] for d in designs] == order[:n]
+            assert [d["rank"] for d in designs] == list(range(1, n + 1))
+            ref = out["reference"]
+            got = np.array([[*d["interval"], d["difference"], d["as_good"]] for d in designs]
+                           + [[*ref["interval"], ref["difference"], ref["as_good"]]])
+            want = np.stack([twin["low"], twin["high"], twin["difference"], twin["as_good"]], axis=1)[[*range(n), r]]
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+            assert ref["score"] == pytest.approx(twin["score"][r], rel=1e-9)
+            within = [bool(w) for w in twin["within"][:n]]
+            assert [d["within"] for d in designs] == within and ref["within"] == bool(twin["within"][r])
+            assert out["count"] == sum(within)
+            assert out["configs"] == [c for c, w in zip(order[:n], within, strict=True) if w]
+            assert out["complete"] == (not within[-1] or n == len(order))
+            completes.add(out["complete"])
+    assert completes == {True, False}  # an incomplete set (the last tested within, more ranked) is among the cases
+
+
+def test_a_design_alike_to_the_best_is_within_noise_and_as_good() -> None:
+    """A candidate whose every pixel equals the best's differs from it by exactly 0 in every replicate: its interval
+    is [0, 0], which reaches zero (within noise), and it is as good as the best in every replicate (the rounding of
+    two matrix products once made it as good in 50-90 % of them); a design with four times the noise is in none."""
+    rng = np.random.default_rng(7)
+    index, status, y = _regression_case(rng, n_spectra=30, copies=3, noise=(0.5, 2.0))
+    index, status = np.stack([index[0], index[0], index[1]]), status[[0, 0, 1]]
+    stats = regression_stats(index, status, y, 3, REGRESS)
+    boot = paired_bootstrap(stats, regression_score, 0, replicates=200, seed=3)
+    assert boot.low[1] == 0.0 and boot.high[1] == 0.0 and boot.difference[1] == 0.0
+    assert boot.within[1] and boot.as_good[1] == 1.0
+    assert not boot.within[2] and boot.as_good[2] == 0.0
+
+
+def _summary(best: int = 5) -> dict[str, Any]:
+    """A summary.json whose within-noise test covered configurations 5, 2 and 9 (5 and 9 within noise) of a
+    ranking 5, 2, 9, 4; the reference within noise."""
+    designs = [{"config": c, "within": w, "bands": {"B4": [c * 10.0, 20.0], "B5": [705.0, 15.0]}}
+               for c, w in ((5, True), (2, False), (9, True))]
+    return {"best": {"config": best}, "top": [{"config": c} for c in (best, 2, 9, 4)], "reference": {"rms": 1.0},
+            "within_noise": {"designs": designs, "reference": {"within": True}}}
+
+
+def test_mark_top_marks_the_tested_designs_and_leaves_the_others_unknown() -> None:
+    summary = _summary()
+    mark_top(summary)
+    assert [e["within_noise"] for e in summary["top"]] == [True, False, True, None]  # 4: not tested
+    assert summary["reference"]["within_noise"] is True
+    untested = {**_summary(), "within_noise": None}
+    mark_top(untested)
+    assert [e["within_noise"] for e in untested["top"]] == [None] * 4 and untested["reference"]["within_noise"] is None
+
+
+def test_within_pairs_and_column_are_the_designs_within_noise() -> None:
+    summary = _summary()
+    assert within_pairs(summary, "B4") == [(50.0, 20.0), (90.0, 20.0)]  # 2 was tested and is not within
+    assert within_pairs(summary, "B8") == [] and within_pairs({}, "B4") == []
+    column = within_column(summary, np.array([2, 4, 5, 9]))
+    assert [None if pd.isna(v) else bool(v) for v in column] == [False, None, True, True]  # 4: not tested
+
+
+def test_a_report_keeps_the_within_noise_set_only_of_the_same_best() -> None:
+    kept = _summary()
+    same = {"best": {"config": 5}, "top": [{"config": 5}, {"config": 9}]}
+    kept_within_noise(same, kept)
+    assert same["within_noise"] is kept["within_noise"] and [e["within_noise"] for e in same["top"]] == [True, True]
+    other = {"best": {"config": 4}, "top": [{"config": 4}, {"config": 5}]}
+    kept_within_noise(other, kept)  # ranked again with another #1: the old set is not its set
+    assert "within_noise" not in other and [e["within_noise"] for e in other["top"]] == [None, None]
+
+
+@pytest.mark.parametrize("candidates", [3, 0])
+def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    candidates: int) -> None:
+    """`s2cl optimise` with ``within_noise_top = 3`` of 6 ranked designs: within_noise() is given the 3 best rows,
+    the count of designs the sweep ranked (6: the set is complete only if the third is told apart) and the
+    sensor's own bands' pixels; the designs it did not test are marked neither within nor outside. With
+    ``within_noise_top = 0`` nothing is tested and nothing marked."""
+    import s2cl
+    from s2cl.sweep import within_noise as module
+
+    seen: list[dict[str, Any]] = []
+    real = module.within_noise
+
+    def spy(job: SweepJob, top: pd.DataFrame, metric: str, **kwargs: Any) -> dict[str, Any] | None:
+        seen.append({"top": top["config"].tolist(), "metric": metric, **kwargs})
+        return real(job, top, metric, **kwargs)
+
+    monkeypatch.setattr(module, "within_noise", spy)
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL_SWEEP_TOML.format(copies=4).replace("[sweep.ranges]",
+                                                               f"within_noise_top = {candidates}\n[sweep.ranges]"))
+    result = s2cl.optimise(scene, tmp_path / "out")
+    if not candidates:
+        assert seen == [] and "within_noise" not in result.summary
+        assert all("within_noise" not in e for e in [*result.summary["top"], result.summary["reference"]])
+        return
+    results = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    best3 = results.sort_values(["rms", "config"])["config"].head(3).tolist()
+    (call,) = seen
+    assert call["top"] == best3 and call["metric"] == "rms" and call["ranked"] == len(results) == 6
+    assert call["reference"].index.shape == (1, 120 * 4)  # one design, every pixel: Lib1's 120 spectra × 4 copies
+    wn = result.summary["within_noise"]
+    assert wn["candidates"] == 3 and [d["config"] for d in wn["designs"]] == best3
+    assert wn["complete"] == (not wn["designs"][-1]["within"])
+    assert [e["within_noise"] for e in result.summary["top"]][3:] == [None, None, None]
+
+
+def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_tables(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """On the device, configuration numbers the sweep kernel cannot reach (KERNEL_CONFIGS and above) are re-scored
+    through the designs' own tables (config_tables), smaller ones through the sweep's: with the limit at the largest
+    candidate it takes their own tables, one above it the sweep's, with the same result."""
+    from s2cl.sweep import design_tables, kernel
+    from s2cl.sweep.engine import evaluate_chunk
+    from s2cl.sweep.report import metric_of
+
+    job = _family_job("gvmi")
+    rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=NumpyEvaluator(job.tables, job.analysis)))
+    metric = metric_of(list(rows.columns))
+    top = rows.sort_values([metric, "config"]).reset_index(drop=True)
+    own: list[list[int]] = []
+    real = design_tables.config_tables
+
+    def spy(tables: Any, configs: np.ndarray) -> Any:
+        own.append(np.asarray(configs).tolist())
+        return real(tables, configs)
+
+    monkeypatch.setattr(design_tables, "config_tables", spy)
+    limit = int(top["config"].max())
+    out = {}
+    for k in (limit + 1, limit):
+        monkeypatch.setattr(kernel, "KERNEL_CONFIGS", k)
+        out[k] = {key: v for key, v in within_noise(job, top, metric, replicates=200).items() if key != "seconds"}
+    assert own == [top["config"].tolist()]  # at the limit only, every candidate
+    assert out[limit] == out[limit + 1]
+
+
+def test_the_printed_note_says_when_more_designs_may_be_within_noise(capsys: pytest.CaptureFixture[str]) -> None:
+    """`s2cl optimise` prints the count, and when the set is not complete (the last design tested is within noise
+    and more were ranked), that more may be."""
+    from s2cl.cli.ranking import _print_within_noise
+
+    wn = {"complete": True, "count": 2, "candidates": 3, "metric": "rms", "spectra": 120,
+          "resampled": "library spectra", "replicates": 2000, "level": 0.95}
+    _print_within_noise(wn)
+    _print_within_noise({**wn, "complete": False, "count": 3})
+    complete, incomplete = capsys.readouterr().out.splitlines()
+    assert complete.startswith("within noise of #1: 2 of the 3 best designs — a paired bootstrap of the rms")
+    assert incomplete.startswith("within noise of #1: 3 of the 3 best designs (the last one tested too: more may be")
