@@ -235,9 +235,9 @@ def differences(got: Arrays, want: Arrays) -> list[str]:
                 lines.append(f"{k}: {g.dtype}{g.shape} against saved {w.dtype}{w.shape}")
             else:
                 bad = ~((g == w) | ((g != g) & (w != w))) if g.dtype.kind in "fc" else g != w
-                at = np.argwhere(np.atleast_1d(bad))[0]
-                lines.append(f"{k}: {int(np.count_nonzero(bad))} of {g.size} differ, first at {tuple(int(i) for i in at)}: "
-                             f"{np.atleast_1d(g)[tuple(at)]!r} against saved {np.atleast_1d(w)[tuple(at)]!r}")
+                at = tuple(int(i) for i in np.argwhere(np.atleast_1d(bad))[0])
+                lines.append(f"{k}: {int(np.count_nonzero(bad))} of {g.size} differ, first at {at}: "
+                             f"{np.atleast_1d(g)[at]!r} against saved {np.atleast_1d(w)[at]!r}")
     return lines
 
 

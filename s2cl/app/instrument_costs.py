@@ -24,6 +24,7 @@ import xarray as xr
 
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
+from s2cl.forward.stages import STAGES, outputs
 from s2cl.io.image_store import MemoryStore
 from s2cl.scene.instrument_schema import SOURCES
 from s2cl.scene.scene import Scene
@@ -67,12 +68,12 @@ def with_instrument(scene: Scene, instrument: dict[str, Any], effects: dict[str,
 
 def product_variable(scene: Scene) -> str:
     """The compared product's variable prefix: L2 reflectance, calibrated radiance or band radiance."""
-    e = scene.effects
-    return "reflectance" if e.correct else "calibrated" if e.calibrate else "noisy" if e.noise else "radiance"
+    real = [o.name for o in outputs(scene.effects) if o.dtype is None]
+    return real[-1] if real else "radiance"
 
 
-#: the clean run: no noise, no quantisation (so no calibration either)
-CLEAN = {"noise": False, "quantise": False, "calibrate": False}
+#: the clean run: every stage that degrades the signal off (noise, quantisation, calibration, ...)
+CLEAN = {s.name: False for s in STAGES if s.per_pixel and s.degrades}
 
 
 def band_rms(a: xr.Dataset, b: xr.Dataset, names: list[str], prefix_a: str, prefix_b: str) -> dict[str, float]:

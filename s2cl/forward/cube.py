@@ -38,10 +38,12 @@ from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.instrument import Instrument, SmileResampler
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
+from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.reach import FWHM_TO_SIGMA, band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
-from s2cl.forward.sense import Radiometry, Sensing
+from s2cl.forward.sense import Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
+from s2cl.forward.stages import senses
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.cubes import CubeReader, cube_size, load_cube, open_cube
 from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
@@ -304,13 +306,14 @@ class _Group:
         store.dimension(self.dims[0], (np.arange(ny) + 0.5) * gsd, {"units": "m"})
         store.dimension(self.dims[1], (np.arange(nx) + 0.5) * gsd, {"units": "m"})
         self.sensing = None
-        if scene.effects.senses:
+        if senses(scene.effects):
             correction = None
             if sim.correction is not None:
                 c, i = sim.correction, self.ids
                 correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
-            self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
-                                   scene.effects, sim.precision, correction=correction)
+            radiometry = Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids,
+                                       correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
+            self.sensing = Sensing(sim.rt, radiometry, scene.effects, sim.precision)
         #: output pixels whose footprint (box and the spatial filters' support,
         #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
         #: (:func:`s2cl.forward.nodata.footprint_nodata`)
@@ -365,10 +368,10 @@ class _Group:
     def finish(self) -> None:
         """The clipping and no-data counts, once every block is in (no-data pixels are counted as such, not as
         clipped below Lmin)."""
-        quantised = self.sensing is not None and self.scene.effects.quantise
+        flagged = self.sensing is not None and "flags" in self.sensing.outputs
         for j, k in enumerate(self.ids):
             counts: dict = {"nodata_pixels": int(self.counts[2, j]), **self.instrument.band_attrs(k)}
-            if quantised:
+            if flagged:
                 counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
             self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)
 

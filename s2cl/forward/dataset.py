@@ -10,9 +10,9 @@ import numpy as np
 import xarray as xr
 
 from s2cl.errors import InputError
+from s2cl.forward.stages import ALL_OUTPUTS, RADIANCE_UNITS
 from s2cl.sensor.sensor import Band
 
-RADIANCE_UNITS = "W m-2 sr-1 um-1"
 #: global attribute of every NetCDF file s2cl writes
 CONVENTIONS = {"Conventions": "CF-1.10"}
 #: CF standard names (CF standard-name table, version 84) of the variables that have one
@@ -65,12 +65,9 @@ def image_layout(n_spectra: int, copies: int, layout: str) -> np.ndarray:
     return out
 
 
-#: per-pixel image variables of a simulation: (name, units, long name)
-PIXEL_VARIABLES = (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
-                   ("dn", "1", "digital numbers"),
-                   ("flags", "1", "radiometric pixel flags"),
-                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
-                   ("reflectance", "1", "band surface reflectance after atmospheric correction"))
+#: per-pixel image variables of a simulation, the outputs of the chain's stages (:mod:`s2cl.forward.stages`):
+#: (name, units, long name)
+PIXEL_VARIABLES = tuple(dict.fromkeys((o.name, o.units, o.long_name) for o in ALL_OUTPUTS))
 PIXEL_SPECTRUM_ATTRS = {"long_name": "library spectrum of each pixel (-1: none)"}
 
 
@@ -87,7 +84,7 @@ def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
         if arr is None:
             continue
         pixels = arr.reshape(arr.shape[0], -1)[:, flat]
-        fill = 0 if name in ("dn", "flags") else np.nan
+        fill = 0 if arr.dtype.kind in "ui" else np.nan
         pixels = np.where(valid[None], pixels, np.asarray(fill, dtype=pixels.dtype))
         ds[name] = (("band", "y", "x"), pixels, pixel_attrs(name, units, long_name))
     return ds

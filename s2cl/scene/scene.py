@@ -197,9 +197,7 @@ def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
 
 def _effects(spec: SceneSpec, source: str) -> EffectSet:
     e = spec.effects
-    effects = EffectSet(atmosphere=e.atmosphere, resample=e.resample, noise=e.noise, quantise=e.quantise,
-                        calibrate=e.calibrate, correct=e.correct)
-    effects.validate(source)
+    effects = EffectSet.of(e).validate(source)
     if e.atmosphere and spec.surface.quantity != "reflectance":
         raise InputError("atmosphere = true needs surface.quantity = 'reflectance'", source=source,
                          key="effects.atmosphere")

@@ -92,9 +92,11 @@ class EffectsSpec(Section):
                        "independent noise for the same pixels")
     quantise: bool = Field(True, description="quantise radiance to digital numbers between Lmin and Lmax")
     bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
-    calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)")
+    calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)",
+                            json_schema_extra={"needs": ["quantise", "calibration turns DN back into radiance"]})
     correct: bool = Field(False, description="band-effective atmospheric correction of band radiance back to "
-                          "surface reflectance (the state of [correction])")
+                          "surface reflectance (the state of [correction])",
+                          json_schema_extra={"needs": ["atmosphere", "the correction inverts an atmosphere"]})
 
 
 class AtmosphereSpec(Section):
