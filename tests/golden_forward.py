@@ -103,7 +103,8 @@ def _dataset_arrays(ds: Any) -> Arrays:
 
 
 def cube_instrument_case(rt: Runtime, precision: str) -> Arrays:
-    """A generated cube through every [instrument] effect (MTF, co-registration, smile, non-uniformity)."""
+    """A generated cube through every image effect (MTF, co-registration, smile, non-uniformity), given in the
+    deprecated [instrument] section (still read: the same outputs as before issue 33)."""
     scene = _cube_scene("cube-instrument", precision, instrument={
         "mtf": True, "mtf_nyquist_bands": {"B5": 0.3}, "coregistration": True,
         "coregistration_shifts": {"B4": [0.2, -0.1]}, "smile": True, "smile_width_pct": [0.0, 1.0],
@@ -112,10 +113,14 @@ def cube_instrument_case(rt: Runtime, precision: str) -> Arrays:
 
 
 def cube_psf_case(rt: Runtime, precision: str) -> Arrays:
-    """A radiance cube in memory with NaN pixels, through the [spatial] Gaussian PSF, read in blocks of rows."""
+    """A radiance cube in memory with NaN pixels, through a Gaussian PSF of 1.5 band pixels FWHM, read in blocks of
+    rows. Saved again after issue 33 made the [spatial] PSF the one PSF filter (the instrument's, with its reach):
+    its radiance is the precision's now (float64 before, from scipy's filter), its values differ by float rounding
+    inside and by the border rule (half-sample mirror, not nearest) near the edges, and a no-data pixel reaches the
+    filter's support (tests/test_stages.py compares it with scipy's Gaussian inside)."""
     scene = Scene.from_dict({
         "scene": {"name": "cube-psf"}, "surface": {"cube": "cube.nc", "gsd_m": 10.0},
-        "spatial": {"psf": "gaussian", "psf_fwhm": 1.5}, "effects": {"seed": 6, "frame": 2},
+        "effects": {"seed": 6, "frame": 2, "psf": {"fwhm": 1.5}},
         "compute": {"precision": precision}})
     from s2cl.grid import DEFAULT_GRID
 

@@ -159,22 +159,20 @@ STAGES: tuple[Stage, ...] = (
     Stage("atmosphere", "effects.atmosphere", "spectrum",
           "surface reflectance to TOA radiance per wavelength, L = Lp + G ρ / (1 - S ρ) (6S LUT terms; in the "
           "resampling kernel)", twin="s2cl.reference.forward:toa_radiance"),
-    Stage("smile", "instrument.smile", "spectrum",
-          "spectral smile: each band's SRF moved (and widened) across the swath (node SRFs, interpolated per column)",
-          twin="s2cl.forward.instrument:smile_twin"),
+    Stage("smile", "effects.smile", "image",
+          "spectral smile: each band's SRF moved (and widened) across the swath (node SRFs in the resampling kernel, "
+          "interpolated per column)", twin="s2cl.forward.instrument:smile_twin"),
     Stage("resample", "effects.resample", "spectrum",
           "SRF integral of each band (off: the spectrum at the band centre)", twin="s2cl.reference.forward:resample"),
-    Stage("mtf", "instrument.mtf", "image",
-          "each band's Gaussian PSF, from its system MTF at Nyquist (a finite filter on the input grid)",
+    Stage("psf", "effects.psf", "image",
+          "each band's Gaussian PSF (from its FWHM, or its system MTF at Nyquist with the box average) before the box "
+          "average, one finite filter with the co-registration shift", twin="s2cl.forward.instrument:spatial_twin"),
+    Stage("coregistration", "effects.coregistration", "image",
+          "each band's sub-pixel shift (band-limited, in the PSF's filter)",
           twin="s2cl.forward.instrument:spatial_twin"),
-    Stage("coregistration", "instrument.coregistration", "image",
-          "each band's sub-pixel shift (band-limited, in the same finite filter as the MTF)",
-          twin="s2cl.forward.instrument:spatial_twin"),
-    Stage("psf", "spatial.psf", "image", "a Gaussian PSF of psf_fwhm band pixels before the box average",
-          twin="scipy.ndimage:gaussian_filter"),
-    Stage("nonuniformity", "instrument.nonuniformity", "image",
-          "per-column gain and offset of each band (detector non-uniformity, after the box average)",
-          twin="s2cl.forward.instrument:Instrument.columns"),
+    Stage("nonuniformity", "effects.nonuniformity", "image",
+          "per-column gain and offset of each band (detector non-uniformity, after the box average; float64 on the "
+          "host, its own twin)", twin="s2cl.forward.instrument:Instrument.column_response"),
     Stage("noise", "effects.noise", "band", "sigma(L) z added, sigma^2 = a + b max(L, 0) at the band's width",
           values=(Value("noise_a", "variant", sweep=False), Value("noise_b", "variant", sweep=False),
                   Value("sigma", "pixel", sense=False)),
@@ -267,6 +265,21 @@ def band_attrs(stages: list[Stage], ctx: Radiometry, k: int) -> dict[str, Any]:
     return out
 
 
+def image_only(scene: Any) -> list[Caveat]:
+    """One line naming the image-only stages a scene without an image cube (a library, a sweep) switches on: they
+    do not run there, and are never dropped silently."""
+    if scene.spec.surface.cube is not None:
+        return []
+    on = [s.key for s in STAGES if s.acts == "image" and scene.effects.on(s.name)]
+    if not on:
+        return []
+    where = "this library scene or its sweep" if scene.spec.sweep is not None else "this library scene"
+    return [Caveat("effects", f"{', '.join(on)}: image-only stage{'s' if len(on) > 1 else ''}, not run on "
+                              f"{where} (they act on image cubes: surface.cube)")]
+
+
 def caveats(scene: Any, bands: list[str]) -> list[Caveat]:
-    """The caveats of the per-pixel stages the scene switches on, for ``bands``."""
-    return [c for s in chain(scene.effects) if s.caveats is not None for c in s.caveats(scene, bands)]
+    """The caveats of the stages the scene switches on, for ``bands``: image-only stages without an image, and each
+    per-pixel stage's own."""
+    own = [c for s in chain(scene.effects) if s.caveats is not None for c in s.caveats(scene, bands)]
+    return image_only(scene) + own

@@ -56,8 +56,9 @@ class EffectSet:
 
     @classmethod
     def of(cls, spec: EffectsSpec) -> EffectSet:
-        """The switches of a scene's ``[effects]`` (a stage given as a table of settings is on)."""
-        return cls(enabled=[n for n in SWITCHES if getattr(spec, n) not in (False, None)])
+        """The switches of a scene's ``[effects]`` (a stage given as a table of settings is on unless it says
+        ``on = false``)."""
+        return cls(enabled=[n for n in SWITCHES if getattr(getattr(spec, n), "on", getattr(spec, n)) is True])
 
     def on(self, name: str) -> bool:
         """Whether stage ``name`` is on."""

@@ -13,7 +13,14 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from s2cl.errors import InputError, key_token, token
-from s2cl.scene.instrument_schema import InstrumentSpec
+from s2cl.scene.instrument_schema import (
+    CoregistrationSpec,
+    InstrumentSpec,
+    NonUniformitySpec,
+    PsfSpec,
+    SmileSpec,
+    SpatialSpec,
+)
 from s2cl.scene.section import Section
 from s2cl.scene.study_schema import (  # noqa: F401  (re-exported: the [study] section's model and limits)
     MAX_GAS_FACTOR,
@@ -82,10 +89,27 @@ class GridSpec(Section):
                            "warned above a fifth)")
 
 
+_IMAGE_ONLY = " (image cubes only: a library or sweep scene names it in a caveat)"
+
+
 class EffectsSpec(Section):
+    """The stages of the forward chain, in its order (s2cl.forward.stages), each on or off; an effect with settings
+    takes a table of them (which switches it on), e.g. psf = {mtf_nyquist = 0.2}; the one home of every effect."""
+
     atmosphere: bool = Field(False, description="surface reflectance to TOA radiance at each wavelength (6S LUT)")
+    smile: SmileSpec | bool = Field(False, description="spectral smile: each band's SRF moved (and widened) across "
+                                    "the swath, {centre_nm = [c0, c1, c2], width_pct = [w0]}" + _IMAGE_ONLY)
     resample: bool = Field(True, description="integrate the spectra over each band's SRF (false: ideal monochromatic "
                            "bands at the centres)")
+    psf: PsfSpec | bool = Field(False, description="each band's Gaussian PSF before the box average to its GSD, "
+                                "{mtf_nyquist = 0.15} (the system MTF at Nyquist) or {fwhm = 1.0} (band pixels), "
+                                "per band in bands = {B2 = 0.25}; true: MTF 0.15" + _IMAGE_ONLY)
+    coregistration: CoregistrationSpec | bool = Field(False, description="band-to-band co-registration error: each "
+                                                      "band shifted by a sub-pixel amount, {px = 0.15, shifts = "
+                                                      "{B5 = [0.1, -0.2]}}" + _IMAGE_ONLY)
+    nonuniformity: NonUniformitySpec | bool = Field(False, description="detector non-uniformity: per-column gain and "
+                                                    "offset of each band drawn from the seed, {gain_pct = 2, "
+                                                    "residual_gain_pct = 0.2, ...}" + _IMAGE_ONLY)
     noise: bool = Field(True, description="add the sensor's noise (SNR model of each band)")
     seed: int = Field(0, ge=0, le=UINT32_MAX, description="noise generator seed (Philox key): same seed, same noise")
     frame: int = Field(0, ge=0, le=UINT32_MAX, description="noise frame (Philox counter word): another frame draws "
@@ -224,12 +248,6 @@ class AnalysisSpec(Section):
         return data
 
 
-class SpatialSpec(Section):
-    psf: Literal["none", "gaussian"] = Field("none", description="point spread function applied to an image cube "
-                                             "before it is averaged to each band's GSD")
-    psf_fwhm: float = Field(1.0, gt=0, le=10, description="Gaussian PSF FWHM in units of the band's GSD")
-
-
 class OutputSpec(Section):
     directory: str | None = Field(None, description="output folder (default: s2cl-out/<scene name>)")
     precision: Literal["float32", "float64"] | None = Field(
@@ -256,10 +274,12 @@ class SceneSpec(Section):
     grid: GridSpec = Field(GridSpec(), description="the spectral grid everything is simulated on")
     atmosphere: AtmosphereSpec = Field(AtmosphereSpec(), description="the true atmospheric state (6S LUT)")
     correction: CorrectionSpec = Field(CorrectionSpec(), description="the state the atmospheric correction assumes")
-    effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run")
-    spatial: SpatialSpec = Field(SpatialSpec(), description="spatial effects on image cubes (PSF)")
-    instrument: InstrumentSpec = Field(InstrumentSpec(), description="the instrument's own artefacts on image cubes "
-                                       "(per-band MTF, co-registration, smile, non-uniformity), each off by default")
+    effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run, and their settings: the "
+                                 "one home of every effect")
+    spatial: SpatialSpec | None = Field(None, description="deprecated: its PSF is effects.psf (still read, with a "
+                                        "note)")
+    instrument: InstrumentSpec | None = Field(None, description="deprecated: its effects are [effects] keys (psf, "
+                                              "coregistration, smile, nonuniformity; still read, with a note)")
     analysis: AnalysisSpec | None = Field(None, description="the retrieval scored on the simulated bands")
     sweep: SweepSpec | None = Field(None, description="which bands move, and where (s2cl optimise)")
     study: StudySpec | None = Field(None, description="an atmospheric-band, stability or cellulose study "
@@ -271,7 +291,11 @@ class SceneSpec(Section):
 def input_error(err: ValidationError, source: str) -> InputError:
     """The first validation problem as one line: file, dotted key, what is allowed."""
     e = err.errors()[0]
-    loc = [str(x) for x in e["loc"]]
+    # a key that takes true/false or a table: pydantic names the union member tried in the location
+    loc = [str(x) for x in e["loc"] if not (x == "bool" or "[" in str(x) or re.fullmatch(r"[A-Z]\w*Spec", str(x)))]
+    if e["type"] in ("model_type", "bool_type") and len(loc) == 2 and loc[0] == "effects":
+        return InputError(f"must be true, false or a table of the effect's settings, got {token(e.get('input'))}",
+                          source=source, key=".".join(loc))
     if loc[:2] == ["analysis", "roles"]:  # role keys are written as keys of [analysis]
         loc = ["analysis", *loc[2:]]
     key = ".".join(key_token(x) for x in loc)
@@ -341,10 +365,10 @@ def _allowed_keys(loc: list[str]) -> list[str]:
 
 
 def _unwrap_optional(annotation: Any) -> Any:
-    """``X | None`` → ``X`` (for walking nested sections)."""
+    """``X | None`` → ``X``, ``Model | bool`` → ``Model`` (for walking nested sections)."""
     args = getattr(annotation, "__args__", None)
-    if args and type(None) in args:
-        rest = [a for a in args if a is not type(None)]
+    if args and (type(None) in args or bool in args):
+        rest = [a for a in args if a is not type(None) and a is not bool]
         if len(rest) == 1:
             return rest[0]
     return annotation
