@@ -1,4 +1,5 @@
-"""Image effects on image cubes ([effects] psf, coregistration, smile, nonuniformity): per-band MTF, co-registration shift, spectral smile,
+"""Image effects on image cubes ([effects] psf, coregistration, smile, nonuniformity): per-band MTF,
+co-registration shift, spectral smile,
 detector non-uniformity — each against its float64 twin or its defining property, and absent when off."""
 
 from __future__ import annotations
