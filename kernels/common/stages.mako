@@ -24,12 +24,16 @@ deviate; a step across bands works on X[0 .. c.n - 1] with c.pairs(NAME), the va
                 radiance L (s2cl.sensor.noise_model; the one builtin here: once per pixel and band, not in a loop);
                 V s2_add_noise_<sfx>(V L, V sigma, V z): L + sigma z for a standard normal deviate z.
                 Step: sigma from the kernel's table where it has one (a sweep), else from L; stores `noisy`.
+  crosstalk(T)  (no function: the step is a sum of literals) Step across bands: X[k] += sum over j of
+                c[k][j] X[j], every band from the others' radiance before the step; stores `noisy`.
   quantise(T)   V s2_quantise_<sfx>(V L, R lmin, R lmax, R scale, R maxdn, M *flags)
                 DN as a real: x = (L - lmin) scale; DN = floor(x) + (x - floor(x) >= 0.5) (ties up),
                 clipped into [0, maxdn]. flags: S2_FLAG_NODATA (L NaN), else S2_FLAG_LOW (L < lmin),
                 S2_FLAG_HIGH (L > lmax), else 0. Step: leaves q (DN) and flag; stores `dn`, `flags`.
   calibrate(T)  V s2_calibrate_<sfx>(V dn, M flags, R lmin, R gain)
                 lmin + dn gain; NaN where flags has S2_FLAG_NODATA. Step: from q and flag; stores `calibrated`.
+  calibration_error(T)  V s2_calibration_error_<sfx>(V L, R gain): L gain, gain = 1 + the band's relative
+                calibration error. Step: after calibrate; stores `calibrated` again (it carries the error).
   correct(T)    V s2_correct_<sfx>(V L, R lp, R g, R s)
                 band-effective inverse: y = (L - lp) / g, rho = y / max(1 + s y, 1e-6); NaN stays NaN.
                 Step: L becomes the band reflectance; stores `reflectance`.
@@ -69,6 +73,25 @@ static inline ${T.V} s2_add_noise_${T.suffix}(const ${T.V} L, const ${T.V} sigma
 <% sigma = c.value("sigma") if c.has("sigma") else f"s2_noise_sigma_{T.suffix}(L, {c.value('noise_a')}, {c.value('noise_b')})" %>
         L = s2_add_noise_${T.suffix}(L, ${sigma}, ${c.deviate()});
         ${c.store("noisy", "L")}
+</%def>
+
+<%def name="crosstalk(T)">
+</%def>
+
+<%def name="crosstalk_step(T, c)">
+    {   /* crosstalk: every band gains from the others of its focal plane (their radiance before this step) */
+        ${T.V} own[${c.n}];
+% for k in range(c.n):
+        own[${k}] = X[${k}];
+% endfor
+% for k, row in enumerate(c.pairs("crosstalk")):
+<% terms = "".join(f" + {T.lit(v)} * own[{j}]" for j, v in enumerate(row) if j != k and v != 0.0) %>\
+  % if terms:
+        X[${k}] = own[${k}]${terms};
+        ${c.store("noisy", k, f"X[{k}]")}
+  % endif
+% endfor
+    }
 </%def>
 
 <%def name="quantise(T)">
@@ -117,6 +140,21 @@ static inline ${T.V} s2_calibrate_${T.suffix}(const ${T.V} dn, const ${T.M} flag
 
 <%def name="calibrate_step(T, c)">
         L = s2_calibrate_${T.suffix}(q, flag, ${c.value("lmin")}, ${c.value("gain")});
+        ${c.store("calibrated", "L")}
+</%def>
+
+<%def name="calibration_error(T)">
+#ifndef S2_CALIBRATION_ERROR_${T.suffix.upper()}
+#define S2_CALIBRATION_ERROR_${T.suffix.upper()}
+static inline ${T.V} s2_calibration_error_${T.suffix}(const ${T.V} L, const ${T.R} gain)
+{
+    return L * gain;   /* NaN (no data) stays NaN */
+}
+#endif
+</%def>
+
+<%def name="calibration_error_step(T, c)">
+        L = s2_calibration_error_${T.suffix}(L, ${c.value("cal_error_gain")});
         ${c.store("calibrated", "L")}
 </%def>
 

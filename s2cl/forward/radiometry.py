@@ -5,7 +5,7 @@ correction's band-effective terms, the scene's stage settings and seed, and (in 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -28,6 +28,7 @@ class Radiometry:
     :param seed: the scene's seed (a stage that draws per-band values draws them from it).
     :param radiance: noise-free band radiance ``(n_bands, n_spectra)`` where the values are tabulated per spectrum
         (a sweep's variants of one band); None elsewhere.
+    :param extras: the sensor table's optional numeric columns by name, per band (NaN where a band has none).
     """
 
     lmin: np.ndarray
@@ -42,6 +43,7 @@ class Radiometry:
     settings: Any = None
     seed: int = 0
     radiance: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
     def of(cls, bands: list[Band] | tuple[Band, ...], bits: int, band_ids: list[int] | None = None, *,
@@ -58,6 +60,8 @@ class Radiometry:
             names=tuple(b.name for b in bands),
             centres=np.array([b.centre_nm for b in bands], dtype=np.float64),
             correction=correction, settings=settings, seed=seed, radiance=radiance,
+            extras={c: np.array([dict(b.extra).get(c, np.nan) for b in bands], dtype=np.float64)
+                    for c in dict.fromkeys(c for b in bands for c, _ in b.extra)},
         )
 
     @property

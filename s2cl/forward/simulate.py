@@ -171,8 +171,7 @@ class Simulator:
         if scene.effects.correct:
             from s2cl.scene.terms import correction_terms
 
-            correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
-                scene.run.calibration_gain)
+            correction = BandAtmosphere.of(correction_terms(scene), weights)
         return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
                    atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
 

@@ -24,6 +24,7 @@ step in ``kernels/common/stages.mako``, its twin in ``s2cl/reference/stages.py``
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -33,6 +34,7 @@ import numpy as np
 from s2cl.forward.radiometry import Radiometry
 from s2cl.scene.caveats import Caveat
 from s2cl.scene.effects import EffectSet
+from s2cl.scene.schema import CalibrationErrorSpec, CrosstalkSpec
 from s2cl.sensor.noise_model import noise_sigma
 
 Acts = Literal["spectrum", "image", "bands", "band"]
@@ -135,6 +137,64 @@ def _correct(ctx: Radiometry) -> dict[str, Any]:
     return {"lp": c.path_radiance, "g": c.ground_term, "s": c.spherical_albedo}
 
 
+#: a relative calibration error's deviate: the second word of its generator's seed
+_CAL_TAG = 0x63616C65
+#: crosstalk coefficient where neither the scene nor the sensor table gives one (an assumption)
+DEFAULT_CROSSTALK = 0.002
+
+
+def _of(table: dict[str, Any], name: str) -> Any:
+    """``table``'s entry for band ``name`` (case-insensitive), None where it has none."""
+    return next((v for b, v in table.items() if b.lower() == name.lower()), None)
+
+
+def _calibration_error(ctx: Radiometry) -> dict[str, Any]:
+    """(1 + e) per band: e its own where the scene gives it, else error + uncertainty z, z a standard normal deviate
+    drawn once per band from the seed and the band's name (the same band gets the same error in any band set)."""
+    spec = ctx.setting("calibration_error")
+    spec = spec if isinstance(spec, CalibrationErrorSpec) else CalibrationErrorSpec()
+    errors = []
+    for name in ctx.names:
+        given = _of(spec.bands, name)
+        if given is None:
+            z = np.random.default_rng([ctx.seed, _CAL_TAG, zlib.crc32(name.encode())]).standard_normal()
+            given = spec.error + spec.uncertainty * z
+        errors.append(1.0 + given)
+    return {"cal_error_gain": np.array(errors, dtype=np.float64)}
+
+
+def _calibration_error_attrs(ctx: Radiometry, k: int) -> dict[str, Any]:
+    return {"calibration_error": float(_calibration_error(ctx)["cal_error_gain"][k] - 1.0)}
+
+
+def _crosstalk(ctx: Radiometry) -> dict[str, Any]:
+    """c[k][j]: what band k gains of band j's radiance (0 across focal planes and on the diagonal)."""
+    spec = ctx.setting("crosstalk")
+    spec = spec if isinstance(spec, CrosstalkSpec) else CrosstalkSpec()
+    n = len(ctx.names)
+    centres = ctx.centres if ctx.centres is not None else np.zeros(n)
+    swir = centres >= spec.swir_from_nm
+    column = ctx.extras.get("crosstalk")
+    c = np.zeros((n, n))
+    for k, name in enumerate(ctx.names):
+        row = _of(spec.pairs, name) or {}
+        for j, other in enumerate(ctx.names):
+            if j == k or swir[j] != swir[k]:
+                continue
+            given = _of(row, other)
+            if given is None:
+                given = spec.coefficient
+            if given is None and column is not None and np.isfinite(column[k]):
+                given = column[k]
+            c[k, j] = DEFAULT_CROSSTALK if given is None else given
+    return {"crosstalk": c}
+
+
+def _crosstalk_attrs(ctx: Radiometry, k: int) -> dict[str, Any]:
+    row = _crosstalk(ctx)["crosstalk"][k]
+    return {"crosstalk_from": ", ".join(f"{ctx.names[j]} {c:g}" for j, c in enumerate(row) if c != 0.0) or "none"}
+
+
 def _quantisation_caveats(scene: Any, bands: list[str]) -> list[Caveat]:
     """Bands of ``bands`` whose quantisation noise (step / √12) exceeds their sensor noise at Lref."""
     bits = scene.sensor.bits
@@ -178,6 +238,10 @@ STAGES: tuple[Stage, ...] = (
                   Value("sigma", "pixel", sense=False)),
           outputs=(Output("noisy", "real", RADIANCE_UNITS, "band radiance with sensor noise"),),
           device="noise", twin=f"{_REF}:noise_step", compute=_noise, deviates=True, degrades=True),
+    Stage("crosstalk", "effects.crosstalk", "bands",
+          "each band's radiance gains c_kj L_j from the other bands j of its focal plane (VNIR, SWIR), after the noise",
+          values=(Value("crosstalk", "pairs"),), device="crosstalk", twin=f"{_REF}:crosstalk_step",
+          compute=_crosstalk, attrs=_crosstalk_attrs, degrades=True),
     Stage("quantise", "effects.quantise", "band",
           "DN = round((L - Lmin) scale), ties up, clipped to [0, 2^bits - 1]; pixel flags",
           values=(Value("lmin", "band"), Value("lmax", "band"), Value("scale", "band"),
@@ -190,6 +254,11 @@ STAGES: tuple[Stage, ...] = (
           values=(Value("lmin", "band"), Value("gain", "band")),
           outputs=(Output("calibrated", "real", RADIANCE_UNITS, "radiance calibrated from DN"),),
           device="calibrate", twin=f"{_REF}:calibrate_step", compute=_calibrate, degrades=True),
+    Stage("calibration_error", "effects.calibration_error", "band",
+          "each band's absolute calibration error: its calibrated radiance times (1 + e), e per band",
+          values=(Value("cal_error_gain", "band"),), device="calibration_error",
+          twin=f"{_REF}:calibration_error_step", compute=_calibration_error, attrs=_calibration_error_attrs,
+          degrades=True),
     Stage("correct", "effects.correct", "band",
           "band-effective atmospheric correction to band reflectance (the state of [correction])",
           values=(Value("lp", "variant"), Value("g", "variant"), Value("s", "variant")),

@@ -19,8 +19,8 @@ import numpy as np
 from s2cl.atmos.correction import correct  # the host correction is the twin of s2_correct
 from s2cl.status import MAX_ABS_REFLECTANCE, PixelFlag, Status
 
-__all__ = ["calibrate", "calibrate_step", "correct", "correct_step", "noise_step", "normalised_difference", "quantise",
-           "quantise_step", "sam", "sam_classify", "spectral_angles"]
+__all__ = ["calibrate", "calibrate_step", "calibration_error_step", "correct", "correct_step", "crosstalk_step",
+           "noise_step", "normalised_difference", "quantise", "quantise_step", "sam", "sam_classify", "spectral_angles"]
 
 Values = Mapping[str, Any]
 
@@ -57,6 +57,16 @@ def noise_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarr
     return L
 
 
+def crosstalk_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """L_k + Σ_j c[k][j] L_j over the bands (axis 0), every band from the others' radiance before the step; writes
+    ``noisy`` where the chain has it."""
+    c = np.asarray(v["crosstalk"], dtype=np.float64)
+    L = L + np.tensordot(c, L, axes=(1, 0))
+    if "noisy" in out:
+        out["noisy"] = L
+    return L
+
+
 def quantise_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
     """Writes ``dn`` (float64) and ``flags``; L unchanged."""
     out["dn"], out["flags"] = quantise(L, v["lmin"], v["lmax"], int(v["maxdn"]))
@@ -66,6 +76,14 @@ def quantise_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.nd
 def calibrate_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
     """Radiance from the DN of the quantisation step; writes ``calibrated``."""
     out["calibrated"] = L = calibrate(out["dn"], out["flags"], v["lmin"], v["gain"])
+    return L
+
+
+def calibration_error_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """L (1 + e), the band's calibration error; writes ``calibrated`` again where the chain has it."""
+    L = L * v["cal_error_gain"]
+    if "calibrated" in out:
+        out["calibrated"] = L
     return L
 
 

@@ -15,6 +15,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from s2cl.errors import InputError, key_token, token
 from s2cl.scene.instrument_schema import (
     CoregistrationSpec,
+    EffectSpec,
     InstrumentSpec,
     NonUniformitySpec,
     PsfSpec,
@@ -92,6 +93,53 @@ class GridSpec(Section):
 _IMAGE_ONLY = " (image cubes only: a library or sweep scene names it in a caveat)"
 
 
+def _relative(values: dict[str, float], what: str) -> dict[str, float]:
+    for band, v in values.items():
+        if not (math.isfinite(v) and -0.5 < v < 0.5):
+            raise ValueError(f"{band}: a relative {what} must be > -0.5 and < 0.5, got {v}")
+    return values
+
+
+class CalibrationErrorSpec(EffectSpec):
+    """Each band's absolute calibration error e: the calibrated radiance is (1 + e) times the true one (the
+    product's radiance, and the reflectance corrected from it, carry it); differing between bands, it bends the
+    spectrum. A band of bands takes its own; every other band error + uncertainty z, z a standard normal deviate
+    drawn once per band (from the seed and the band's name)."""
+
+    error: float = Field(0.0, gt=-0.5, lt=0.5, description="relative error of every band not in bands (0.05: +5 %)")
+    uncertainty: float = Field(0.0, ge=0, le=0.5, description="1-sigma relative uncertainty of the bands not in "
+                               "bands: each draws its error once from the seed (Sentinel-2 requirement: 0.05)")
+    bands: dict[str, float] = Field(default_factory=dict, description="relative error per band, e.g. {B5 = 0.02}")
+
+    @field_validator("bands")
+    @classmethod
+    def _range(cls, value: dict[str, float]) -> dict[str, float]:
+        return _relative(value, "calibration error")
+
+
+class CrosstalkSpec(EffectSpec):
+    """Inter-band crosstalk within one focal plane: band k's radiance gains the sum over the other bands j of its plane
+    of c_kj L_j (VNIR: centres below swir_from_nm; SWIR: from there on), after the noise and before the
+    quantisation. c_kj: pairs[k][j] where given, else coefficient, else the sensor table's crosstalk column (band
+    k's), else 0.002 (an assumption, not a Sentinel-2 figure). In a sweep the design's bands are the plane."""
+
+    coefficient: float | None = Field(None, ge=-0.1, le=0.1, description="c of every pair of bands of one plane "
+                                      "not in pairs")
+    pairs: dict[str, dict[str, float]] = Field(default_factory=dict, description="c per pair: {B5 = {B4 = 0.003, "
+                                               "B6 = 0.001}} (B5 gains 0.003 L_B4 + 0.001 L_B6)")
+    swir_from_nm: float = Field(1000.0, gt=0, le=3000, description="band centres from here on lie on the SWIR focal "
+                                "plane, those below on the VNIR plane")
+
+    @field_validator("pairs")
+    @classmethod
+    def _range(cls, value: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+        for band, row in value.items():
+            for other, c in row.items():
+                if not (math.isfinite(c) and -0.1 <= c <= 0.1):
+                    raise ValueError(f"{band}.{other}: a crosstalk coefficient must be >= -0.1 and <= 0.1, got {c}")
+        return value
+
+
 class EffectsSpec(Section):
     """The stages of the forward chain, in its order (s2cl.forward.stages), each on or off; an effect with settings
     takes a table of them (which switches it on), e.g. psf = {mtf_nyquist = 0.2}; the one home of every effect."""
@@ -111,6 +159,10 @@ class EffectsSpec(Section):
                                                     "offset of each band drawn from the seed, {gain_pct = 2, "
                                                     "residual_gain_pct = 0.2, ...}" + _IMAGE_ONLY)
     noise: bool = Field(True, description="add the sensor's noise (SNR model of each band)")
+    crosstalk: CrosstalkSpec | bool = Field(False, description="inter-band crosstalk within a focal plane (VNIR, "
+                                            "SWIR): each band's radiance gains c L_j from the other bands of its "
+                                            "plane, after the noise, e.g. {coefficient = 0.002} or {pairs = {B5 = "
+                                            "{B4 = 0.003}}}; true: the sensor table's crosstalk column, else 0.002")
     seed: int = Field(0, ge=0, le=UINT32_MAX, description="noise generator seed (Philox key): same seed, same noise")
     frame: int = Field(0, ge=0, le=UINT32_MAX, description="noise frame (Philox counter word): another frame draws "
                        "independent noise for the same pixels")
@@ -118,6 +170,11 @@ class EffectsSpec(Section):
     bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
     calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)",
                             json_schema_extra={"needs": ["quantise", "calibration turns DN back into radiance"]})
+    calibration_error: CalibrationErrorSpec | bool = Field(
+        False, description="each band's absolute calibration error: its calibrated radiance is (1 + e) times the "
+        "true one, e per band ({bands = {B5 = 0.02}}), common ({error = 0.05}) or drawn once per band from a 1-sigma "
+        "uncertainty with the seed ({uncertainty = 0.05}; Sentinel-2: 5 %); correction.calibration_gain g is the "
+        "shorthand {error = g - 1}")
     correct: bool = Field(False, description="band-effective atmospheric correction of band radiance back to "
                           "surface reflectance (the state of [correction])",
                           json_schema_extra={"needs": ["atmosphere", "the correction inverts an atmosphere"]})
@@ -147,8 +204,9 @@ class CorrectionSpec(Section):
     visibility_km: float | None = Field(None, gt=0, description="assumed horizontal visibility, km")
     ozone: float | None = Field(None, gt=0, description="assumed ozone column, DU")
     solar_zenith: float | None = Field(None, ge=0, lt=90, description="assumed solar zenith angle, degrees")
-    calibration_gain: float = Field(1.0, gt=0, le=10, description="factor applied to calibrated radiance "
-                                                                  "(1.05: a +5 % calibration error)")
+    calibration_gain: float = Field(1.0, gt=0.5, lt=1.5, description="factor applied to calibrated radiance "
+                                    "(1.05: a +5 % calibration error in every band; the shorthand of "
+                                    "effects.calibration_error = {error = 0.05})")
 
 
 class RangeSpec(Section):
@@ -286,6 +344,17 @@ class SceneSpec(Section):
                                     "(s2cl study)")
     compute: ComputeSpec = Field(ComputeSpec(), description="precision, vector width and device")
     output: OutputSpec = Field(OutputSpec(), description="where the outputs are written")
+
+    @model_validator(mode="after")
+    def _calibration_gain(self) -> SceneSpec:
+        """``correction.calibration_gain`` g is the shorthand of ``effects.calibration_error = {error = g - 1}``."""
+        gain = self.correction.calibration_gain
+        if gain == 1.0:
+            return self
+        if self.effects.calibration_error is not False:
+            raise ValueError("correction.calibration_gain is the shorthand of effects.calibration_error: give one")
+        effects = self.effects.model_copy(update={"calibration_error": CalibrationErrorSpec(error=gain - 1.0)})
+        return self.model_copy(update={"effects": effects})
 
 
 def input_error(err: ValidationError, source: str) -> InputError:

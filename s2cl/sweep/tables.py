@@ -140,7 +140,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
             radiance.append(toa[:, sl] @ weights.weights)
             weights_all.append(weights)
             surface.append(rho[:, sl] @ weights.weights)
-        corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.run.calibration_gain)
+        corr = BandAtmosphere.of(assumed, weights_all)
         table = np.array(radiance)
         of_variants = compute(stages, Radiometry.of(shaped, scene.sensor.bits, [band_id] * len(shaped),
                                                     correction=corr, radiance=table, **settings))
