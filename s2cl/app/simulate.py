@@ -134,7 +134,7 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
         flagged = "flags" in {o.name for o in outputs(scene.effects)}
         clipped = np.zeros((2, scene.sensor.size), np.int64) if flagged else None
         header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs,
-                       clipped).to_netcdf(tmp, engine="h5netcdf")
+                       clipped, sim.stage_values()).to_netcdf(tmp, engine="h5netcdf")
         t1 = time.perf_counter()
         with writer.open(tmp) as images:
             for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):

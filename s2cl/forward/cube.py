@@ -43,6 +43,7 @@ from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
 from s2cl.forward.sense import Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
+from s2cl.forward.stages import band_attrs as stage_attrs
 from s2cl.forward.stages import senses
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.cubes import CubeReader, cube_size, load_cube, open_cube
@@ -315,6 +316,9 @@ class _Group:
             radiometry = Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids,
                                        correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
             self.sensing = Sensing(sim.rt, radiometry, scene.effects, sim.precision)
+        #: what the per-pixel stages did to each band (attributes of its variables)
+        self.stage_attrs = [stage_attrs(self.sensing.stages, self.sensing.radiometry, j) if self.sensing else {}
+                            for j in range(len(ids))]
         #: output pixels whose footprint (box and the spatial filters' support,
         #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
         #: (:func:`s2cl.forward.nodata.footprint_nodata`)
@@ -347,7 +351,7 @@ class _Group:
         self.counts[2] += np.count_nonzero(flags & PixelFlag.NODATA, axis=1)
         bands = self.scene.sensor.bands
         for j, k in enumerate(self.ids):
-            attrs = band_attrs(bands[k], self.scene.sensor.bits)
+            attrs = {**band_attrs(bands[k], self.scene.sensor.bits), **self.stage_attrs[j]}
             name = bands[k].name
             self._put(f"radiance_{name}", out_rows, images[j],
                       {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})

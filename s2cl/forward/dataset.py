@@ -77,7 +77,8 @@ def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
     index = image_layout(lib.size, sim.copies, layout)
     valid = index >= 0
     flat = np.where(valid, index, 0)
-    ds = header_dataset(sim.sensor, lib, sim.band_radiance, sim.copies, layout, sim.attrs, sim.clipped)
+    ds = header_dataset(sim.sensor, lib, sim.band_radiance, sim.copies, layout, sim.attrs, sim.clipped,
+                        sim.stage_values)
     ds["pixel_spectrum"] = (("y", "x"), np.where(valid, index // sim.copies, -1), PIXEL_SPECTRUM_ATTRS)
     for name, units, long_name in PIXEL_VARIABLES:
         arr = getattr(sim, name)
@@ -103,10 +104,14 @@ def pixel_attrs(name: str, units: str, long_name: str) -> dict[str, Any]:
 
 
 def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int, layout: str,
-                   attrs: dict[str, Any], clipped: np.ndarray | None) -> xr.Dataset:
+                   attrs: dict[str, Any], clipped: np.ndarray | None,
+                   stage_values: dict[str, list[Any]] | None = None) -> xr.Dataset:
     """Everything of a library simulation's dataset but the per-pixel images: band and spectrum
-    tables, noise-free band radiance, clipping counts, attributes."""
+    tables, noise-free band radiance, clipping counts, attributes; ``stage_values``: what the chain's stages did
+    to each band (their attributes, :func:`s2cl.forward.stages.band_attrs`), as coordinates along ``band``."""
     coords = band_table(sensor.bands)
+    for key, values in (stage_values or {}).items():
+        coords[key] = ("band", np.asarray(values))
     coords["spectrum_name"] = ("spectrum", np.array(lib.names, dtype=object))
     coords["spectrum_group"] = ("spectrum", np.array(lib.groups, dtype=object))
     for key, values in lib.params.items():

@@ -17,7 +17,7 @@ from s2cl.errors import InputError, token
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
-from s2cl.forward.stages import ALL_OUTPUTS, senses
+from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
 from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.effects import EffectSet
@@ -53,6 +53,8 @@ class LibrarySimulation:
     clipped: np.ndarray | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
+    #: what the chain's stages did to each band (such as its calibration error), per attribute a value per band
+    stage_values: dict[str, list[Any]] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> np.ndarray | None:
         if name in OUTPUT_NAMES:
@@ -175,6 +177,14 @@ class Simulator:
         return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
                    atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
 
+    def stage_values(self) -> dict[str, list[Any]]:
+        """What the per-pixel stages do to each band (:func:`s2cl.forward.stages.band_attrs`): per attribute, a value
+        per band (empty without a stage that says)."""
+        if self.sensing is None:
+            return {}
+        per_band = [band_attrs(self.sensing.stages, self.sensing.radiometry, k) for k in range(self.sensor.size)]
+        return {key: [a[key] for a in per_band] for key in per_band[0]} if per_band else {}
+
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
         """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
         return self.resampler(spectra)
@@ -194,7 +204,7 @@ class Simulator:
         band_radiance = self.band_radiance(library.spectra)
         seconds = {"resample": time.perf_counter() - t0}
         result = LibrarySimulation(scene, self.sensor, library, copies, self.effects, band_radiance,
-                                   seconds=seconds)
+                                   seconds=seconds, stage_values=self.stage_values())
         if progress:
             progress(0)
         if self.sensing is not None:

@@ -148,9 +148,9 @@ def _of(table: dict[str, Any], name: str) -> Any:
     return next((v for b, v in table.items() if b.lower() == name.lower()), None)
 
 
-def _calibration_error(ctx: Radiometry) -> dict[str, Any]:
-    """(1 + e) per band: e its own where the scene gives it, else error + uncertainty z, z a standard normal deviate
-    drawn once per band from the seed and the band's name (the same band gets the same error in any band set)."""
+def _calibration_errors(ctx: Radiometry) -> np.ndarray:
+    """e per band: its own where the scene gives it, else error + uncertainty z, z a standard normal deviate drawn
+    once per band from the seed and the band's name (the same band gets the same error in any band set)."""
     spec = ctx.setting("calibration_error")
     spec = spec if isinstance(spec, CalibrationErrorSpec) else CalibrationErrorSpec()
     errors = []
@@ -159,12 +159,16 @@ def _calibration_error(ctx: Radiometry) -> dict[str, Any]:
         if given is None:
             z = np.random.default_rng([ctx.seed, _CAL_TAG, zlib.crc32(name.encode())]).standard_normal()
             given = spec.error + spec.uncertainty * z
-        errors.append(1.0 + given)
-    return {"cal_error_gain": np.array(errors, dtype=np.float64)}
+        errors.append(given)
+    return np.array(errors, dtype=np.float64)
+
+
+def _calibration_error(ctx: Radiometry) -> dict[str, Any]:
+    return {"cal_error_gain": 1.0 + _calibration_errors(ctx)}
 
 
 def _calibration_error_attrs(ctx: Radiometry, k: int) -> dict[str, Any]:
-    return {"calibration_error": float(_calibration_error(ctx)["cal_error_gain"][k] - 1.0)}
+    return {"calibration_error": float(_calibration_errors(ctx)[k])}
 
 
 def _crosstalk(ctx: Radiometry) -> dict[str, Any]:
