@@ -135,7 +135,7 @@ def test_calibration_gain_is_the_shorthand_of_a_common_error(rt) -> None:
     folded = correct(calibrated, terms.path_radiance[:, None] / 1.05, terms.ground_term[:, None] / 1.05,
                      terms.spherical_albedo[:, None])
     np.testing.assert_allclose(sim.reflectance.reshape(5, -1), folded, rtol=1e-12, atol=1e-14)
-    with pytest.raises(InputError, match="calibration_gain is the shorthand of effects.calibration_error"):
+    with pytest.raises(InputError, match=r"calibration_gain is the shorthand of effects\.calibration_error"):
         _library({"calibration_error": True}, correction={"calibration_gain": 1.05})
 
 
