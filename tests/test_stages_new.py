@@ -263,3 +263,20 @@ def test_an_image_cube_runs_both_stages(rt) -> None:
     expected = (b4 + 0.01 * b2) * 1.03
     step = (new.sensor.band("B4").lmax - new.sensor.band("B4").lmin) / 4095
     assert np.abs(ds["calibrated_B4"].values - expected).max() <= 1.03 * step / 2 + 1e-3
+
+
+def test_s2cl_simulate_writes_both_stages(tmp_path) -> None:
+    """`s2cl simulate` (streamed to NetCDF) runs both stages: the file equals the in-memory simulation, and names
+    each band's calibration error and crosstalk along ``band``."""
+    import xarray as xr
+
+    from s2cl.app.simulate_scene import simulate_scene
+
+    scene = _library({"crosstalk": {"coefficient": 0.003}, "calibration_error": {"bands": {"B5": 0.02}}}, "float32")
+    simulate_scene(scene, tmp_path / "out")
+    with xr.open_dataset(tmp_path / "out" / "simulation.nc", engine="h5netcdf") as ds:
+        assert ds["calibration_error"].values.tolist() == pytest.approx([0.0, 0.0, 0.02, 0.0, 0.0], abs=1e-15)
+        assert ds["crosstalk_from"].values.tolist()[4] == "none"  # B11: alone on the SWIR plane
+        memory = simulate(scene).to_dataset()
+        for name in ("noisy", "dn", "calibrated", "reflectance"):
+            np.testing.assert_array_equal(ds[name].values, memory[name].values, err_msg=name)

@@ -82,7 +82,13 @@ class Band:
 
     @cached_property
     def noise(self) -> NoiseModel:
-        """Shot-noise model fitted to this band's SNR points (see :mod:`s2cl.sensor.noise_model`)."""
+        """Shot-noise model fitted to this band's SNR points (see :mod:`s2cl.sensor.noise_model`); measured in-flight
+        coefficients where the sensor table gives them (optional columns ``noise_alpha``, ``noise_beta``, as
+        Sentinel-2 L1C products carry them: σ² = α² + β·L at the band's own width, W m⁻² sr⁻¹ µm⁻¹)."""
+        extra = dict(self.extra)
+        alpha, beta = extra.get("noise_alpha"), extra.get("noise_beta")
+        if alpha is not None and beta is not None and math.isfinite(alpha) and math.isfinite(beta) and beta >= 0:
+            return NoiseModel(alpha * alpha, beta, self.fwhm_ref_nm or self.fwhm_nm)
         return fit_noise_model(list(self.snr_points), self.fwhm_ref_nm, band=self.name)
 
     def noise_coefficients(self) -> tuple[float, float]:
