@@ -26,7 +26,8 @@ from s2cl.resources import scene_dir
 from s2cl.scene.config import RunConfig, resolve_run
 from s2cl.scene.effects import EffectSet
 from s2cl.scene.instrument_schema import check_image_effects, moved_effects
-from s2cl.scene.schema import GridSpec, SceneSpec, input_error
+from s2cl.scene.schema import GridSpec, SceneSpec
+from s2cl.scene.schema_errors import input_error
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import load_srf_csv, measured_sentinel2_srf
 
