@@ -712,6 +712,10 @@ def _load_note(r: Result) -> str:
                else "the machine was otherwise quiet"))
 
 
+def _secs(t: float) -> str:
+    return f"{t:.3g} s" if t >= 1 else f"{t * 1e3:.3g} ms"
+
+
 def stage_costs() -> str:
     """``python -m bench.stage_costs``: each new per-pixel stage's time in the sense and sweep kernels."""
     r = _load(STAGE_COSTS_JSON)
@@ -721,7 +725,7 @@ def stage_costs() -> str:
     for name in r["stages"]:
         settings = ", ".join(f"{k} {v}" for k, v in r["stages"][name].items())
         rows.append((f"{name} ({settings})",
-                     *(f"{t[name] * 1e3:.3g} ms against {t['none'] * 1e3:.3g} ms ({t[name] / t['none']:.2f}×)"
+                     *(f"{_secs(t[name])} against {_secs(t['none'])} ({t[name] / t['none']:.2f}×)"
                        for t in (f["sense"], w["no_fit"], w["kernel"])),
                      f"{it[name]:.3g} against {it['none']:.3g}" if it else "–"))
     return (md_table(("stage alone", f"sense kernel, {f['bands']} bands × {f['pixels']:,} pixels",
