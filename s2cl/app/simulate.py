@@ -264,5 +264,5 @@ class _AnalysisBands:
         sensor = scene.sensor.select(list(self.checked.analysis_bands))
         copies = scene.run.copies
         sim = LibrarySimulation(scene.name, sensor, lib, copies, scene.effects, band_radiance[self.rows],
-                                reflectance=self.data.reshape(len(self.rows), lib.size, copies))
+                                outputs={"reflectance": self.data.reshape(len(self.rows), lib.size, copies)})
         return analyse(rt, scene, sim)
