@@ -118,9 +118,9 @@ class CalibrationErrorSpec(EffectSpec):
 class CrosstalkSpec(EffectSpec):
     """Inter-band crosstalk within one focal plane: band k's radiance gains the sum over the other bands j of its plane
     of c_kj L_j (VNIR: centres below swir_from_nm; SWIR: from there on), after the noise and before the
-    quantisation. c_kj: the pairs entry of band k for band j where given, else coefficient, else the sensor table's crosstalk column (band
-    k's), else 0.002 (an assumption, not a Sentinel-2 figure). In a sweep the design's bands are the plane; on an
-    image cube, the bands of one GSD (the pixels they share)."""
+    quantisation. c_kj: the pairs entry of band k for band j where given, else coefficient, else the sensor table's
+    crosstalk column (band k's), else 0.002 (an assumption, not a Sentinel-2 figure). In a sweep the design's bands
+    are the plane; on an image cube, the bands of one GSD (the pixels they share)."""
 
     coefficient: float | None = Field(None, ge=-0.1, le=0.1, description="c of every pair of bands of one plane "
                                       "not in pairs")
