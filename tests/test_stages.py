@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 from scipy.ndimage import gaussian_filter
 
 from s2cl.forward.instrument import Instrument, fir_radius
@@ -125,14 +126,16 @@ def test_image_only_stages_in_a_library_scene_are_named_in_one_line(tmp_path, ca
     scene = Scene.from_dict({**LIBRARY, "effects": {**LIBRARY["effects"], "psf": True, "smile": {"width_pct": [1.0]},
                                                     "nonuniformity": {"on": False}}})
     (caveat,) = image_only(scene)
-    line = ("effects: effects.smile, effects.psf: image-only stages, not run on this library scene (they act on "
-            "image cubes: surface.cube)")
+    line = ("effects.smile, effects.psf: image-only stages, not run on this library scene (they act on image cubes: "
+            "surface.cube)")
     assert str(caveat) == line
     with caplog.at_level(logging.WARNING, logger="s2cl"):
         simulate_scene(scene, tmp_path / "out")
     assert [r.getMessage() for r in caplog.records if "image-only" in r.getMessage()] == [line]
-    warnings = json.loads((tmp_path / "out" / "simulation.json").read_text())["warnings"]
-    assert line in warnings
+    written = json.loads((tmp_path / "out" / "simulation.json").read_text())
+    assert line in written["warnings"]
+    with xr.open_dataset(tmp_path / "out" / "simulation.nc") as ds:  # the stages run: neither psf nor smile
+        assert ds.attrs["effects"] == "atmosphere, resample, noise, quantise, calibrate, correct"
     assert image_only(Scene.from_dict(LIBRARY)) == []
     assert image_only(Scene.from_dict({**CUBE, "effects": {"psf": True}})) == []
 
@@ -146,5 +149,5 @@ def test_image_only_stages_in_a_sweep_scene_are_named_in_its_caveats() -> None:
                                  "B4": {"centre": 665, "width": 30}, "B5": {"centre": 705, "width": 15},
                                  "B6": {"centre": 740, "width": 15}, "B7": {"centre": 783, "width": 20}}}})
     caveats = [str(c) for c in check_sweep(scene).caveats]
-    assert ("effects: effects.coregistration: image-only stage, not run on this library scene or its sweep (they "
-            "act on image cubes: surface.cube)") in caveats
+    assert ("effects.coregistration: image-only stage, not run on this library scene or its sweep (they act on "
+            "image cubes: surface.cube)") in caveats

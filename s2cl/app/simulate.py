@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
-from s2cl.forward.stages import outputs
+from s2cl.forward.stages import image_stage_names, outputs
 from s2cl.io.budget import (
     ANALYSIS_BYTES_PER_PIXEL,
     ANALYSIS_BYTES_PER_PIXEL_BAND,
@@ -124,7 +124,8 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     band_radiance = sim.band_radiance(lib.spectra)
     seconds = {"resample": time.perf_counter() - t0}
     attrs = dict(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__, device=rt.name,
-                 precision=r.precision, effects=scene.effects.describe(), seed=r.seed, layout=r.layout)
+                 precision=r.precision, effects=scene.effects.describe(image_stage_names()), seed=r.seed,
+                 layout=r.layout)
     writer = _ImageWriter(scene, lib.size, r.copies)
     stats = BandSummary(scene.sensor, band_radiance, r.copies)
     picked = _AnalysisBands(checked, lib.size * r.copies)

@@ -17,7 +17,7 @@ from s2cl.errors import InputError, token
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
-from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
+from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, image_stage_names, senses
 from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.effects import EffectSet
@@ -247,7 +247,7 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
     r = scene.run
     result = sim.run_library(lib, copies=r.copies, seed=r.seed, frame=r.frame, scene=scene.name, progress=progress)
     result.attrs.update(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
-                        device=rt.name, precision=r.precision, effects=scene.effects.describe(),
+                        device=rt.name, precision=r.precision, effects=scene.effects.describe(image_stage_names()),
                         seed=r.seed, layout=r.layout)
     return result
 

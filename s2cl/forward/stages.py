@@ -338,6 +338,11 @@ def band_attrs(stages: list[Stage], ctx: Radiometry, k: int) -> dict[str, Any]:
     return out
 
 
+def image_stage_names() -> frozenset[str]:
+    """The stages that act on images only (PSF, shift, smile, non-uniformity...): a library scene does not run them."""
+    return frozenset(s.name for s in STAGES if s.acts == "image")
+
+
 def image_only(scene: Any) -> list[Caveat]:
     """One line naming the image-only stages a scene without an image cube (a library, a sweep) switches on: they
     do not run there, and are never dropped silently."""
@@ -347,8 +352,8 @@ def image_only(scene: Any) -> list[Caveat]:
     if not on:
         return []
     where = "this library scene or its sweep" if scene.spec.sweep is not None else "this library scene"
-    return [Caveat("effects", f"{', '.join(on)}: image-only stage{'s' if len(on) > 1 else ''}, not run on "
-                              f"{where} (they act on image cubes: surface.cube)")]
+    return [Caveat(", ".join(on), f"image-only stage{'s' if len(on) > 1 else ''}, not run on {where} (they act on "
+                                  "image cubes: surface.cube)")]
 
 
 def caveats(scene: Any, bands: list[str]) -> list[Caveat]:

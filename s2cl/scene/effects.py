@@ -79,6 +79,8 @@ class EffectSet:
     def as_dict(self) -> dict[str, bool]:
         return {n: n in self.enabled for n in SWITCHES}
 
-    def describe(self) -> str:
-        on = [n for n in SWITCHES if n in self.enabled]
+    def describe(self, skip: set[str] | frozenset[str] = frozenset()) -> str:
+        """The stages that are on, comma-separated ('none'), leaving out ``skip`` (stages that do not run here:
+        the image-only ones of a library scene, :func:`s2cl.forward.stages.image_stage_names`)."""
+        on = [n for n in SWITCHES if n in self.enabled and n not in skip]
         return ", ".join(on) if on else "none"
