@@ -190,14 +190,12 @@ class InstrumentSpec(Section):
                                          "ΔFWHM(x)/FWHM, coefficients in %")
     nonuniformity: bool = Field(False, description="detector non-uniformity: per-column gain and offset of each "
                                 "band, drawn from the seed")
-    gain_pct: float = Field(2.0, ge=0, le=50, description="raw per-column gain spread (rms), %")
-    offset_pct: float = Field(0.5, ge=0, le=50, description="raw per-column offset spread (rms), % of the band's Lref")
-    equalised: bool = Field(True, description="a relative calibration equalises the columns, leaving the residuals "
-                            "below (false: the raw non-uniformity stays in the product)")
-    residual_gain_pct: float = Field(0.2, ge=0, le=50, description="per-column gain error of the relative "
-                                     "calibration (rms), %: the striping left in the product")
-    residual_offset_pct: float = Field(0.05, ge=0, le=50, description="per-column offset error of the relative "
-                                       "calibration (rms), % of the band's Lref")
+    # the non-uniformity's settings, as effects.nonuniformity defines them (one definition, one range)
+    gain_pct: float = NonUniformitySpec.model_fields["gain_pct"]
+    offset_pct: float = NonUniformitySpec.model_fields["offset_pct"]
+    equalised: bool = NonUniformitySpec.model_fields["equalised"]
+    residual_gain_pct: float = NonUniformitySpec.model_fields["residual_gain_pct"]
+    residual_offset_pct: float = NonUniformitySpec.model_fields["residual_offset_pct"]
 
     @field_validator("mtf_nyquist_bands")
     @classmethod
