@@ -91,6 +91,15 @@ class PsfSpec(EffectSpec):
         return float(self.fwhm if self.fwhm is not None else (self.mtf_nyquist or 0.15))
 
 
+def _shifts_in_range(value: dict[str, list[float]]) -> dict[str, list[float]]:
+    """The rule of per-band shifts (effects.coregistration.shifts, and the deprecated [instrument] key): [dx, dy]
+    with |dx|, |dy| <= 2 band pixels, finite."""
+    for band, d in value.items():
+        if len(d) != 2 or not all(math.isfinite(v) and abs(v) <= 2 for v in d):
+            raise ValueError(f"{band}: a shift is [dx, dy] with |dx|, |dy| <= 2 band pixels, got {d}")
+    return value
+
+
 class CoregistrationSpec(EffectSpec):
     """Band-to-band co-registration error: each band shifted by a sub-pixel amount (a band-limited shift, in the
     PSF's filter on the input grid)."""
@@ -104,10 +113,7 @@ class CoregistrationSpec(EffectSpec):
     @field_validator("shifts")
     @classmethod
     def _shifts(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
-        for band, d in value.items():
-            if len(d) != 2 or not all(math.isfinite(v) and abs(v) <= 2 for v in d):
-                raise ValueError(f"{band}: a shift is [dx, dy] with |dx|, |dy| <= 2 band pixels, got {d}")
-        return value
+        return _shifts_in_range(value)
 
 
 class SmileSpec(EffectSpec):
@@ -209,10 +215,7 @@ class InstrumentSpec(Section):
     @field_validator("coregistration_shifts")
     @classmethod
     def _shifts(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
-        for band, d in value.items():
-            if len(d) != 2 or not all(math.isfinite(v) and abs(v) <= 2 for v in d):
-                raise ValueError(f"{band}: a shift is [dx, dy] with |dx|, |dy| <= 2 band pixels, got {d}")
-        return value
+        return _shifts_in_range(value)
 
     @field_validator("smile_centre_nm", "smile_width_pct")
     @classmethod
