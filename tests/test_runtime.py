@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import subprocess
 import sys
 
@@ -36,9 +37,12 @@ def _others(rt: Runtime) -> list[devices.DeviceInfo]:
 def _unique_part(rt: Runtime) -> str | None:
     """A part of the device's name that no other device here has in its name or platform (None: there is none)."""
     name = rt.info.name
-    parts = sorted({name[a:b] for a in range(len(name)) for b in range(a + 3, len(name) + 1)}, key=len)
-    return next((part for part in parts if part.lower() != name.lower() and not any(
-        part.lower() in i.name.lower() or part.lower() in i.platform.lower() for i in _others(rt))), None)
+    parts = sorted({name[a:b] for a in range(len(name)) for b in range(a + 3, len(name) + 1)},
+                   key=lambda part: (len(part), part))  # a fixed order: a set's changes with the hash seed
+    return next((part for part in parts if part.lower() != name.lower() and part == part.strip()
+                 and not re.fullmatch(r"[\d:]+", part)  # digits are indices ("512" is platform 512), not a name
+                 and not any(part.lower() in i.name.lower() or part.lower() in i.platform.lower()
+                             for i in _others(rt))), None)
 
 
 def test_device_by_index_and_by_name(rt: Runtime) -> None:
