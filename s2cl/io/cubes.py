@@ -28,6 +28,7 @@ import xarray as xr
 from s2cl.errors import InputError, token
 from s2cl.grid import check_wavelengths
 from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
+from s2cl.io.georef import GeoRef, envi_georef
 from s2cl.io.inputs import input_file, parse_number
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
@@ -65,6 +66,23 @@ class CubeReader:
     wavelengths_nm: np.ndarray
     bad_nm: np.ndarray
     _read: Callable[[int, int], np.ndarray]
+    #: the grid of the cube's pixels on the map (None: the file has none)
+    georef: GeoRef | None = None
+    #: what the file is (``ENVI``, ``NetCDF``, ``EnMAP L2A``, ``EMIT L2A``, ``PRISMA L2D``, ``GeoTIFF``)
+    product: str = "NetCDF"
+    #: what the values are where the product says so (``reflectance``); None: the scene's ``surface.quantity``
+    quantity: str | None = None
+    #: the kept bands' FWHM (nm) where the product gives them
+    fwhm_nm: np.ndarray | None = None
+    #: one line each about what the reader chose (bands dropped, geometry), for the run's record
+    notes: tuple[str, ...] = ()
+    #: bands stored per pixel and read with each row (0: the kept and the bad bands), for the memory rule
+    stored_bands: int = 0
+
+    @property
+    def bands_read(self) -> int:
+        """Bands read per pixel with each row (kept, bad and any other stored band)."""
+        return self.stored_bands or self.wavelengths_nm.size + self.bad_nm.size
 
     def read(self, start: int, stop: int) -> np.ndarray:
         """Rows ``start … stop-1`` ``(stop-start, cols, wavelengths)``: floating values, NaN where the file marks no
@@ -79,11 +97,49 @@ def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
     return CubeFile(reader.read(0, reader.rows), reader.wavelengths_nm, reader.bad_nm)
 
 
-def open_cube(path: str | Path, variable: str | None = None) -> CubeReader:
-    """The cube at ``path`` opened for reading by rows (:class:`CubeReader`); nothing but metadata is read."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        return _open_envi(p)
+def open_cube(path: str | Path, variable: str | None = None, *, geometry: str = "map") -> CubeReader:
+    """The cube at ``path`` opened for reading by rows (:class:`CubeReader`); nothing but metadata is read.
+
+    ``path`` is an ENVI header (``.hdr``) or the data file beside it (``x.bsq`` with ``x.hdr`` or ``x.bsq.hdr``), a
+    NetCDF cube, or a product as its mission ships it (:mod:`s2cl.io.products`: an EnMAP L2A folder, image or XML;
+    EMIT L2A; PRISMA L2D; a GeoTIFF with GDAL wavelength metadata). ``geometry``: ``map`` (a product in sensor
+    geometry with a lookup table is orthorectified onto its map grid) or ``sensor``."""
+    from s2cl.io.products import open_product
+
+    p = Path(path)
+    if not p.is_dir():
+        p = input_file(p, what="cube file")
+        if p.suffix.lower() == ".hdr":
+            return _open_envi(p)
+    product = open_product(p, variable, geometry)
+    if product is not None:
+        return product
+    hdr = envi_header_of(p)
+    if hdr is not None:
+        return _open_envi(hdr)
+    return _open_netcdf_cube(p, variable)
+
+
+def envi_header_of(data: Path) -> Path | None:
+    """The ENVI header of a data file named as GDAL users name it: ``x.hdr`` beside ``x.bsq`` (or ``x.img`` …), or
+    ``x.bsq.hdr``; None when there is none (or ``data`` is HDF5 or TIFF)."""
+    from s2cl.io.products import file_kind
+
+    if file_kind(data) != "other":
+        return None
+    for hdr in (data.with_suffix(".hdr"), data.with_name(data.name + ".hdr"), data.with_suffix(".HDR"),
+                data.with_name(data.name + ".HDR")):
+        if hdr != data and hdr.is_file():
+            try:
+                if envi_data_file(hdr).resolve() == data.resolve():
+                    return hdr
+            except InputError:
+                continue
+    return None
+
+
+def _open_netcdf_cube(p: Path, variable: str | None) -> CubeReader:
+    """A NetCDF cube (a 3-D variable with a ``wavelength`` dimension and coordinate)."""
     with _open_netcdf(p) as ds:
         v = _netcdf_cube(ds, p, variable)
         scale = wavelength_scale(ds["wavelength"].attrs.get("units"), p, "wavelength.units")
@@ -109,7 +165,9 @@ def _open_netcdf(p: Path) -> xr.Dataset:
     try:
         return xr.open_dataset(p, engine="h5netcdf")
     except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
+        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__}); s2cl reads NetCDF-4 cubes, EMIT L2A, "
+                         "PRISMA L2D, EnMAP L2A, GeoTIFF with wavelengths, and ENVI (the .hdr, or the data file "
+                         "beside it)", source=p) from err
 
 
 def _netcdf_cube(ds: xr.Dataset, p: Path, variable: str | None) -> xr.DataArray:
@@ -128,16 +186,26 @@ def _netcdf_cube(ds: xr.Dataset, p: Path, variable: str | None) -> xr.DataArray:
 
 
 def cube_size(path: str | Path) -> tuple[int, int]:
-    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
+    """(pixels, wavelengths read per pixel) of the cube at ``path`` from its metadata only (nothing is loaded);
     (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
 
-    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
-        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        meta = read_envi_header(p)
-        layout = envi_layout(meta, p, envi_data_file(p))
-        _envi_wavelengths(meta, layout.bands, p)
+    :raises InputError: ``path`` is not a regular file (or a product folder), or an ENVI header's layout is wrong or
+        lies about its data file (:func:`s2cl.io.envi.envi_layout`), or a product's metadata is wrong."""
+    from s2cl.io.products import open_product
+
+    p = Path(path)
+    if not p.is_dir():
+        p = input_file(p, what="cube file")
+    hdr = p if p.suffix.lower() == ".hdr" else None
+    if hdr is None:
+        product = open_product(p)
+        if product is not None:
+            return product.rows * product.cols, product.bands_read
+        hdr = envi_header_of(p)
+    if hdr is not None:
+        meta = read_envi_header(hdr)
+        layout = envi_layout(meta, hdr, envi_data_file(hdr))
+        _envi_wavelengths(meta, layout.bands, hdr)
         return layout.samples * layout.lines, layout.bands
     try:
         with xr.open_dataset(p, engine="h5netcdf") as ds:
@@ -311,4 +379,4 @@ def _open_envi(p: Path) -> CubeReader:
         return values
 
     return CubeReader(p, layout.lines, layout.samples, check_wavelengths(w[good], source=str(p), key="wavelength"),
-                      w[~good], read)
+                      w[~good], read, georef=envi_georef(meta, p), product="ENVI", stored_bands=layout.bands)
