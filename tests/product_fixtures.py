@@ -25,7 +25,8 @@ WATER = ((1340.0, 1445.0), (1790.0, 1960.0))
 class Truth:
     """What a fixture holds: ``reflectance`` ``(rows, cols, bands)`` in the file's band order (the stored
     geometry), ``wavelengths_nm`` in the same order, ``good`` bands, ``empty`` pixels (no data), the map
-    ``transform`` (GDAL order) and ``epsg``; ``step``: the quantisation step of a stored value."""
+    ``transform`` (GDAL order) and ``epsg``; ``step``: the quantisation step of a stored value; ``stored``: the
+    reflectance the stored numbers encode exactly (NaN where no data), in the same order."""
 
     reflectance: np.ndarray
     wavelengths_nm: np.ndarray
@@ -35,6 +36,7 @@ class Truth:
     epsg: int | None
     step: float = 0.0
     extra: dict = field(default_factory=dict)
+    stored: np.ndarray | None = None
 
 
 def reflectance(wl: np.ndarray, rows: int, cols: int, seed: int = 0) -> np.ndarray:
@@ -140,7 +142,8 @@ def write_enmap(tmp: Path, rows: int = 24, cols: int = 30, *, xml_bands: int | N
     (folder / f"{ENMAP_NAME}-METADATA.XML").write_text(xml, encoding="utf-8")
     good = np.ones(wl.size, bool)
     good[filled] = False
-    return folder, Truth(rho, wl, good, empty, transform, 32633, step=1e-4, extra={"fwhm": fwhm})
+    stored = np.where(ints == -32768, np.nan, ints * 1e-4)
+    return folder, Truth(rho, wl, good, empty, transform, 32633, step=1e-4, extra={"fwhm": fwhm}, stored=stored)
 
 
 # --- EMIT L2A RFL: NetCDF-4 groups, GLT ---------------------------------------------------------------------------
@@ -222,7 +225,8 @@ def write_emit(tmp: Path, down: int = 20, cross: int = 18, *, glt: tuple[np.ndar
             "northernmost_latitude": transform[3], "southernmost_latitude": transform[3] - gx.shape[0] * EMIT_PIXEL_DEG,
             "westernmost_longitude": transform[0], "easternmost_longitude": transform[0] + gx.shape[1] * EMIT_PIXEL_DEG,
         })
-    return path, Truth(rho.astype(np.float64), wl, good, empty, transform, 4326, extra={"glt": (gx, gy)})
+    return path, Truth(rho.astype(np.float64), wl, good, empty, transform, 4326, extra={"glt": (gx, gy)},
+                       stored=np.where(empty[:, :, None], np.nan, rho.astype(np.float64)))
 
 
 # --- PRISMA L2D: HDF-EOS5 -----------------------------------------------------------------------------------------
@@ -240,7 +244,7 @@ def write_prisma(tmp: Path, rows: int = 24, cols: int = 30) -> tuple[Path, Truth
     vnir_cw, swir_cw = np.where(vnir_flags == 1, vnir, 0.0), np.where(swir_flags == 1, swir, 0.0)
     scales = {"Vnir": (0.0, 0.85), "Swir": (0.0, 0.72)}
     empty = _corner(rows, cols, 6)
-    cubes, truth = {}, {}
+    cubes, truth, stored = {}, {}, {}
     for d, w in (("Vnir", vnir), ("Swir", swir)):
         rho = reflectance(w, rows, cols, seed=7)
         lo, hi = scales[d]
@@ -248,6 +252,7 @@ def write_prisma(tmp: Path, rows: int = 24, cols: int = 30) -> tuple[Path, Truth
         dn[empty] = 0
         cubes[d] = np.ascontiguousarray(np.moveaxis(dn, -1, 1))  # (rows, bands, cols)
         truth[d] = rho
+        stored[d] = np.where(empty[:, :, None], np.nan, np.float32(lo) + dn * np.float32((hi - lo) / 65535))
     ul_e, ul_n = 600015.0, 5100015.0  # centre of the upper-left pixel
     path = tmp / PRISMA_NAME
     with h5py.File(path, "w") as f:
@@ -275,7 +280,8 @@ def write_prisma(tmp: Path, rows: int = 24, cols: int = 30) -> tuple[Path, Truth
     good = np.concatenate([vnir_flags, swir_flags]) == 1
     rho = np.concatenate([truth["Vnir"], truth["Swir"]], axis=-1)
     step = max((hi - lo) / 65535 for lo, hi in scales.values())
-    return path, Truth(rho, wl, good, empty, (ul_e - 15.0, 30.0, 0.0, ul_n + 15.0, 0.0, -30.0), 32632, step=step)
+    return path, Truth(rho, wl, good, empty, (ul_e - 15.0, 30.0, 0.0, ul_n + 15.0, 0.0, -30.0), 32632, step=step,
+                       stored=np.concatenate([stored["Vnir"], stored["Swir"]], axis=-1))
 
 
 # --- AVIRIS-NG L2 reflectance: ENVI with map info -----------------------------------------------------------------
@@ -313,7 +319,8 @@ def write_aviris(tmp: Path, rows: int = 48, cols: int = 36, *, rotation: float =
         "bbl = { " + " , ".join("1" if g else "0" for g in good) + " }\n"
         "data ignore value = -9999\n")
     (tmp / f"{AVIRIS_NAME}.hdr").write_text(header)
-    return data, Truth(rho.astype(np.float64), wl, good, empty, (east, 5.0, 0.0, north, 0.0, -5.0), 32611)
+    return data, Truth(rho.astype(np.float64), wl, good, empty, (east, 5.0, 0.0, north, 0.0, -5.0), 32611,
+                       stored=np.where(empty[:, :, None], np.nan, rho.astype(np.float64)))
 
 
 # --- a generic GeoTIFF with GDAL band metadata --------------------------------------------------------------------
@@ -343,4 +350,5 @@ def write_geotiff(tmp: Path, rows: int = 24, cols: int = 24, *, wavelengths: boo
                 dst.update_tags(b, wavelength=f"{wl[b - 1] / 1000:.4f}", fwhm="0.0100",
                                 wavelength_units="Micrometers")
             dst.set_band_description(b, f"band {b}")
-    return path, Truth(rho, wl, np.ones(wl.size, bool), empty, transform, 32633, step=1e-4)
+    return path, Truth(rho, wl, np.ones(wl.size, bool), empty, transform, 32633, step=1e-4,
+                       stored=np.where(empty[:, :, None], np.nan, ints * 1e-4))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -61,9 +61,15 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
+    product_caveats: tuple = ()
+    if sc.spec.surface.cube is not None:  # what the cube file's metadata completes (GSD, grid), before the checks
+        from s2cl.forward.product_scene import resolve_product_scene
+
+        sc, product_caveats = resolve_product_scene(sc)
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)
     if sc.spec.surface.cube is not None:
+        checked = replace(checked, caveats=[*product_caveats, *checked.caveats])
         return _simulate_cube(checked, folder, device, budget, progress, on_start)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)

@@ -22,6 +22,7 @@ from functools import lru_cache
 from s2cl.errors import InputError
 from s2cl.grid import SpectralGrid
 from s2cl.io.cubes import CubeReader, open_cube
+from s2cl.io.inputs import input_file
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.scene.caveats import Caveat
 from s2cl.scene.scene import Scene
@@ -36,7 +37,10 @@ def scene_reader(scene: Scene) -> CubeReader | None:
     s = scene.spec.surface
     if s.cube is None or is_builtin_cube(s.cube):
         return None
-    return open_cube(scene.resolve(s.cube), s.variable, geometry=s.geometry)
+    path = scene.resolve(s.cube)
+    if not path.is_dir():  # a folder is a product (EnMAP), checked by its reader
+        input_file(path, what="image cube", source=scene.source, key="surface.cube")
+    return open_cube(path, s.variable, geometry=s.geometry)
 
 
 @lru_cache(maxsize=8)
@@ -95,9 +99,9 @@ def _coverage_grid(scene: Scene, reader: CubeReader, source: str) -> tuple[Spect
         return grid, None
     if {"start_nm", "stop_nm"} & scene.spec.grid.model_fields_set:
         return grid, None  # the scene's own grid: the reader refuses it with the key to change
-    step = grid.step_nm
-    start = grid.start_nm + math.ceil((lo - grid.start_nm) / step - 1e-9) * step
-    stop = grid.start_nm + math.floor((hi - grid.start_nm) / step + 1e-9) * step
+    step = grid.step_nm  # the grid's own samples inside the coverage: never wider than the grid it replaces
+    start = grid.start_nm + max(0, math.ceil((lo - grid.start_nm) / step - 1e-9)) * step
+    stop = min(grid.stop_nm, grid.start_nm + math.floor((hi - grid.start_nm) / step + 1e-9) * step)
     if stop - start < step:
         raise InputError(f"covers {lo:g}–{hi:g} nm: too narrow for any band", source=source, key="wavelength")
     new = SpectralGrid(round(start, 9), round(stop, 9), step)
