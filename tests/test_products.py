@@ -320,3 +320,16 @@ def test_a_product_of_reflectance_needs_a_reflectance_scene(tmp_path) -> None:
                             base_dir=tmp_path)
     with pytest.raises(InputError, match=r"surface\.quantity: PRISMA L2D holds surface reflectance"):
         resolve_product_scene(scene)
+
+
+def test_a_cube_without_georeference_needs_a_gsd(tmp_path) -> None:
+    import xarray as xr
+
+    from s2cl.forward.product_scene import resolve_product_scene
+
+    wl = np.arange(400.0, 2501.0, 100.0)
+    xr.Dataset({"r": (("y", "x", "wavelength"), np.full((2, 2, wl.size), 0.3, np.float32))},
+               coords={"wavelength": wl}).to_netcdf(tmp_path / "c.nc", engine="h5netcdf")
+    with pytest.raises(InputError, match=r"surface\.gsd_m: .* NetCDF c\.nc does not give it in metres \(it has no "
+                                         r"georeference\)"):
+        resolve_product_scene(_scene(tmp_path, "c.nc"))

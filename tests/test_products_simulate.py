@@ -121,3 +121,21 @@ def test_a_cube_without_georeference_says_so(rt, tmp_path) -> None:
     assert "grid_mapping" not in ds["radiance_B5"].attrs
     np.testing.assert_allclose(ds["x_20m"].values, [10, 30, 50, 70, 90, 110])
     assert "no georeference" in ds["x_20m"].attrs["long_name"]
+
+
+@pytest.mark.parametrize("name", ["emit", "prisma", "enmap"])
+def test_a_product_in_row_blocks_gives_the_whole_image(rt, tmp_path, name: str) -> None:
+    """Blocks of 6 input rows (each read from the product alone, EMIT's through its lookup table) give the image
+    simulated at once, bit for bit."""
+    from s2cl.forward.cube import load_scene_cube
+    from s2cl.io.image_store import MemoryStore
+
+    writer, cube_name, gsd = PRODUCTS[name]
+    path, _ = writer(tmp_path)
+    scene = Scene.from_dict(_scene_dict(cube_name(path), gsd), base_dir=tmp_path)
+    whole = simulate_cube(rt, scene)
+    store = MemoryStore()
+    simulate_cube(rt, scene, load_scene_cube(scene), store=store, block_rows=6)
+    blocks = store.dataset()
+    for var in ("radiance_B2", "noisy_B5", "dn_B1", "reflectance_B12", "flags_B4"):
+        np.testing.assert_array_equal(blocks[var].values, whole[var].values, err_msg=f"{name} {var}")
