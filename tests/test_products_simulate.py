@@ -139,3 +139,106 @@ def test_a_product_in_row_blocks_gives_the_whole_image(rt, tmp_path, name: str) 
     blocks = store.dataset()
     for var in ("radiance_B2", "noisy_B5", "dn_B1", "reflectance_B12", "flags_B4"):
         np.testing.assert_array_equal(blocks[var].values, whole[var].values, err_msg=f"{name} {var}")
+
+
+def _cog_run(tmp_path: Path, toml: str) -> Path:
+    from click.testing import CliRunner
+
+    from s2cl.cli.main import cli
+
+    (tmp_path / "s.toml").write_text(toml)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(cli, ["simulate", str(tmp_path / "s.toml"), "-o", str(out), "--format", "cog", "-q"])
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def _check_cogs(out: Path, epsg: int | None, transform: tuple[float, ...], gsd_in: float,
+                maps: tuple[str, ...]) -> None:
+    """Every GeoTIFF read back with rasterio: a COG; CRS; the transform's corner and pixel size per group (the
+    input's scaled by band GSD / input GSD, by hand); no-data; values against simulation.nc (reflectance decoded
+    with the file's own BOA_ADD_OFFSET and BOA_QUANTIFICATION_VALUE, and through GDAL's scale and offset)."""
+    x0, a, b, y0, d, e = transform
+    with xr.open_dataset(out / "simulation.nc", engine="h5netcdf") as ds:
+        for gsd, bands in ((10, ("B2", "B3", "B4", "B8")), (20, ("B5", "B6", "B7", "B8a", "B11", "B12")),
+                           (60, ("B1", "B9", "B10"))):
+            f = round(gsd / gsd_in)
+            with rasterio.open(out / f"bands_{gsd}m.tif") as src:
+                assert src.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"
+                assert (src.crs.to_epsg() if src.crs else None) == epsg
+                assert src.transform.to_gdal() == pytest.approx((x0, a * f, b * f, y0, d * f, e * f), rel=1e-12)
+                assert src.descriptions == bands and src.nodata == 0 and src.dtypes[0] == "uint16"
+                tags = src.tags()
+                assert "DN = 10000 * rho + 1000" in tags["RADIOMETRY"]
+                offset, quantification = float(tags["BOA_ADD_OFFSET"]), float(tags["BOA_QUANTIFICATION_VALUE"])
+                assert (offset, quantification) == (-1000, 10000)
+                for i, band in enumerate(bands, 1):
+                    dn = src.read(i).astype(np.float64)
+                    rho = ds[f"reflectance_{band}"].values.astype(np.float64)
+                    assert src.tags(i)["BAND_NAME"] == band
+                    assert np.array_equal(dn == 0, ~np.isfinite(rho)), band
+                    ok = np.isfinite(rho) & (rho > -0.0999)
+                    np.testing.assert_allclose((dn[ok] + offset) / quantification, rho[ok], atol=0.5 / quantification
+                                               + 1e-7, err_msg=band)
+                    np.testing.assert_allclose(dn[ok] * src.scales[i - 1] + src.offsets[i - 1], rho[ok],
+                                               atol=0.5 / quantification + 1e-7)
+        analysis_gsd = float(ds.attrs["analysis_gsd_m"])
+        f = round(analysis_gsd / gsd_in)
+        for name in maps:
+            with rasterio.open(out / f"{name}.tif") as src:
+                assert src.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"
+                assert (src.crs.to_epsg() if src.crs else None) == epsg
+                assert src.transform.to_gdal() == pytest.approx((x0, a * f, b * f, y0, d * f, e * f), rel=1e-12)
+                values = src.read(1)
+                if name == "analysis_status":
+                    assert src.nodata is None and src.dtypes[0] == "uint8"
+                    np.testing.assert_array_equal(values, ds[name].values)
+                else:
+                    assert np.isnan(src.nodata) and src.dtypes[0] == "float32"
+                    np.testing.assert_array_equal(values, ds[name].values)
+
+
+@pytest.mark.parametrize("rotation", [0.0, 75.0])
+def test_cog_outputs_read_back_with_their_georeference_no_data_and_values(tmp_path, rotation: float) -> None:
+    """An AVIRIS-NG product (5 m pixels: 10, 20, 60 m groups of 2, 4, 12 pixels) with --format cog; its grid
+    rotated on the map or not (the transform GDAL reads from its header, scaled per group)."""
+    data, truth = pf.write_aviris(tmp_path, rotation=rotation)
+    with rasterio.open(data) as src:
+        truth.transform = src.transform.to_gdal()
+    out = _cog_run(tmp_path, f'[scene]\nname = "av"\n[surface]\ncube = "{data.name}"\nquantity = "reflectance"\n'
+                             '[effects]\natmosphere = true\ncorrect = true\n'
+                             '[analysis]\nkind = "igrm"\nparameter = "cab"\n')
+    _check_cogs(out, 32611, truth.transform, 5.0, ("analysis_index", "analysis_status"))
+    with rasterio.open(f"netcdf:{out / 'simulation.nc'}:radiance_B5") as src:  # GDAL reads the NetCDF's the same
+        x0, a, b, y0, d, e = truth.transform
+        assert src.transform.to_gdal() == pytest.approx((x0, 4 * a, 4 * b, y0, 4 * d, 4 * e), rel=1e-12)
+    assert {p.name for p in out.iterdir()} == {"simulation.nc", "simulation.json", "quicklook.png", "bands_10m.tif",
+                                               "bands_20m.tif", "bands_60m.tif", "analysis_index.tif",
+                                               "analysis_status.tif"}
+
+
+def test_cog_outputs_of_an_image_without_georeference_say_so(tmp_path) -> None:
+    """The generated image (no georeference, a truth): metres from the corner, no CRS, the parameter map and its
+    error as GeoTIFFs too."""
+    from s2cl.io.georef import NO_GEOREFERENCE
+
+    out = _cog_run(tmp_path, '[scene]\nname = "f"\n[surface]\ncube = "builtin:fields:24x30"\ngsd_m = 10\n'
+                             'quantity = "reflectance"\n[effects]\natmosphere = true\ncorrect = true\nseed = 1\n'
+                             '[analysis]\nkind = "igrm"\nparameter = "cab"\n')
+    maps = ("analysis_index", "analysis_status", "cab_map", "cab_error")
+    _check_cogs(out, None, (0.0, 10.0, 0.0, 0.0, 0.0, -10.0), 10.0, maps)
+    with rasterio.open(out / "cab_error.tif") as src:
+        assert src.tags()["GEOREFERENCE"] == NO_GEOREFERENCE
+
+
+def test_cog_of_a_library_scene_is_refused_before_anything_is_written(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from s2cl.cli.main import cli
+    from s2cl.errors import InputError
+
+    r = CliRunner().invoke(cli, ["simulate", "default", "-o", str(tmp_path / "o"), "--format", "cog"])
+    assert isinstance(r.exception, InputError)
+    assert str(r.exception).endswith("default.toml: output.format: 'cog' writes GeoTIFFs of an image; a library "
+                                     "scene has none (simulation.nc holds its pixels)")
+    assert not (tmp_path / "o").exists()
