@@ -8,6 +8,7 @@ holds (before quantisation), the wavelengths, which bands and pixels the product
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +29,7 @@ class Truth:
     ``transform`` (GDAL order) and ``epsg``; ``step``: the quantisation step of a stored value; ``stored``: the
     reflectance the stored numbers encode exactly (NaN where no data), in the same order."""
 
-    reflectance: np.ndarray
+    reflectance: np.ndarray | None
     wavelengths_nm: np.ndarray
     good: np.ndarray
     empty: np.ndarray
@@ -71,30 +72,43 @@ def enmap_wavelengths() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def write_enmap(tmp: Path, rows: int = 24, cols: int = 30, *, xml_bands: int | None = None,
-                level: str = "L2A") -> tuple[Path, Truth]:
+                level: str = "L2A", rho_rows: Callable[[int, int], np.ndarray] | None = None,
+                empty_corner: int = 7) -> tuple[Path, Truth]:
     """An EnMAP L2A product folder (GeoTIFF+Metadata): int16 reflectance × 10000, no data -32768 in an empty
-    corner and in six bands filled with it (so flagged in bandStatistics), UTM zone 33N at 30 m."""
+    corner and in six bands filled with it (so flagged in bandStatistics), UTM zone 33N at 30 m.
+
+    ``rho_rows(start, stop)``: the reflectance ``(stop - start, cols, 224)`` of those rows on :func:`enmap_wavelengths`
+    (default: :func:`reflectance`, held whole); the image is written 64 rows at a time, and a product written from
+    ``rho_rows`` keeps no truth arrays (``Truth.reflectance`` and ``stored`` are None)."""
     import rasterio
     from rasterio.transform import Affine
+    from rasterio.windows import Window
 
     wl, fwhm, is_vnir, channels = enmap_wavelengths()
     folder = tmp / ENMAP_NAME
     folder.mkdir()
-    rho = reflectance(wl, rows, cols, seed=3)
-    ints = np.round(rho * 10000).astype(np.int16)
-    empty = _corner(rows, cols, 7)
-    ints[empty] = -32768
+    whole = reflectance(wl, rows, cols, seed=3) if rho_rows is None else None
+    empty = _corner(rows, cols, empty_corner)
     water = np.zeros(wl.size, bool)
     for lo, hi in WATER:
         water |= (wl > lo) & (wl < hi)
     filled = np.flatnonzero(water)[[0, 2, 4, -5, -3, -1]]  # six bands filled with no data
-    ints[:, :, filled] = -32768
+
+    def stored_rows(start: int, stop: int) -> np.ndarray:
+        rho = whole[start:stop] if whole is not None else rho_rows(start, stop)
+        ints = np.round(rho * 10000).astype(np.int16)
+        ints[empty[start:stop]] = -32768
+        ints[:, :, filled] = -32768
+        return ints
+
     transform = (399960.0, 30.0, 0.0, 5800020.0, 0.0, -30.0)
     image = folder / f"{ENMAP_NAME}-SPECTRAL_IMAGE.TIF"
     with rasterio.open(image, "w", driver="GTiff", width=cols, height=rows, count=wl.size, dtype="int16",
                        crs="EPSG:32633", transform=Affine.from_gdal(*transform), nodata=-32768,
                        interleave="band") as dst:
-        dst.write(np.moveaxis(ints, -1, 0))
+        for r0 in range(0, rows, 64):
+            r1 = min(rows, r0 + 64)
+            dst.write(np.moveaxis(stored_rows(r0, r1), -1, 0), window=Window(0, r0, cols, r1 - r0))
     with rasterio.open(folder / f"{ENMAP_NAME}-QL_PIXELMASK.TIF", "w", driver="GTiff", width=cols, height=rows,
                        count=1, dtype="uint8", crs="EPSG:32633", transform=Affine.from_gdal(*transform)) as dst:
         dst.write(np.zeros((1, rows, cols), np.uint8))
@@ -142,8 +156,11 @@ def write_enmap(tmp: Path, rows: int = 24, cols: int = 30, *, xml_bands: int | N
     (folder / f"{ENMAP_NAME}-METADATA.XML").write_text(xml, encoding="utf-8")
     good = np.ones(wl.size, bool)
     good[filled] = False
-    stored = np.where(ints == -32768, np.nan, ints * 1e-4)
-    return folder, Truth(rho, wl, good, empty, transform, 32633, step=1e-4, extra={"fwhm": fwhm}, stored=stored)
+    stored = None
+    if whole is not None:
+        ints = stored_rows(0, rows)
+        stored = np.where(ints == -32768, np.nan, ints * 1e-4)
+    return folder, Truth(whole, wl, good, empty, transform, 32633, step=1e-4, extra={"fwhm": fwhm}, stored=stored)
 
 
 # --- EMIT L2A RFL: NetCDF-4 groups, GLT ---------------------------------------------------------------------------
