@@ -195,9 +195,10 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                     written.append(folder / "quicklook.png")
                     write_quicklook(store, written[-1], analysis["map"])
                 if cog:
+                    from s2cl.forward.reach import band_groups
                     from s2cl.io.cog import write_cogs
 
-                    written += write_cogs(store, folder, sc, cube.georef, analysis)
+                    written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
                 attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
             finally:
                 store.close()

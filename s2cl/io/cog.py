@@ -55,15 +55,15 @@ def group_transform(georef: GeoRef | None, factor: int, gsd_m: float) -> tuple[f
     return georef.scaled(factor).transform
 
 
-def write_cogs(store: Any, folder: Path, scene: Any, georef: GeoRef | None,
-               analysis: dict[str, Any] | None) -> list[Path]:
-    """Write the COGs of the simulation in ``store`` into ``folder`` (see the module docstring); the paths written."""
-    from s2cl.forward.reach import band_groups
-
+def write_cogs(store: Any, folder: Path, scene: Any, georef: GeoRef | None, analysis: dict[str, Any] | None,
+               groups: list[tuple[int, list[int]]]) -> list[Path]:
+    """Write the COGs of the simulation in ``store`` into ``folder`` (see the module docstring); the paths written.
+    ``groups``: the scene's bands by GSD, ``(input pixels per band pixel, band indices)``
+    (:func:`s2cl.forward.reach.band_groups`)."""
     bands = scene.sensor.bands
     gsd_in = float(scene.spec.surface.gsd_m)
     written = []
-    for factor, ids in band_groups(scene):
+    for factor, ids in groups:
         gsd = bands[ids[0]].gsd_m
         names = [bands[k].name for k in ids]
         kind = _radiometry(store, names[0])

@@ -17,7 +17,6 @@ What each format may mark:
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,15 +26,14 @@ import xarray as xr
 
 from s2cl.errors import InputError, token
 from s2cl.grid import check_wavelengths
+from s2cl.io.cube_reader import CubeReader, floating, real, wavelength_scale
 from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
-from s2cl.io.georef import GeoRef, envi_georef
+from s2cl.io.georef import envi_georef
 from s2cl.io.inputs import input_file, parse_number
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
 NODATA_MEANINGS = frozenset({"no_data", "nodata", "no_data_value", "missing", "missing_data", "missing_value",
                              "fill", "fill_value", "invalid", "invalid_data", "no_data_nan_radiance"})
-_NANOMETRES = ("nanometers", "nanometer", "nanometres", "nanometre", "nm", "unknown", "")
-_MICROMETRES = ("micrometers", "micrometer", "micrometres", "micrometre", "microns", "micron", "um", "µm", "μm")
 
 
 @dataclass(frozen=True)
@@ -49,45 +47,6 @@ class CubeFile:
     values: np.ndarray
     wavelengths_nm: np.ndarray
     bad_nm: np.ndarray = field(default_factory=lambda: np.empty(0))
-
-
-@dataclass(frozen=True)
-class CubeReader:
-    """A cube file opened for reading a band of rows at a time: its shape and wavelengths from the metadata, every
-    rule of :func:`load_cube` checked; :meth:`read` gives rows ``start … stop-1`` exactly as :func:`load_cube` gives
-    them within the whole cube (the same function reads both).
-
-    :param wavelengths_nm: the kept bands' wavelengths (nm, increasing).
-    :param bad_nm: wavelengths (nm) of the bands the file's bad band list dropped (empty when none)."""
-
-    path: Path
-    rows: int
-    cols: int
-    wavelengths_nm: np.ndarray
-    bad_nm: np.ndarray
-    _read: Callable[[int, int], np.ndarray]
-    #: the grid of the cube's pixels on the map (None: the file has none)
-    georef: GeoRef | None = None
-    #: what the file is (``ENVI``, ``NetCDF``, ``EnMAP L2A``, ``EMIT L2A``, ``PRISMA L2D``, ``GeoTIFF``)
-    product: str = "NetCDF"
-    #: what the values are where the product says so (``reflectance``); None: the scene's ``surface.quantity``
-    quantity: str | None = None
-    #: the kept bands' FWHM (nm) where the product gives them
-    fwhm_nm: np.ndarray | None = None
-    #: one line each about what the reader chose (bands dropped, geometry), for the run's record
-    notes: tuple[str, ...] = ()
-    #: bands stored per pixel and read with each row (0: the kept and the bad bands), for the memory rule
-    stored_bands: int = 0
-
-    @property
-    def bands_read(self) -> int:
-        """Bands read per pixel with each row (kept, bad and any other stored band)."""
-        return self.stored_bands or self.wavelengths_nm.size + self.bad_nm.size
-
-    def read(self, start: int, stop: int) -> np.ndarray:
-        """Rows ``start … stop-1`` ``(stop-start, cols, wavelengths)``: floating values, NaN where the file marks no
-        data."""
-        return self._read(start, stop)
 
 
 def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
@@ -151,7 +110,7 @@ def _open_netcdf_cube(p: Path, variable: str | None) -> CubeReader:
         with _open_netcdf(p) as ds:
             v = _netcdf_cube(ds, p, name)
             window = {v.dims[0]: slice(start, stop)}
-            values = _floating(np.asarray(v.isel(window).values))
+            values = floating(np.asarray(v.isel(window).values))
             flagged = _flagged_nodata(ds, v, p, name, window)
             if flagged is not None:
                 values[flagged] = np.nan
@@ -216,31 +175,6 @@ def cube_size(path: str | Path) -> tuple[int, int]:
             return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
     except Exception:  # a bad file is reported by load_cube, with its reason
         return 0, 0
-
-
-def real(dtype: np.dtype, p: Path, key: str) -> None:
-    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
-    if np.dtype(dtype).kind not in "fiu":
-        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
-                         source=p, key=key)
-
-
-def wavelength_scale(units: Any, p: Path, key: str) -> float:
-    """nm per unit of a file's wavelength ``units`` (1 for nanometres, 1000 for micrometres)."""
-    text = str(units if units is not None else "").strip().lower()
-    if text in _NANOMETRES:
-        return 1.0
-    if text in _MICROMETRES:
-        return 1000.0
-    raise InputError(f"wavelength units {token(str(units))} are not known; write Nanometers or Micrometers",
-                     source=p, key=key)
-
-
-def _floating(values: np.ndarray) -> np.ndarray:
-    """``values`` as a writable floating array: float32 for float32 and 8/16-bit integers (exact), else float64."""
-    small = values.dtype == np.float32 or (values.dtype.kind in "iu" and values.dtype.itemsize <= 2)
-    out = np.asarray(values, dtype=np.float32 if small else np.float64)
-    return out if out.flags.writeable else out.copy()
 
 
 def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str,
@@ -369,7 +303,7 @@ def _open_envi(p: Path) -> CubeReader:
         rows = rows.transpose(*(axes.index(a) for a in "lsb"))
         raw = np.asarray(rows[:, :, good] if not good.all() else rows, dtype=dtype.newbyteorder("="))
         del mm, rows
-        values = _floating(raw)
+        values = floating(raw)
         if ignore is not None:
             # a float file holds the ignore value at its own precision; an integer file compares exactly
             values[raw == (raw.dtype.type(ignore) if raw.dtype.kind == "f" else ignore)] = np.nan

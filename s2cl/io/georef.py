@@ -247,7 +247,7 @@ def georef_attrs(georef: GeoRef | None, product: dict[str, Any]) -> dict[str, An
 
 
 def product_attrs(reader: Any) -> dict[str, Any]:
-    """What a cube reader (:class:`s2cl.io.cubes.CubeReader`) read, as global attributes."""
+    """What a cube reader (:class:`s2cl.io.cube_reader.CubeReader`) read, as global attributes."""
     attrs: dict[str, Any] = {"input_product": reader.product, "input_file": reader.path.name,
                              "input_bands": int(reader.wavelengths_nm.size),
                              "input_bad_bands": int(reader.bad_nm.size),

@@ -1,5 +1,5 @@
 """Imaging-spectrometer products as the missions ship them, opened behind :func:`s2cl.io.cubes.open_cube`: each
-reader gives a :class:`s2cl.io.cubes.CubeReader` (rows read on demand, NaN where the product marks no data, bad
+reader gives a :class:`s2cl.io.cube_reader.CubeReader` (rows read on demand, NaN where the product marks no data, bad
 bands dropped, wavelengths in nm, increasing) with the product's georeference.
 
 =================  ==========================================================  =================================
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from s2cl.io.cubes import CubeReader
+    from s2cl.io.cube_reader import CubeReader
 
 HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")

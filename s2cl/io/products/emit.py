@@ -59,7 +59,7 @@ def _attr_text(value: Any) -> str:
 
 def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> Any:
     """The EMIT L2A file ``p`` opened for reading by rows, on its map grid or in sensor geometry."""
-    from s2cl.io.cubes import CubeReader, real, wavelength_scale
+    from s2cl.io.cube_reader import CubeReader, real, wavelength_scale
 
     name = variable or "reflectance"
     with _h5(p) as f:

@@ -181,7 +181,7 @@ def _check_grid(root: ET.Element, xml: Path, rows: int, cols: int, georef: GeoRe
 
 def open_enmap(p: Path) -> Any:
     """The EnMAP L2A product named by ``p`` (its folder, image or XML) opened for reading by rows."""
-    from s2cl.io.cubes import CubeReader
+    from s2cl.io.cube_reader import CubeReader
 
     image, xml = _files(p)
     root = _xml(xml)

@@ -82,7 +82,7 @@ def row_reader(p: Path, index: np.ndarray, nodata: np.ndarray, gain: np.ndarray,
 
 def open_geotiff(p: Path) -> Any:
     """A generic GeoTIFF cube (see the module docstring for the metadata it needs)."""
-    from s2cl.io.cubes import CubeReader
+    from s2cl.io.cube_reader import CubeReader
 
     with open_dataset(p) as src:
         check_real(src, p)
@@ -110,7 +110,7 @@ def _number(text: Any, p: Path, key: str) -> float:
 def _band_wavelengths(src: Any, p: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Each band's wavelength and FWHM (nm) from its GDAL metadata; an :class:`InputError` naming the first band
     without one."""
-    from s2cl.io.cubes import wavelength_scale
+    from s2cl.io.cube_reader import wavelength_scale
 
     wl, fwhm = [], []
     units_all = src.tags().get("wavelength_units")

@@ -69,7 +69,7 @@ def _scalar(f: Any, name: str, p: Path) -> float:
 
 def open_prisma(p: Path) -> Any:
     """The PRISMA L2D file ``p`` opened for reading by rows."""
-    from s2cl.io.cubes import CubeReader
+    from s2cl.io.cube_reader import CubeReader
 
     det: dict[str, dict[str, Any]] = {}
     with _h5(p) as f:
