@@ -63,9 +63,11 @@ def _plain_cube(truth: pf.Truth) -> tuple[np.ndarray, np.ndarray]:
 def test_a_product_through_simulate_keeps_its_values_and_its_georeference(rt, tmp_path, name: str) -> None:
     writer, cube_name, gsd = PRODUCTS[name]
     path, truth = writer(tmp_path)
-    scene = Scene.from_dict(_scene_dict(cube_name(path), gsd), base_dir=tmp_path)
+    scene = Scene.from_dict(_scene_dict(cube_name(path), gsd, output={"format": "cog"}), base_dir=tmp_path)
     run = simulate_scene(scene, tmp_path / "out")
-    assert {p.name for p in run.written} == {"simulation.nc", "simulation.json", "quicklook.png"}
+    assert {p.name for p in run.written} == {"simulation.nc", "simulation.json", "quicklook.png", "bands_10m.tif",
+                                             "bands_20m.tif", "bands_60m.tif", "analysis_index.tif",
+                                             "analysis_status.tif"}
     resolved, _ = resolve_product_scene(scene)
     gsd_in = resolved.spec.surface.gsd_m
     # the same reflectance as a plain cube: same grid, same GSD, the chain's own reading
@@ -106,6 +108,7 @@ def test_a_product_through_simulate_keeps_its_values_and_its_georeference(rt, tm
                                        err_msg=f"{name} {var}")
     record = json.loads((run.folder / "simulation.json").read_text())
     assert record["analysis"]["kind"] == "igrm"
+    _check_cogs(run.folder, truth.epsg, truth.transform, gsd_in, ("analysis_index", "analysis_status"))
 
 
 def test_a_cube_without_georeference_says_so(rt, tmp_path) -> None:

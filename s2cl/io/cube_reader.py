@@ -20,8 +20,8 @@ _MICROMETRES = ("micrometers", "micrometer", "micrometres", "micrometre", "micro
 @dataclass(frozen=True)
 class CubeReader:
     """A cube file opened for reading a band of rows at a time: its shape and wavelengths from the metadata, every
-    rule of :func:`load_cube` checked; :meth:`read` gives rows ``start … stop-1`` exactly as :func:`load_cube` gives
-    them within the whole cube (the same function reads both).
+    rule of :func:`s2cl.io.cubes.load_cube` checked; :meth:`read` gives rows ``start … stop-1`` exactly as
+    ``load_cube`` gives them within the whole cube (the same function reads both).
 
     :param wavelengths_nm: the kept bands' wavelengths (nm, increasing).
     :param bad_nm: wavelengths (nm) of the bands the file's bad band list dropped (empty when none)."""
