@@ -275,8 +275,9 @@ def example() -> dict[str, Any]:
                               "corner": [src.transform.c, src.transform.f], "dtype": src.dtypes[0],
                               "nodata": None if src.nodata is None else str(src.nodata),
                               "bands": list(src.descriptions)})
-        EXAMPLE_PNG.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(work / "out" / "quicklook.png", EXAMPLE_PNG)
+        from s2cl.io.output import write_atomic, write_json
+
+        write_atomic(EXAMPLE_PNG, lambda p: shutil.copyfile(work / "out" / "quicklook.png", p))
         record = json.loads((work / "out" / "simulation.json").read_text())
         warnings = [line for line in done.stderr.splitlines() if "WARNING" in line]  # not the progress bar
         result = {"size": EXAMPLE_SIZE, "scene": scene.read_text(), "command": " ".join(["s2cl", *cli[3:]]),
@@ -284,8 +285,6 @@ def example() -> dict[str, Any]:
                   "analysis": {k: record["analysis"][k] for k in ("kind", "bands", "gsd_m", "pixels", "fitted_pixels",
                                                                   "invalid_pixels", "bound_pixels")},
                   "georeference": record["attrs"]["georeference"]}
-        from s2cl.io.output import write_json
-
         write_json(EXAMPLE_JSON, result)
         return result
     finally:
