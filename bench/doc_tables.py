@@ -31,6 +31,7 @@ LUT_ACCURACY_JSON = RESULTS / "lut_accuracy.json"
 RESIDUALS_JSON = RESULTS / "correction_residuals.json"
 BENCH_PAGE_JSON = RESULTS / "amd-epyc-2c-2026-11-24.json"  # the full `python -m bench` run docs/bench.md shows
 INSTRUMENT_JSON = DOCS / "studies" / "instrument" / "instrument.json"
+STAGE_COSTS_JSON = RESULTS / "stage-costs.json"
 Result = dict[str, Any]
 
 
@@ -752,6 +753,70 @@ def machines() -> str:
             f"`{_rel(path)}` (written by `{r['command']}`).")
 
 
+def _load_note(r: Result) -> str:
+    loads = [r["load_average_start"][0], r["load_average_end"][0]]
+    cores = r["machine"]["cores"]
+    busy = max(loads) > 1.25 * cores
+    return (f"1-minute load average {loads[0]:.1f} before and {loads[1]:.1f} after, on {cores} cores: "
+            + ("other jobs shared the machine, so read the ratios, not the seconds" if busy
+               else "the machine was otherwise quiet"))
+
+
+def _secs(t: float) -> str:
+    return f"{t:.3g} s" if t >= 1 else f"{t * 1e3:.3g} ms"
+
+
+def stage_costs() -> str:
+    """``python -m bench.stage_costs``: each new per-pixel stage's time in the sense and sweep kernels."""
+    r = _load(STAGE_COSTS_JSON)
+    f, w = r["forward"], r["sweep"]
+    rows = []
+    it = w.get("iterations", {})
+    for name in r["stages"]:
+        settings = ", ".join(f"{k} {v}" for k, v in r["stages"][name].items())
+        rows.append((f"{name} ({settings})",
+                     *(f"{_secs(t[name])} against {_secs(t['none'])} ({t[name] / t['none']:.2f}×)"
+                       for t in (f["sense"], w["no_fit"], w["kernel"])),
+                     f"{it[name]:.3g} against {it['none']:.3g}" if it else "–"))
+    return (md_table(("stage alone", f"sense kernel, {f['bands']} bands × {f['pixels']:,} pixels",
+                      "sweep kernel without the fit (no_fit build: the stages' own cost)",
+                      f"whole sweep kernel, {w['configurations']:,} configurations × {w['pixels']:,} pixels",
+                      "IGRM iterations per fit (mean)"), rows)
+            + "\n\nThe build without the fit measures the stages themselves; the whole kernel's time is the fit's "
+            "(its iterations, which a stage may move by changing the reflectance it fits, and the machine's load). "
+            f"Medians of interleaved rounds against the chain without the stage, `{r['scene']}`'s sweep "
+            f"(noise, quantisation, calibration, correction, IGRM), {r['machine']['opencl_device']}, "
+            f"{r['machine']['lanes']['float32']} float32 lanes; {_machine(r)}; {_load_note(r)}. Measured by "
+            f"`python -m bench.stage_costs` into `{_rel(STAGE_COSTS_JSON)}`.")
+
+
+def stage_table3() -> str:
+    """``python -m bench.stage_costs``: the Table 3 Lib1 B4567 winner with each new stage on."""
+    r = _load(STAGE_COSTS_JSON)
+    rows_in = r["winners"]
+    base = next(x for x in rows_in if x["label"] == "none" and x["how"] == "sweep") if any(
+        x["how"] == "sweep" for x in rows_in) else rows_in[0]
+
+    def design(b: dict[str, list[float]]) -> str:
+        return " ".join(f"{k} {c:g}/{w:g}" for k, (c, w) in b.items())
+
+    rows = []
+    for x in rows_in:
+        moved = "–" if x is base else ("no" if x["bands"] == base["bands"] else "**yes**")
+        rows.append((x["label"], x["how"], design(x["bands"]), x["rms"], x["rms"] - base["rms"], moved))
+    sweeps = {x["label"]: x for x in rows_in if x["how"] == "sweep"}
+    agree = [x["label"] for x in rows_in if x["how"] == "search" and x["label"] in sweeps
+             and x["bands"] == sweeps[x["label"]]["bands"] and x["rms"] == sweeps[x["label"]]["rms"]]
+    checked = (f" The halving search gave the exhaustive sweep's winner and RMS for {len(agree)} of the "
+               f"{len(sweeps)} settings run both ways." if sweeps else "")
+    return (md_table(("stage on", "how", "best design (centre/FWHM, nm)", "Cab RMS (µg/cm²)", "Δ RMS", "moved?"),
+                     rows)
+            + f"\n\n`{r['scene']}` (43,056 designs × 12,000 noisy Lib1 pixels); a calibration error on one band "
+            "is that band's alone (the others exact), the uncertainty row draws every band's error once from the "
+            f"scene's seed, crosstalk is among the design's four bands (one focal plane).{checked} {_machine(r)}. "
+            f"Measured by `python -m bench.stage_costs` into `{_rel(STAGE_COSTS_JSON)}`.")
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -795,6 +860,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "machines": machines,
     "images.product-example": product_example,
     "images.product-throughput": product_throughput,
+    "stages.costs": stage_costs,
+    "stages.table3": stage_table3,
 }
 
 # pages generated whole (path relative to the repository → its text)

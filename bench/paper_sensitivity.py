@@ -217,7 +217,8 @@ def main() -> None:
                                               ("rms", "robust_rms"))
     for k in NOISE_SCALES:
         t0 = time.perf_counter()
-        tables = replace(job.tables, sigma=tuple(sig * k for sig in job.tables.sigma))
+        tables = replace(job.tables, values={**job.tables.values,
+                                             "sigma": tuple(sig * k for sig in job.tables.values["sigma"])})
         rows = evaluate_chunk(replace(job, tables=tables), 0, job.n_configs)
         out["variants"][f"noise-x{k:g}"] = variant_entry(f"noise-x{k:g}", {"sigma_scale": k}, rows,
                                                          time.perf_counter() - t0)

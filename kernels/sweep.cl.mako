@@ -1,9 +1,10 @@
 <%doc>
 sweep.cl.mako: one band configuration x T.lanes pixels per work-item, fused end to end:
-  gather noise-free band radiance and sigma of the configuration's variants (tables of
-  s2cl/sweep/tables.py) -> + sigma z (common random numbers: z depends on pixel and band only)
-  -> quantise -> calibrate -> band-effective atmospheric correction -> analysis (IGRM fit -> lp;
-  a normalised-difference index such as GVMI; a formula; SAM class) -> one index, one status and one bounds/condition byte per pixel.
+  gather noise-free band radiance of the configuration's variants (tables of s2cl/sweep/tables.py) -> each
+  per-pixel stage of the chain that is on, in its order (s2cl.forward.stages; the deviates z are common random
+  numbers: z depends on pixel and band only)
+  -> analysis (IGRM fit -> lp; a normalised-difference index such as GVMI; a formula; SAM class) -> one index,
+  one status and one bounds/condition byte per pixel.
 Every stage is the function `s2cl simulate` runs (common/stages.mako, common/igrm_lm.mako): a pixel
 gets the same verdict on both paths (tests/test_one_rule.py). The spectral integral is not here: it
 ran once per (variant, spectrum) on the host.
@@ -13,29 +14,34 @@ Template variables
   n_slots    number of band slots;  counts[k], strides[k]: mixed-radix decoding of the
              configuration number (last slot fastest): v_k = (cfg / strides[k]) % counts[k]
   row0[k]    first row of slot k in radiance/sigma (rows: variants, columns: spectra)
-  var0[k]    first entry of slot k in the per-variant arrays (centre, lp, g, s)
+  var0[k]    first entry of slot k in the per-variant arrays (centre, the stages' per-variant values)
   n_spectra, copies, pitch   pixel p belongs to spectrum p / copies; rows of z and outputs
              have `pitch` entries (a multiple of T.lanes; padded lanes are ignored by the host)
-  lmin[k], lmax[k], maxdn    radiometry of each slot (literals)
-  noise, quantise            bools
+  stages, segments  the stages that are on, in order, and cut where one acts across bands
+             (s2cl.forward.stages): each splices its device functions and its step (common/stages.mako)
+  site       site(k): how slot k's steps read their values (s2cl.sweep.kernel.SweepSite: a per-band value is
+             a literal, a per-variant one a table entry [var], a per-pixel one a gather [row + spectrum]);
+             across: the site of a stage across the slots (on X[k])
+  vc         s2cl.sweep.kernel.VectorCode: gathers, vector loads and stores, lanes
   analysis_functions, analysis_body   the analysis family's OpenCL C (s2cl.retrieve.family.Family.sweep_code):
              its device functions, and the body that reads rho[k], x[k] (and cfg) and sets value, st, bd, code
   profile    set of profile switches (s2cl.sweep.kernel.PROFILES; empty in every sweep, where they compile out):
              iterations   the condition output carries the IGRM fit's iterations (`it`, modulo 256), not the code
              reflectance  extra output rho_out [n_configs][n_slots][pitch]: the corrected reflectance per slot
              no_fit       the analysis is replaced by value = the sum of rho[k] x[k] (st = bd = code = 0)
-             fit_only     rho[k] read from the extra input rho_in (layout of rho_out): no gather, noise,
-                          quantise, calibrate or correct
-Arguments (s2cl.sweep.kernel.ARGS)
+             fit_only     rho[k] read from the extra input rho_in (layout of rho_out): no gather and none of the
+                          chain's stages
+Arguments (s2cl.sweep.kernel.kernel_args)
   index     out [n_configs][pitch] real   igrm: lp (nm); index: its value; sam: class (n_classes: none)
   status    out [n_configs][pitch] uchar  common/s2_status.clh
   bounds    out [n_configs][pitch] uchar  igrm: active-bound bits (see common/igrm_lm.mako); else 0
   condition out [n_configs][pitch] uchar  igrm: condition code round(20 log10 cond), 240 = the cap of 12
                                           decades (singular); else 0
   radiance  in  [rows][n_spectra] real    W m-2 sr-1 um-1
-  sigma     in  [rows][n_spectra] real    noise standard deviation, same units
-  z         in  [n_slots][pitch] real     standard normal deviates
-  centre, lp, g, s  in [variants] real    band centre (nm), band-effective correction terms
+  each stage's per-pixel values  in [rows][n_spectra] real   (sigma: noise standard deviation, same units)
+  each stage's per-variant values  in [variants] real        (lp, g, s: band-effective correction terms)
+  z         in  [n_slots][pitch] real     (a stage takes deviates) standard normal deviates
+  centre    in  [variants] real           band centre (nm)
   refs      in  [variants][n_classes] real  (sam) class reference reflectances
   config_start uint, n_configs uint
 Global size: (pitch / T.lanes, n_configs).
@@ -44,29 +50,13 @@ No builtin math in the hot path (PoCL does not inline it: kernels/common/vecmath
 <%namespace name="st" file="common/stages.mako"/>
 <%
     V, R, L = T.V, T.R, T.lanes
-    lanes = "0123456789abcdef"[:L]
-    def gather(table, row):
-        if L == 1:
-            return f"{table}[{row} + sp0]"
-        return f"({V})(" + ", ".join(f"{table}[{row} + sp{l}]" for l in range(L)) + ")"
-    def vload(ptr):
-        return f"{ptr}[0]" if L == 1 else f"vload{L}(0, {ptr})"
-    def vstore(value, ptr):
-        return f"{ptr}[0] = {value};" if L == 1 else f"vstore{L}({value}, 0, {ptr});"
-    def lane(expr, l):
-        return expr if L == 1 else f"({expr}).s{lanes[l]}"
 %>
 % if T.double:
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 % endif
-% if noise:
-${st.noise(T)}
-% endif
-% if quantise:
-${st.quantise(T)}
-${st.calibrate(T)}
-% endif
-${st.correct(T)}
+% for s in stages:
+${getattr(st, s.device)(T)}
+% endfor
 ${analysis_functions}
 
 __kernel void sweep_configs(
@@ -83,35 +73,46 @@ __kernel void sweep_configs(
 % endfor
     ${V} rho[${n_slots}];
     ${R} x[${n_slots}];
-% for k in range(n_slots):
-  % if "fit_only" in profile:
-    rho[${k}] = ${vload(f"(rho_in + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")};
+% if "fit_only" in profile:
+  % for k in range(n_slots):
+    rho[${k}] = ${vc.vload(f"(rho_in + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")};
     x[${k}] = centre[${var0[k]}u + (cfg / ${strides[k]}u) % ${counts[k]}u];
-  % else:
+  % endfor
+% else:
+  % if len(segments) > 1:
+    ${V} X[${n_slots}];
+  % endif
+  % for si, (kind, group) in enumerate(segments):
+    % if kind == "bands":
+      % for s in group:
+${getattr(st, s.device + "_step")(T, across)}
+      % endfor
+    % else:
+      % for k in range(n_slots):
     {   /* slot ${k} */
         const uint v = (cfg / ${strides[k]}u) % ${counts[k]}u;
         const uint row = (${row0[k]}u + v) * ${n_spectra}u;
         const uint var = ${var0[k]}u + v;
-        ${V} L = ${gather("radiance", "row")};
-  % if noise:
-        L = s2_add_noise_${T.suffix}(L, ${gather("sigma", "row")}, ${vload(f"(z + {k}u * {pitch}u + p0)")});
-  % endif
-  % if quantise:
-        {
-            ${T.M} flag;
-            const ${V} dn = s2_quantise_${T.suffix}(L, ${T.lit(lmin[k])}, ${T.lit(lmax[k])},
-                                                    ${T.lit(maxdn / (lmax[k] - lmin[k]))}, ${T.lit(float(maxdn))}, &flag);
-            L = s2_calibrate_${T.suffix}(dn, flag, ${T.lit(lmin[k])}, ${T.lit((lmax[k] - lmin[k]) / maxdn)});
-        }
-  % endif
-        rho[${k}] = s2_correct_${T.suffix}(L, lp[var], g[var], s[var]);
+        ${V} L = ${vc.gather("radiance", "row") if si == 0 else f"X[{k}]"};
+        % for s in group:
+${getattr(st, s.device + "_step")(T, site(k))}
+        % endfor
+        % if si < len(segments) - 1:
+        X[${k}] = L;
+        % else:
+        rho[${k}] = L;
         x[${k}] = centre[var];
+        % endif
     }
-  % endif
-  % if "reflectance" in profile:
-    ${vstore(f"rho[{k}]", f"(rho_out + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")}
-  % endif
-% endfor
+      % endfor
+    % endif
+  % endfor
+% endif
+% if "reflectance" in profile:
+  % for k in range(n_slots):
+    ${vc.vstore(f"rho[{k}]", f"(rho_out + ((size_t)c * {n_slots}u + {k}u) * {pitch}u + p0)")}
+  % endfor
+% endif
     const size_t at = (size_t)c * ${pitch}u + p0;
     {   /* the analysis: its family's body (s2cl.retrieve.family.Family.sweep_code) */
 % if "no_fit" in profile:
@@ -127,15 +128,15 @@ ${analysis_body}
 % if "iterations" in profile:
         const ${T.M} it_out = it;
   % for l in range(L):
-        condition[at + ${l}] = (uchar)${lane("it_out", l)};
+        condition[at + ${l}] = (uchar)${vc.lane("it_out", l)};
   % endfor
 % endif
-        ${vstore("value", "(index + at)")}
+        ${vc.vstore("value", "(index + at)")}
 % for l in range(L):
-        status[at + ${l}] = (uchar)${lane("st", l)};
-        bounds[at + ${l}] = (uchar)${lane("bd", l)};
+        status[at + ${l}] = (uchar)${vc.lane("st", l)};
+        bounds[at + ${l}] = (uchar)${vc.lane("bd", l)};
   % if "iterations" not in profile:
-        condition[at + ${l}] = (uchar)${lane("code", l)};
+        condition[at + ${l}] = (uchar)${vc.lane("code", l)};
   % endif
 % endfor
     }

@@ -31,9 +31,9 @@ HOLES = {(1, 1): "ignore all bands", (4, 9): "ignore one good band", (10, 3): "n
 #: an ignore value in a bad band only: the band is dropped, the pixel stays valid
 BAD_BAND_ONLY = (7, 7)
 #: input pixels the Gaussian PSF of FWHM 1 band pixel reaches, per input pixel per band pixel, by hand: σ = factor /
-#: (2 √(2 ln 2)) = 0.42466 · factor, kernel radius int(4 σ + 0.5) as scipy.ndimage truncates it: 1 → int(2.199),
-#: 2 → int(3.897), 6 → int(10.692)
-PSF_RADIUS = {1: 2, 2: 3, 6: 10}
+#: (2 √(2 ln 2)) = 0.42466 · factor, the one filter's radius ⌈4 σ + taper + 1⌉ - 1 with taper round(8 exp(-π² σ² / 2))
+#: (s2cl.forward.instrument.fir_radius): 1 → ⌈1.699 + 3 + 1⌉ - 1, 2 → ⌈3.397 + 0 + 1⌉ - 1, 6 → ⌈10.192 + 0 + 1⌉ - 1
+PSF_RADIUS = {1: 5, 2: 4, 6: 11}
 
 
 def _reflectance() -> np.ndarray:
@@ -47,8 +47,8 @@ def _reflectance() -> np.ndarray:
 def _scene(tmp_path: Path, cube: str, psf: str = "none", quantity: str = "reflectance") -> Scene:
     return Scene.from_dict({"scene": {"name": "enmap"}, "surface": {"cube": cube, "gsd_m": 10.0, "quantity": quantity},
                             "effects": {"seed": 7, "atmosphere": quantity == "reflectance",
-                                        "correct": quantity == "reflectance"},
-                            "spatial": {"psf": psf, "psf_fwhm": 1.0}}, base_dir=tmp_path)
+                                        "correct": quantity == "reflectance",
+                                        "psf": {"fwhm": 1.0} if psf == "gaussian" else False}}, base_dir=tmp_path)
 
 
 def _write_envi(tmp_path: Path, ints: np.ndarray, *, dtype: str = "int16", interleave: str = "bsq",

@@ -38,8 +38,7 @@ def _scene(cube: str = "builtin:fields:40x48", *, noise: bool = True, psf: str =
         "surface": {"cube": cube, "gsd_m": 10, "quantity": "reflectance"},
         "sensor": {"bands": ["B2", "B3", *RED_EDGE]},
         "effects": {"atmosphere": True, "noise": noise, "seed": seed, "quantise": True, "calibrate": True,
-                    "correct": True},
-        "spatial": {"psf": psf},
+                    "correct": True, "psf": {"fwhm": 1.0} if psf == "gaussian" else False},
         "analysis": {"kind": kind, "parameter": "cab", "bands": RED_EDGE},
         "compute": {"precision": precision},
     })
@@ -268,7 +267,7 @@ def test_a_cube_larger_than_the_memory_limit_streams_with_a_bounded_peak(tmp_pat
     left = limit - BASELINE_BYTES  # what the limit leaves beyond the baseline (which the base run's peak stands for)
     big = "builtin:fields:960x960"
     scene = Scene.from_dict({"scene": {"name": "x"}, "surface": {"cube": big, "gsd_m": 10, "quantity": "reflectance"},
-                             "effects": {"atmosphere": True}, "spatial": {"psf": "gaussian"}})
+                             "effects": {"atmosphere": True, "psf": {"fwhm": 1.0}}})
     assert left > 960 * 960 * CUBE_BYTES_GENERATED
     assert cube_block_rows(scene, Budget.of(None), 960, 960) is None  # the default limit holds it whole
     assert cube_block_rows(scene, Budget.of(str(limit)), 960, 960) < 960 / 10
@@ -289,7 +288,7 @@ def test_a_cube_larger_than_the_memory_limit_streams_with_a_bounded_peak(tmp_pat
 def _toml(cube: str) -> str:
     return (f'[scene]\nname = "big"\n[surface]\ncube = "{cube}"\ngsd_m = 10\nquantity = "reflectance"\n'
             '[effects]\natmosphere = true\nnoise = true\nquantise = true\ncalibrate = true\ncorrect = true\n'
-            '[spatial]\npsf = "gaussian"\n[analysis]\nkind = "igrm"\nparameter = "cab"\n')
+            'psf = {fwhm = 1.0}\n[analysis]\nkind = "igrm"\nparameter = "cab"\n')
 
 
 def test_a_cube_file_of_the_same_spectra_gives_the_same_images_and_a_map_without_truth(rt, tmp_path) -> None:

@@ -1,4 +1,5 @@
-"""Instrument effects on image cubes ([instrument]): per-band MTF, co-registration shift, spectral smile,
+"""Image effects on image cubes ([effects] psf, coregistration, smile, nonuniformity): per-band MTF,
+co-registration shift, spectral smile,
 detector non-uniformity — each against its float64 twin or its defining property, and absent when off."""
 
 from __future__ import annotations
@@ -42,9 +43,29 @@ def _cube(rows: int = 24, cols: int = 24, seed: int = 0) -> np.ndarray:
     return (a * np.where(rng.random((rows, cols, 1)) < 0.5, veg, soil)).astype(np.float32)
 
 
+#: the former [instrument] switches and keys (as the tests below give them) → the [effects] key and its settings
+_HOME = {"mtf": ("psf", {"mtf_nyquist": "mtf_nyquist", "mtf_nyquist_bands": "bands"}),
+         "coregistration": ("coregistration", {"coregistration_px": "px", "coregistration_shifts": "shifts"}),
+         "smile": ("smile", {"smile_centre_nm": "centre_nm", "smile_width_pct": "width_pct"}),
+         "nonuniformity": ("nonuniformity", {k: k for k in ("gain_pct", "offset_pct", "equalised",
+                                                          "residual_gain_pct", "residual_offset_pct")})}
+
+
+def _effects(instrument: dict) -> dict:
+    """[effects] keys of the image effects switched on in ``instrument`` (written by hand, in the old names)."""
+    out = {}
+    for switch, (name, keys) in _HOME.items():
+        if instrument.get(switch):
+            out[name] = {new: instrument[old] for old, new in keys.items() if old in instrument} or True
+    return out
+
+
 def _scene(instrument: dict | None = None, **kw) -> Scene:
-    data = {"scene": {"name": "cube"}, "surface": {"cube": "cube.nc", "gsd_m": 10.0},
-            "effects": {"seed": 3, **kw.pop("effects", {})}, "instrument": instrument or {}, **kw}
+    effects = {"seed": 3, **_effects(instrument or {}), **kw.pop("effects", {})}
+    spatial = kw.pop("spatial", None)
+    if spatial:
+        effects["psf"] = {"fwhm": spatial.get("psf_fwhm", 1.0)}
+    data = {"scene": {"name": "cube"}, "surface": {"cube": "cube.nc", "gsd_m": 10.0}, "effects": effects, **kw}
     return Scene.from_dict(data)
 
 
@@ -73,7 +94,7 @@ def test_mtf_at_nyquist_is_the_given_value(mtf: float, axis: int, tol: float) ->
 def test_gaussian_sigma_refuses_mtf_above_the_box() -> None:
     with pytest.raises(ValueError):
         gaussian_sigma(0.7)
-    with pytest.raises(InputError, match=r"instrument\.mtf_nyquist"):
+    with pytest.raises(InputError, match=r"effects\.psf\.mtf_nyquist"):
         _scene({"mtf": True, "mtf_nyquist": 0.7})
 
 
@@ -148,7 +169,7 @@ def test_instrument_passes_each_band_its_own_psf_and_shift_in_input_pixels() -> 
     b5, b4 = a.band_names.index("B5"), a.band_names.index("B4")
     sigma_b5 = math.sqrt(-2.0 * math.log(0.3 * math.pi / 2.0)) / math.pi  # exp(-2π²σ²/4)·2/π = 0.3
     sigma_b4 = math.sqrt(-2.0 * math.log(0.15 * math.pi / 2.0)) / math.pi
-    assert a.mtf_sigma(b5) == pytest.approx(sigma_b5, rel=1e-12) and a.band_attrs(b5)["mtf_nyquist"] == 0.3
+    assert a.psf_sigma(b5) == pytest.approx(sigma_b5, rel=1e-12) and a.band_attrs(b5)["mtf_nyquist"] == 0.3
     img = _cube(40, 40)[:, :, 600].astype(np.float64)
     np.testing.assert_array_equal(a.spatial(img, b5, 2), spatial_response(img, 2 * sigma_b5, 0.8, -0.5))
     np.testing.assert_array_equal(a.spatial(img.astype(np.float32), b4, 1),
@@ -192,8 +213,8 @@ def test_shifted_band_in_the_cube(rt) -> None:
 def test_smile_per_column_by_hand() -> None:
     """Column positions x = 2 (i + 1/2) / cols - 1 (4 columns: -0.75, -0.25, 0.25, 0.75), Δλ = 1 + 0·x + 2x² nm,
     width change 5·x %."""
-    smile = Smile.of(_scene({"smile": True, "smile_centre_nm": [1.0, 0.0, 2.0], "smile_width_pct": [0.0, 5.0]})
-                     .spec.instrument, 4)
+    scene = _scene({"smile": True, "smile_centre_nm": [1.0, 0.0, 2.0], "smile_width_pct": [0.0, 5.0]})
+    smile = Smile.of(Instrument.of(scene).smile_spec, 4)
     np.testing.assert_allclose(smile.shift_nm, [2.125, 1.125, 1.125, 2.125], rtol=1e-15)
     np.testing.assert_allclose(smile.width_factor, [0.9625, 0.9875, 1.0125, 1.0375], rtol=1e-15)
 
@@ -281,7 +302,7 @@ def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
     sources.clear()
     simulate_cube(rt, _scene({"smile": True}), cube)
     assert any("B4~smile3" in s for s in sources)
-    smile = Smile.of(_scene({"smile": True}).spec.instrument, 12)
+    smile = Smile.of(Instrument.of(_scene({"smile": True})).smile_spec, 12)
     assert smile.node_grid()[0].size == inst.SMILE_NODES and smile.node_grid()[1].size == 1
 
 
@@ -355,19 +376,21 @@ def test_host_effects_are_skipped_when_off(rt, monkeypatch) -> None:
 
 
 def test_instrument_scene_errors() -> None:
-    with pytest.raises(InputError, match=r"spatial\.psf"):
-        _scene({"mtf": True}, spatial={"psf": "gaussian"})
-    with pytest.raises(InputError, match=r"instrument\.mtf_nyquist_bands.*unknown band"):
+    with pytest.raises(InputError, match=r"effects\.psf\.bands.*unknown band"):
         _scene({"mtf": True, "mtf_nyquist_bands": {"B99": 0.2}})
-    with pytest.raises(InputError, match=r"instrument\.smile_width_pct"):
+    with pytest.raises(InputError, match=r"effects\.smile\.width_pct"):
         _scene({"smile": True, "smile_width_pct": [0.0, 0.0, -95.0]})
     with pytest.raises(InputError, match=r"effects\.resample"):
         _scene({"smile": True}, effects={"resample": False})
-    with pytest.raises(InputError, match=r"surface\.cube"):
-        Scene.from_dict({"scene": {"name": "lib"}, "surface": {"library": "builtin:prosail_lib1"},
-                         "instrument": {"nonuniformity": True}})
-    with pytest.raises(InputError, match=r"instrument\.coregistration_shifts"):
+    with pytest.raises(InputError, match=r"effects\.coregistration\.shifts"):
         _scene({"coregistration": True, "coregistration_shifts": {"B4": [3.0, 0.0]}})
+    legacy = {"scene": {"name": "cube"}, "surface": {"cube": "cube.nc", "gsd_m": 10.0}}
+    with pytest.raises(InputError, match=r"spatial\.psf: instrument\.mtf and spatial\.psf both set a PSF"):
+        Scene.from_dict({**legacy, "instrument": {"mtf": True}, "spatial": {"psf": "gaussian"}})
+    with pytest.raises(InputError, match=r"effects\.psf and the deprecated"):
+        Scene.from_dict({**legacy, "instrument": {"mtf": True}, "effects": {"psf": {"fwhm": 1.0}}})
+    with pytest.raises(InputError, match=r"instrument\.mtf_nyquist: must be > 0"):
+        Scene.from_dict({**legacy, "instrument": {"mtf": True, "mtf_nyquist": 0.7}})
 
 
 # -- what each effect costs ------------------------------------------------------------------------------------
@@ -404,11 +427,13 @@ def test_study_refuses_a_library_scene_and_resizing_a_file_cube(tmp_path) -> Non
 
 def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
     """A scene with every effect on still gets an ideal row that is ideal, and its magnitudes are used."""
-    from s2cl.app.instrument_costs import with_instrument
+    from s2cl.app.instrument_costs import effect_settings, with_effects
 
     s = _scene({"mtf": True, "mtf_nyquist": 0.3, "smile": True})
-    ideal = with_instrument(s, {**s.spec.instrument.model_dump(), "mtf": False, "smile": False})
-    assert ideal.spec.instrument.describe() == "ideal" and ideal.spec.instrument.mtf_nyquist == 0.3
+    ideal = with_effects(s, effect_settings(s))
+    assert Instrument.of(ideal).describe() == "ideal" and ideal.spec.effects.psf.mtf_nyquist == 0.3
+    only = with_effects(s, effect_settings(s, "psf"))
+    assert Instrument.of(only).describe() == "psf" and Instrument.of(only).psf.mtf_nyquist == 0.3
 
 
 # -- row blocks and no-data ----------------------------------------------------------------------------------
@@ -428,27 +453,28 @@ def test_row_blocks_match_the_whole_image(rt) -> None:
 
 
 def test_row_blocks_with_a_shift_and_a_psf_read_both_reaches(rt) -> None:
-    """Co-registration and the [spatial] PSF one after the other: a block is read with the sum of their reaches
-    (the 60 m bands: a shift of 1.5 band pixels along y, 9 input pixels, reaches 9 + 8 taper + 1 - 1 = 17 rows; the
-    PSF of FWHM 1 band pixel, σ = 6 / 2.355 = 2.548 input pixels, int(4 σ + 0.5) = 10 more): blocks of 6 rows give
-    the whole image's bands bit for bit, and a NaN pixel's footprint spans both reaches."""
+    """Co-registration and a PSF given by its FWHM, in the one filter: a block is read with its reach (the 60 m
+    bands: a shift of 1.5 band pixels along y, 9 input pixels, and a PSF of FWHM 1 band pixel, σ = 6 / 2.3548 =
+    2.548 input pixels, taper round(8 exp(-π² σ² / 2)) = 0: ⌈9 + 4 σ + 0 + 1⌉ - 1 = 20 rows, ⌈4 σ + 1⌉ - 1 = 11
+    columns): blocks of 6 rows give the whole image's bands bit for bit, and a NaN pixel's footprint is that
+    reach."""
     from s2cl.forward.reach import cube_halo, spatial_reach
 
     scene = _scene({"coregistration": True, "coregistration_shifts": {"B1": [0.0, 1.5], "B9": [0.0, 1.5],
                                                                       "B10": [0.0, 1.5]}},
                    spatial={"psf": "gaussian", "psf_fwhm": 1.0})
     b1 = [scene.sensor.band_names.index(n) for n in ("B1", "B9", "B10")]
-    assert spatial_reach(scene, b1, 6) == (17 + 10, 0 + 10) and cube_halo(scene) == 27
+    assert spatial_reach(scene, b1, 6) == (20, 11) and cube_halo(scene) == 20
     cube = _cube(72, 24)
     cube[40, 7, :] = np.nan
     whole = simulate_cube(rt, scene, cube)
     blocks = simulate_cube(rt, scene, cube, block_rows=6)
     for name in whole.data_vars:
         np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
-    # B1 (12 × 4): rows whose box [6i, 6i + 5] lies within 27 rows of row 40, columns within 10 of column 7
+    # B1 (12 × 4): rows whose box [6i, 6i + 5] lies within 20 rows of row 40, columns within 11 of column 7
     expected = np.zeros((12, 4), bool)
-    expected[[i for i in range(12) if 6 * i - 27 <= 40 <= 6 * i + 5 + 27], :] = True
-    expected[:, [j for j in range(4) if not 6 * j - 10 <= 7 <= 6 * j + 5 + 10]] = False
+    expected[[i for i in range(12) if 6 * i - 20 <= 40 <= 6 * i + 5 + 20], :] = True
+    expected[:, [j for j in range(4) if not 6 * j - 11 <= 7 <= 6 * j + 5 + 11]] = False
     assert np.array_equal(np.isnan(whole["radiance_B1"].values), expected)
 
 
@@ -525,8 +551,8 @@ def _memory_scene(tmp_path, name: str, rows: int, cols: int) -> Path:
     toml = tmp_path / f"{name}.toml"
     toml.write_text(f'[scene]\nname = "{name}"\n[grid]\nstep_nm = {MEM_STEP}\n[surface]\ncube = "{name}.hdr"\n'
                     'gsd_m = 10\nquantity = "reflectance"\n[effects]\natmosphere = true\nnoise = true\n'
-                    'quantise = true\ncalibrate = true\n[instrument]\nmtf = true\ncoregistration = true\n'
-                    'coregistration_shifts = {B1 = [0.1, 0.5], B9 = [0.1, 0.5], B10 = [0.1, 0.5]}\n')
+                    'quantise = true\ncalibrate = true\npsf = true\n'
+                    'coregistration = {shifts = {B1 = [0.1, 0.5], B9 = [0.1, 0.5], B10 = [0.1, 0.5]}}\n')
     return toml
 
 

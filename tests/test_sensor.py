@@ -95,3 +95,19 @@ def test_select_and_arrays() -> None:
     assert np.allclose(s.array("lmin"), [3.31, 2.61])
     with pytest.raises(InputError, match="no band"):
         s.band("B8")
+
+
+def test_optional_numeric_columns_and_measured_noise_coefficients(tmp_path) -> None:
+    """A sensor table's extra numeric columns reach each band (a text column is ignored, as before); measured
+    ``noise_alpha``, ``noise_beta`` (σ² = α² + β·L at the band's width) replace the fit to the SNR points."""
+    header = ",".join(SENSOR_COLUMNS) + ",noise_alpha,noise_beta,note"
+    rows = ["B4,665,30,3.31,50,484.1,,142,,10,0.12,0.004,red", "B5,705,15,2.61,50,449.6,,117,,20,,,rededge"]
+    (tmp_path / "s.csv").write_text("\n".join([header, *rows]) + "\n")
+    s = Sensor.from_csv(tmp_path / "s.csv")
+    b4, b5 = s.band("B4"), s.band("B5")
+    assert dict(b4.extra) == {"noise_alpha": 0.12, "noise_beta": 0.004} and dict(b5.extra) == {}
+    assert b4.noise.a == pytest.approx(0.12**2, rel=1e-15) and b4.noise.b == 0.004
+    assert b4.noise_coefficients() == pytest.approx((0.0144, 0.004), rel=1e-15)
+    assert b4.with_shape(665, 60).noise_coefficients() == pytest.approx((0.0072, 0.002), rel=1e-15)
+    fitted = fit_noise_model([(50.0, 117.0)], 15.0)
+    assert (b5.noise.a, b5.noise.b) == (fitted.a, fitted.b)

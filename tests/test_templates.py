@@ -13,6 +13,7 @@ from s2cl.errors import InputError, RenderError
 from s2cl.forward.resample import ResamplePlan, Resampler
 from s2cl.forward.sense import Radiometry, Sensing
 from s2cl.forward.simulate import Simulator
+from s2cl.forward.stages import senses
 from s2cl.grid import DEFAULT_GRID
 from s2cl.resources import kernel_dir
 from s2cl.scene.effects import EffectSet
@@ -35,13 +36,14 @@ def test_kernel_dir_is_independent_of_cwd(tmp_path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert (kernel_dir() / "sense.cl.mako").is_file()
     assert "sense_bands" in render("sense.cl.mako", args=[], signature=lambda a, T: "", n_bands=1, band_ids=[0],
-                                   noise=False, quantise=False, calibrate=False, correct=False, T=VecTypes())
+                                   stages=[], segments=[("band", [])], site=None, across=None, deviates=False,
+                                   T=VecTypes())
 
 
 def test_missing_template_variable_is_an_error() -> None:
     with pytest.raises(RenderError) as err:
-        render("sense.cl.mako", args=[], signature=lambda a, T: "", n_bands=1, noise=False, quantise=False,
-               calibrate=False, correct=False, T=VecTypes())
+        render("sense.cl.mako", args=[], signature=lambda a, T: "", n_bands=1, stages=[], segments=[("band", [])],
+               site=None, across=None, deviates=False, T=VecTypes())
     assert "band_ids" in str(err.value)
 
 
@@ -70,12 +72,13 @@ def test_atmosphere_off_is_not_in_the_kernel(rt) -> None:
 
 
 def _combinations() -> list[EffectSet]:
-    out = [EffectSet(False, False, False, False, False), EffectSet(True, True, True, True, True)]
+    names = ("atmosphere", "resample", "noise", "quantise", "calibrate")
+    out = [EffectSet(**dict.fromkeys(names, False)), EffectSet(**dict.fromkeys(names, True))]
     for name in ("atmosphere", "resample", "noise", "quantise"):
         kwargs = dict.fromkeys(("atmosphere", "resample", "noise", "quantise", "calibrate"), False)
         kwargs[name] = True
         out.append(EffectSet(**kwargs))
-    out.append(EffectSet(False, False, False, True, True))  # calibrate needs quantise
+    out.append(EffectSet(atmosphere=False, resample=False, noise=False, quantise=True, calibrate=True))
     return out
 
 
@@ -90,7 +93,7 @@ def test_every_effect_combination_builds(rt, real_t: str, effects: EffectSet) ->
     radiance = sim.band_radiance(spectra)
     assert np.all(np.isfinite(radiance))
     out = sim.sense(radiance, seed=1)
-    assert (out is None) == (not effects.senses)
+    assert (out is None) == (not senses(effects))
 
 
 @pytest.mark.parametrize("name", sorted(builtin_scenes()))
@@ -100,7 +103,7 @@ def test_every_builtin_scene_renders_and_builds(rt, name: str) -> None:
 
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     assert sim.resampler.kernel is not None
-    assert (sim.sensing is not None) == scene.effects.senses
+    assert (sim.sensing is not None) == senses(scene.effects)
 
 
 def test_scene_files_in_repo_match_builtins() -> None:

@@ -219,7 +219,7 @@ def test_every_family_known_answers(kind: str) -> None:
     family = FAMILIES[metric]
     t = job.tables
     other_noise = replace(t, z=np.random.default_rng(8).standard_normal(t.z.shape))
-    noisier = replace(t, sigma=tuple(20.0 * s for s in t.sigma))
+    noisier = replace(t, values={**t.values, "sigma": tuple(20.0 * s for s in t.values["sigma"])})
     stats = np.concatenate([family.stats(NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
                             for tables in (t, other_noise, noisier)])
     strata = np.asarray(t.target)[:: t.copies] if family.stratified else None

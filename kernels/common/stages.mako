@@ -4,23 +4,39 @@ functions written once and spliced by every kernel that runs them: the standalon
 (sense.cl.mako, index.cl.mako, sam.cl.mako) and the fused sweep kernel (sweep.cl.mako). A rule
 (rounding, clipping, what counts as invalid, which status a pixel gets) therefore cannot differ
 between `s2cl simulate` and a sweep. Status codes and pixel flags: common/s2_status.clh.
-numpy twins (float64): s2cl/reference/stages.py.
+numpy twins (float64): s2cl/reference/stages.py. The chain's stages are declared in s2cl/forward/stages.py,
+which names each one's def here.
 
 Every def takes T (s2cl.cl.vectypes.VecTypes: precision and lanes; T.lanes == 1 gives scalar code)
 and emits functions named with T.suffix, each guarded so that a kernel may splice a def twice.
 No builtin math in the per-pixel path (PoCL does not inline it; `python -m bench.bench_igrm` times the fit with builtin exp against ours).
 
+A chain stage NAME has two defs: NAME(T), its device functions, and NAME_step(T, c), the statements the
+kernels splice per band (per pixel and band slot; a stage across bands: once per pixel) in the chain's order.
+A step reads and updates `L` (the band's radiance, then its reflectance after `correct`) and may leave
+values for later steps (`q`, `flag`). `c` is the kernel's site (s2cl.forward.sense.SenseSite,
+s2cl.sweep.kernel.SweepSite): c.value(NAME) is the expression of one of the stage's values (its Value in
+s2cl/forward/stages.py) for this band, c.has(NAME) whether the kernel has it, c.store(OUTPUT, expr) the
+statement that writes an output (empty where the kernel has none), c.deviate() the band's standard normal
+deviate; a step across bands works on X[0 .. c.n - 1] with c.pairs(NAME), the values [k][j].
+
   noise(T)      V s2_noise_sigma_<sfx>(V L, R a, R b): sqrt(a + b max(L, 0)), the sensor's noise sigma at
                 radiance L (s2cl.sensor.noise_model; the one builtin here: once per pixel and band, not in a loop);
                 V s2_add_noise_<sfx>(V L, V sigma, V z): L + sigma z for a standard normal deviate z.
+                Step: sigma from the kernel's table where it has one (a sweep), else from L; stores `noisy`.
+  crosstalk(T)  (no function: the step is a sum of literals) Step across bands: X[k] += sum over j of
+                c[k][j] X[j], every band from the others' radiance before the step; stores `noisy`.
   quantise(T)   V s2_quantise_<sfx>(V L, R lmin, R lmax, R scale, R maxdn, M *flags)
                 DN as a real: x = (L - lmin) scale; DN = floor(x) + (x - floor(x) >= 0.5) (ties up),
                 clipped into [0, maxdn]. flags: S2_FLAG_NODATA (L NaN), else S2_FLAG_LOW (L < lmin),
-                S2_FLAG_HIGH (L > lmax), else 0.
+                S2_FLAG_HIGH (L > lmax), else 0. Step: leaves q (DN) and flag; stores `dn`, `flags`.
   calibrate(T)  V s2_calibrate_<sfx>(V dn, M flags, R lmin, R gain)
-                lmin + dn gain; NaN where flags has S2_FLAG_NODATA.
+                lmin + dn gain; NaN where flags has S2_FLAG_NODATA. Step: from q and flag; stores `calibrated`.
+  calibration_error(T)  V s2_calibration_error_<sfx>(V L, R gain): L gain, gain = 1 + the band's relative
+                calibration error. Step: after calibrate; stores `calibrated` again (it carries the error).
   correct(T)    V s2_correct_<sfx>(V L, R lp, R g, R s)
                 band-effective inverse: y = (L - lp) / g, rho = y / max(1 + s y, 1e-6); NaN stays NaN.
+                Step: L becomes the band reflectance; stores `reflectance`.
   normalised_difference(T, nd, max_abs)  V s2_<nd.kind>_<sfx>(V a, V b, M *status)
                 ((a + o_a) - (b + o_b)) / ((a + o_a) + (b + o_b)), offsets nd.offsets
                 (s2cl.retrieve.indices; GVMI, Segl et al. 2012 eq. 3: o = 0.1, 0.02);
@@ -53,6 +69,31 @@ static inline ${T.V} s2_add_noise_${T.suffix}(const ${T.V} L, const ${T.V} sigma
 #endif
 </%def>
 
+<%def name="noise_step(T, c)">
+<% sigma = c.value("sigma") if c.has("sigma") else f"s2_noise_sigma_{T.suffix}(L, {c.value('noise_a')}, {c.value('noise_b')})" %>
+        L = s2_add_noise_${T.suffix}(L, ${sigma}, ${c.deviate()});
+        ${c.store("noisy", "L")}
+</%def>
+
+<%def name="crosstalk(T)">
+</%def>
+
+<%def name="crosstalk_step(T, c)">
+    {   /* crosstalk: every band gains from the others of its focal plane (their radiance before this step) */
+        ${T.V} own[${c.n}];
+% for k in range(c.n):
+        own[${k}] = X[${k}];
+% endfor
+% for k, row in enumerate(c.pairs("crosstalk")):
+<% terms = "".join(f" + {T.lit(v)} * own[{j}]" for j, v in enumerate(row) if j != k and v != 0.0) %>\
+  % if terms:
+        X[${k}] = own[${k}]${terms};
+        ${c.store("noisy", k, f"X[{k}]")}
+  % endif
+% endfor
+    }
+</%def>
+
 <%def name="quantise(T)">
 #include "common/s2_status.clh"
 #ifndef S2_QUANTISE_${T.suffix.upper()}
@@ -76,6 +117,14 @@ static inline ${T.V} s2_quantise_${T.suffix}(const ${T.V} L, const ${T.R} lmin, 
 #endif
 </%def>
 
+<%def name="quantise_step(T, c)">
+        ${T.M} flag;
+        const ${T.V} q = s2_quantise_${T.suffix}(L, ${c.value("lmin")}, ${c.value("lmax")}, ${c.value("scale")},
+                                                ${c.value("maxdn")}, &flag);
+        ${c.store("dn", "q")}
+        ${c.store("flags", "flag")}
+</%def>
+
 <%def name="calibrate(T)">
 #include "common/s2_status.clh"
 #ifndef S2_CALIBRATE_${T.suffix.upper()}
@@ -89,6 +138,26 @@ static inline ${T.V} s2_calibrate_${T.suffix}(const ${T.V} dn, const ${T.M} flag
 #endif
 </%def>
 
+<%def name="calibrate_step(T, c)">
+        L = s2_calibrate_${T.suffix}(q, flag, ${c.value("lmin")}, ${c.value("gain")});
+        ${c.store("calibrated", "L")}
+</%def>
+
+<%def name="calibration_error(T)">
+#ifndef S2_CALIBRATION_ERROR_${T.suffix.upper()}
+#define S2_CALIBRATION_ERROR_${T.suffix.upper()}
+static inline ${T.V} s2_calibration_error_${T.suffix}(const ${T.V} L, const ${T.R} gain)
+{
+    return L * gain;   /* NaN (no data) stays NaN */
+}
+#endif
+</%def>
+
+<%def name="calibration_error_step(T, c)">
+        L = s2_calibration_error_${T.suffix}(L, ${c.value("cal_error_gain")});
+        ${c.store("calibrated", "L")}
+</%def>
+
 <%def name="correct(T)">
 #ifndef S2_CORRECT_${T.suffix.upper()}
 #define S2_CORRECT_${T.suffix.upper()}
@@ -100,6 +169,11 @@ static inline ${T.V} s2_correct_${T.suffix}(const ${T.V} L, const ${T.R} lp, con
     return y / (d > ${T.lit(1e-6)} ? d : (${T.V})(${T.lit(1e-6)}));
 }
 #endif
+</%def>
+
+<%def name="correct_step(T, c)">
+        L = s2_correct_${T.suffix}(L, ${c.value("lp")}, ${c.value("g")}, ${c.value("s")});
+        ${c.store("reflectance", "L")}
 </%def>
 
 <%def name="normalised_difference(T, nd, max_abs)">

@@ -15,13 +15,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from s2cl.errors import InputError, token
+from s2cl.forward.stages import caveats as stage_caveats
 from s2cl.io.budget import Budget
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.retrieve.family import registry
-from s2cl.scene.caveats import Caveat, grid_caveats, quantisation_caveats, srf_caveats
+from s2cl.scene.caveats import Caveat, grid_caveats, srf_caveats
 from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import SweepSpace
 
@@ -146,7 +147,7 @@ def _caveats(scene: Scene, space: SweepSpace | None, bands: list[str]) -> list[C
     if space is not None:
         for r in space.ranges:
             widths[r.band] = min(widths.get(r.band, float("inf")), r.extent()[2])
-    return grid_caveats(scene, widths) + quantisation_caveats(scene, bands)
+    return grid_caveats(scene, widths) + stage_caveats(scene, bands)
 
 
 def check_sweep_sections(scene: Scene) -> None:

@@ -68,7 +68,7 @@ class CommonGrid:
                          for b, f in zip(self.bands, self.factors, strict=True)])
 
     def flags(self, store: ImageStore, rows: slice) -> np.ndarray | None:
-        """The OR of the bands' radiometric flags in each box of ``rows`` (None when the chain does not quantise)."""
+        """The OR of the bands' radiometric flags in each box of ``rows`` (None when the chain writes no flags)."""
         out = None
         for b, f in zip(self.bands, self.factors, strict=True):
             if f"flags_{b}" in store:

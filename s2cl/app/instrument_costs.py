@@ -24,11 +24,13 @@ import xarray as xr
 
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
+from s2cl.forward.stages import STAGES, outputs
 from s2cl.io.image_store import MemoryStore
-from s2cl.scene.instrument_schema import SOURCES
+from s2cl.scene.instrument_schema import IMAGE_EFFECTS, SOURCES, magnitudes
 from s2cl.scene.scene import Scene
 
-EFFECTS = ("mtf", "coregistration", "smile", "nonuniformity")
+#: the image effects of [effects], each costed alone
+EFFECTS = tuple(IMAGE_EFFECTS)
 #: a map-level score: (scene, the simulated product's store, the cube) → named figures
 Score = Callable[[Scene, MemoryStore, SceneCube], dict[str, float]]
 
@@ -54,25 +56,32 @@ class EffectCost:
                 "rms_effect": self.rms_effect, "rms_vs_truth": self.rms_vs_truth, "score": self.score}
 
 
-def with_instrument(scene: Scene, instrument: dict[str, Any], effects: dict[str, Any] | None = None) -> Scene:
-    """``scene`` with its [instrument] section replaced by ``instrument`` (and [effects] keys updated)."""
+def with_effects(scene: Scene, effects: dict[str, Any]) -> Scene:
+    """``scene`` with those [effects] keys replaced."""
     data = scene.spec.model_dump(exclude_none=True)
-    data["instrument"] = instrument
-    if effects:
-        data["effects"] = {**data["effects"], **effects}
+    data["effects"] = {**data["effects"], **effects}
     if "output" in data:
         data["output"].pop("precision", None)
     return Scene.from_dict(data, path=scene.path, base_dir=scene.base_dir)
 
 
+def effect_settings(scene: Scene, on: str | None = None) -> dict[str, Any]:
+    """Each image effect's settings in ``scene`` (its table, else the defaults), every one off but ``on``."""
+    out = {}
+    for name in EFFECTS:
+        settings = magnitudes(getattr(scene.spec.effects, name), IMAGE_EFFECTS[name])
+        out[name] = {**settings.model_dump(exclude_none=True), "on": name == on}
+    return out
+
+
 def product_variable(scene: Scene) -> str:
     """The compared product's variable prefix: L2 reflectance, calibrated radiance or band radiance."""
-    e = scene.effects
-    return "reflectance" if e.correct else "calibrated" if e.calibrate else "noisy" if e.noise else "radiance"
+    real = [o.name for o in outputs(scene.effects) if o.dtype is None]
+    return real[-1] if real else "radiance"
 
 
-#: the clean run: no noise, no quantisation (so no calibration either)
-CLEAN = {"noise": False, "quantise": False, "calibrate": False}
+#: the clean run: every stage that degrades the signal off (noise, quantisation, calibration, ...)
+CLEAN = {s.name: False for s in STAGES if s.per_pixel and s.degrades}
 
 
 def band_rms(a: xr.Dataset, b: xr.Dataset, names: list[str], prefix_a: str, prefix_b: str) -> dict[str, float]:
@@ -124,22 +133,22 @@ def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None 
                  repeats: int = 1) -> list[EffectCost]:
     """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory, or already
     loaded by :func:`s2cl.forward.cube.load_scene_cube`): one
-    :class:`EffectCost` per instrument, the ideal first. The scene's own [instrument] values set each effect's
+    :class:`EffectCost` per instrument, the ideal first. The scene's own [effects] settings set each effect's
     magnitude (its on/off switches are ignored)."""
-    base = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False)}
-    ideal_scene = with_instrument(scene, base)
+    base = effect_settings(scene)
+    ideal_scene = with_effects(scene, base)
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(ideal_scene, cube, wavelengths_nm)
     names = ideal_scene.sensor.band_names
     product = product_variable(ideal_scene)
     clean = "reflectance" if ideal_scene.effects.correct else "radiance"
-    truth = simulate_cube(rt, with_instrument(scene, base, effects=CLEAN), prepared)
+    truth = simulate_cube(rt, with_effects(scene, {**base, **CLEAN}), prepared)
     rows = []
     for name in ("ideal", *effects):
-        spec = base if name == "ideal" else {**base, name: True}
-        variant = with_instrument(scene, spec)
+        spec = base if name == "ideal" else effect_settings(scene, name)
+        variant = with_effects(scene, spec)
         store, seconds = _timed(rt, variant, prepared, repeats)
         figures = score(variant, store, prepared) if score else {}
-        own = truth if name == "ideal" else simulate_cube(rt, with_instrument(scene, spec, effects=CLEAN), prepared)
+        own = truth if name == "ideal" else simulate_cube(rt, with_effects(scene, {**spec, **CLEAN}), prepared)
         source = "no instrument effect (noise and quantisation only)" if name == "ideal" else SOURCES[name]
         rows.append(EffectCost(name, source, seconds, band_rms(own, truth, names, clean, clean),
                                band_rms(store.dataset(), truth, names, product, clean), figures))

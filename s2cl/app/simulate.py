@@ -27,6 +27,7 @@ if TYPE_CHECKING:
 from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
+from s2cl.forward.stages import outputs
 from s2cl.io.budget import (
     ANALYSIS_BYTES_PER_PIXEL,
     ANALYSIS_BYTES_PER_PIXEL_BAND,
@@ -82,8 +83,8 @@ def netcdf_bytes(checked: Checked) -> float:
     """Size of ``simulation.nc`` (bytes, an upper bound) from the effects that are on."""
     scene, lib = checked.scene, checked.library
     assert lib is not None
-    e, copies = scene.effects, scene.run.copies
-    per_band = 4 * (e.noise + e.calibrate + e.correct) + 2 * e.quantise
+    copies = scene.run.copies
+    per_band = sum(o.itemsize("float32") for o in outputs(scene.effects))
     pixels = image_pixels(lib.size, copies, scene.run.layout)
     return 1.02 * pixels * (scene.sensor.size * per_band + 8) + 2e6
 
@@ -130,9 +131,10 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     if progress:
         progress(0)
     with atomic_path(path) as tmp, hdf5_errors(path):
-        clipped = np.zeros((2, scene.sensor.size), np.int64) if scene.effects.quantise else None
+        flagged = "flags" in {o.name for o in outputs(scene.effects)}
+        clipped = np.zeros((2, scene.sensor.size), np.int64) if flagged else None
         header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs,
-                       clipped).to_netcdf(tmp, engine="h5netcdf")
+                       clipped, sim.stage_values()).to_netcdf(tmp, engine="h5netcdf")
         t1 = time.perf_counter()
         with writer.open(tmp) as images:
             for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):
@@ -160,10 +162,10 @@ def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed:
         hi = min(ns, lo + per_chunk)
         expanded = np.repeat(band_radiance[:, lo:hi], copies, axis=1)
         out = sim.sense(expanded, seed=seed, frame=frame, pixel_offset=lo * copies)
-        if out is None:  # no radiometric effect: the images are the noise-free radiance
+        if out is None:  # no per-pixel stage: the images are the noise-free radiance
             from s2cl.forward.sense import SenseResult
 
-            out = SenseResult(noisy=None, dn=None, calibrated=None, clipped=None)
+            out = SenseResult()
         yield lo, hi, out
 
 
@@ -198,13 +200,11 @@ class _OpenImages:
             for s in range(sp.n_spectra, (sp.rows // sp.side) * (sp.cols // sp.side)):
                 v[self._tile(s)] = -1
         self.vars = {"pixel_spectrum": v}
-        on = {"noisy": sp.effects.noise, "dn": sp.effects.quantise, "flags": sp.effects.quantise,
-              "calibrated": sp.effects.calibrate, "reflectance": sp.effects.correct}
-        integer = {"dn": np.uint16, "flags": np.uint8}
+        on = {o.name: o for o in outputs(sp.effects)}
         for name, units, long_name in PIXEL_VARIABLES:
-            if not on[name]:
+            if name not in on:
                 continue
-            dtype, fill = (integer[name], None) if name in integer else (sp.dtype, np.nan)
+            dtype, fill = (on[name].dtype, None) if on[name].dtype is not None else (sp.dtype, np.nan)
             var = self.file.create_variable(name, ("band", "y", "x"), dtype, fillvalue=fill)
             var.attrs.update(pixel_attrs(name, units, long_name))
             self.vars[name] = var
@@ -264,5 +264,5 @@ class _AnalysisBands:
         sensor = scene.sensor.select(list(self.checked.analysis_bands))
         copies = scene.run.copies
         sim = LibrarySimulation(scene.name, sensor, lib, copies, scene.effects, band_radiance[self.rows],
-                                reflectance=self.data.reshape(len(self.rows), lib.size, copies))
+                                outputs={"reflectance": self.data.reshape(len(self.rows), lib.size, copies)})
         return analyse(rt, scene, sim)

@@ -51,16 +51,6 @@ class BandAtmosphere:
             out_s.append(gw @ s[sl] / gw.sum() if gw.sum() > 0 else w.weights @ s[sl])
         return cls(np.array(out_lp), np.array(out_g), np.array(out_s))
 
-    def with_calibration_gain(self, gain: float) -> BandAtmosphere:
-        """Terms that correct radiance calibrated with a relative error: ``ρ(gain · L)``.
-
-        ``(gain·L − Lp) / G = (L − Lp/gain) / (G/gain)``, so the error folds into the terms and
-        the kernels need no extra stage.
-        """
-        if gain == 1.0:
-            return self
-        return BandAtmosphere(self.path_radiance / gain, self.ground_term / gain, self.spherical_albedo)
-
     @property
     def n_bands(self) -> int:
         return int(self.path_radiance.size)

@@ -1,3 +1,3 @@
-"""The forward chain on the device: resampling, the radiometric stage (noise, quantise, calibrate, correct),
-library and streamed simulations, image cubes, datasets, the host Philox noise.
+"""The forward chain on the device: its declared stages (``stages``), resampling, the per-pixel stages' kernel
+(``sense``), library and streamed simulations, image cubes, datasets, the host Philox noise.
 """

@@ -1,9 +1,10 @@
 """Image-cube simulation: a cube ``(rows, cols, wavelengths)`` → per-band images at each band's GSD.
 
-Order of operations (the physical one): spectra → band radiance at the input GSD (SRFs, and the
-atmosphere when on) → optional Gaussian PSF → box average over ``GSD_band / GSD_input`` input
-pixels → noise → quantisation → calibration at the band's own GSD (the SNR table refers to
-pixels of that size). Trailing rows/columns that do not fill a whole output pixel are dropped.
+Order of operations (the physical one, the chain of :mod:`s2cl.forward.stages`): spectra → band radiance at the
+input GSD (SRFs, and the atmosphere when on) → each band's PSF and co-registration shift → box average over
+``GSD_band / GSD_input`` input pixels → per-column non-uniformity → the per-pixel stages (noise, quantisation,
+calibration, ...) at the band's own GSD (the SNR table refers to pixels of that size). Trailing rows/columns
+that do not fill a whole output pixel are dropped.
 Noise of band ``k`` at output pixel ``(y, x)`` keys on pixel index ``y · ncols + x`` of that
 band's grid.
 
@@ -17,7 +18,7 @@ filters, :func:`s2cl.forward.reach.cube_halo`) into a store (:mod:`s2cl.io.image
 same, bit for bit. A generated cube (:mod:`s2cl.libraries.fields`) is simulated from its distinct spectra, each
 pixel taking its spectrum's band radiance.
 
-The scene's [instrument] effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
+The scene's image effects (:mod:`s2cl.forward.instrument`) act inside this chain: the smile at the SRFs
 (node bands, interpolated per column), each band's PSF and shift before its box average (finite filters: blocks
 are read with their halo, and the NODATA footprint is their support, :mod:`s2cl.forward.reach`), the detector
 non-uniformity per column after it.
@@ -31,19 +32,21 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from scipy.ndimage import gaussian_filter
 
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
-from s2cl.forward.instrument import Instrument, SmileResampler
+from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument, SmileResampler, spatial_response
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
 from s2cl.forward.product_scene import resolve_product_scene, scene_reader
-from s2cl.forward.reach import FWHM_TO_SIGMA, band_groups, cube_halo, gsd_factor, spatial_reach
-from s2cl.forward.row_blocks import RowBlock, box_mean, gaussian_radius, row_blocks
-from s2cl.forward.sense import Radiometry, Sensing
+from s2cl.forward.radiometry import Radiometry
+from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
+from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
+from s2cl.forward.sense import Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
+from s2cl.forward.stages import band_attrs as stage_attrs
+from s2cl.forward.stages import senses
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.cubes import CubeReader, cube_size, load_cube
 from s2cl.io.georef import GeoRef, georef_attrs, grid_dimensions, product_attrs
@@ -98,9 +101,11 @@ def _zero_nodata(flat: np.ndarray, owned: bool) -> tuple[np.ndarray, np.ndarray]
 
 
 def aggregate(image: np.ndarray, factor: int, psf_fwhm: float | None = None) -> np.ndarray:
-    """Box average of ``factor × factor`` blocks (after an optional Gaussian PSF of FWHM
-    ``psf_fwhm`` output pixels); trailing partial blocks are dropped."""
-    image = _psf(image, factor, psf_fwhm)
+    """Box average of ``factor × factor`` blocks (after an optional Gaussian PSF of FWHM ``psf_fwhm`` output
+    pixels, the one PSF filter of :func:`s2cl.forward.instrument.spatial_response`); trailing partial blocks are
+    dropped."""
+    if psf_fwhm:
+        image = spatial_response(image, psf_fwhm * factor * FWHM_TO_SIGMA, 0.0, 0.0)
     if image.shape[0] < factor or image.shape[1] < factor:
         raise InputError(
             f"cube of {image.shape[0]}×{image.shape[1]} pixels is smaller than one {factor}×{factor} block")
@@ -275,14 +280,13 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     atmosphere = scene_atmosphere(scene)
     sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
     instrument = Instrument.of(scene)
-    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.spec.smile else None
+    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.smile_spec is not None else None
     band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
-    psf = s.spatial.psf_fwhm if s.spatial.psf == "gaussian" else None
     out = store if store is not None else MemoryStore()
     out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
                       "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
-                      "psf": s.spatial.psf, "nodata_input_pixels": int(prepared.nodata_image.sum()),
-                      "instrument": instrument.spec.describe()})
+                      "psf": "none" if instrument.psf is None else "gaussian",
+                      "nodata_input_pixels": int(prepared.nodata_image.sum()), "instrument": instrument.describe()})
     out.attrs.update(georef_attrs(prepared.georef, prepared.product))
     nodata = prepared.nodata_image
     groups = [_Group(scene, sim, factor, ids, rows, cols, out, nodata, instrument, prepared.georef)
@@ -299,7 +303,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
         if smile is not None:  # each column's bands from the smile's node bands
             radiance = smile.combine(radiance)
         for g in groups:
-            g.add(block, radiance, psf)
+            g.add(block, radiance)
         if progress:
             progress((block.stop - block.start) * cols)
     for g in groups:
@@ -322,13 +326,17 @@ class _Group:
         self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
         grid_dimensions(store, self.dims, georef, factor, gsd, ny, nx)  # x/y and the CF grid mapping
         self.sensing = None
-        if scene.effects.senses:
+        if senses(scene.effects):
             correction = None
             if sim.correction is not None:
                 c, i = sim.correction, self.ids
                 correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
-            self.sensing = Sensing(sim.rt, Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids),
-                                   scene.effects, sim.precision, correction=correction)
+            radiometry = Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids,
+                                       correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
+            self.sensing = Sensing(sim.rt, radiometry, scene.effects, sim.precision)
+        #: what the per-pixel stages did to each band (attributes of its variables)
+        self.stage_attrs = [stage_attrs(self.sensing.stages, self.sensing.radiometry, j) if self.sensing else {}
+                            for j in range(len(ids))]
         #: output pixels whose footprint (box and the spatial filters' support,
         #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
         #: (:func:`s2cl.forward.nodata.footprint_nodata`)
@@ -336,7 +344,7 @@ class _Group:
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
 
-    def add(self, block: RowBlock, radiance: np.ndarray, psf: float | None) -> None:
+    def add(self, block: RowBlock, radiance: np.ndarray) -> None:
         """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)``."""
         f, out_rows = self.factor, block.output_rows(self.factor)
         ny = out_rows.stop - out_rows.start
@@ -344,7 +352,7 @@ class _Group:
             return
         top = block.start - block.read_start
         spatial = self.instrument.spatial
-        images = np.stack([box_mean(_psf(spatial(radiance[k], k, f), f, psf)[top : top + ny * f], f) for k in self.ids])
+        images = np.stack([box_mean(spatial(radiance[k], k, f)[top : top + ny * f], f) for k in self.ids])
         images = self.instrument.columns(images[:, :, : self.nx], self.ids)
         nodata = self.nodata[out_rows]
         images[:, nodata] = np.nan
@@ -361,7 +369,7 @@ class _Group:
         self.counts[2] += np.count_nonzero(flags & PixelFlag.NODATA, axis=1)
         bands = self.scene.sensor.bands
         for j, k in enumerate(self.ids):
-            attrs = band_attrs(bands[k], self.scene.sensor.bits)
+            attrs = {**band_attrs(bands[k], self.scene.sensor.bits), **self.stage_attrs[j]}
             name = bands[k].name
             self._put(f"radiance_{name}", out_rows, images[j],
                       {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
@@ -383,18 +391,9 @@ class _Group:
     def finish(self) -> None:
         """The clipping and no-data counts, once every block is in (no-data pixels are counted as such, not as
         clipped below Lmin)."""
-        quantised = self.sensing is not None and self.scene.effects.quantise
+        flagged = self.sensing is not None and "flags" in self.sensing.outputs
         for j, k in enumerate(self.ids):
             counts: dict = {"nodata_pixels": int(self.counts[2, j]), **self.instrument.band_attrs(k)}
-            if quantised:
+            if flagged:
                 counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
             self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)
-
-
-def _psf(image: np.ndarray, factor: int, psf_fwhm: float | None) -> np.ndarray:
-    """The Gaussian PSF of FWHM ``psf_fwhm`` output pixels (``factor`` input pixels each), its kernel
-    :func:`s2cl.forward.row_blocks.gaussian_radius` long on each side, or the image itself."""
-    if not psf_fwhm:
-        return image
-    sigma = psf_fwhm * factor * FWHM_TO_SIGMA
-    return gaussian_filter(image.astype(np.float64), sigma=sigma, mode="nearest", radius=gaussian_radius(sigma))

@@ -10,9 +10,9 @@ import numpy as np
 import xarray as xr
 
 from s2cl.errors import InputError
+from s2cl.forward.stages import ALL_OUTPUTS, RADIANCE_UNITS
 from s2cl.sensor.sensor import Band
 
-RADIANCE_UNITS = "W m-2 sr-1 um-1"
 #: global attribute of every NetCDF file s2cl writes
 CONVENTIONS = {"Conventions": "CF-1.10"}
 #: CF standard names (CF standard-name table, version 84) of the variables that have one
@@ -65,12 +65,9 @@ def image_layout(n_spectra: int, copies: int, layout: str) -> np.ndarray:
     return out
 
 
-#: per-pixel image variables of a simulation: (name, units, long name)
-PIXEL_VARIABLES = (("noisy", RADIANCE_UNITS, "band radiance with sensor noise"),
-                   ("dn", "1", "digital numbers"),
-                   ("flags", "1", "radiometric pixel flags"),
-                   ("calibrated", RADIANCE_UNITS, "radiance calibrated from DN"),
-                   ("reflectance", "1", "band surface reflectance after atmospheric correction"))
+#: per-pixel image variables of a simulation, the outputs of the chain's stages (:mod:`s2cl.forward.stages`):
+#: (name, units, long name)
+PIXEL_VARIABLES = tuple(dict.fromkeys((o.name, o.units, o.long_name) for o in ALL_OUTPUTS))
 PIXEL_SPECTRUM_ATTRS = {"long_name": "library spectrum of each pixel (-1: none)"}
 
 
@@ -80,14 +77,15 @@ def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
     index = image_layout(lib.size, sim.copies, layout)
     valid = index >= 0
     flat = np.where(valid, index, 0)
-    ds = header_dataset(sim.sensor, lib, sim.band_radiance, sim.copies, layout, sim.attrs, sim.clipped)
+    ds = header_dataset(sim.sensor, lib, sim.band_radiance, sim.copies, layout, sim.attrs, sim.clipped,
+                        sim.stage_values)
     ds["pixel_spectrum"] = (("y", "x"), np.where(valid, index // sim.copies, -1), PIXEL_SPECTRUM_ATTRS)
     for name, units, long_name in PIXEL_VARIABLES:
         arr = getattr(sim, name)
         if arr is None:
             continue
         pixels = arr.reshape(arr.shape[0], -1)[:, flat]
-        fill = 0 if name in ("dn", "flags") else np.nan
+        fill = 0 if arr.dtype.kind in "ui" else np.nan
         pixels = np.where(valid[None], pixels, np.asarray(fill, dtype=pixels.dtype))
         ds[name] = (("band", "y", "x"), pixels, pixel_attrs(name, units, long_name))
     return ds
@@ -106,10 +104,14 @@ def pixel_attrs(name: str, units: str, long_name: str) -> dict[str, Any]:
 
 
 def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int, layout: str,
-                   attrs: dict[str, Any], clipped: np.ndarray | None) -> xr.Dataset:
+                   attrs: dict[str, Any], clipped: np.ndarray | None,
+                   stage_values: dict[str, list[Any]] | None = None) -> xr.Dataset:
     """Everything of a library simulation's dataset but the per-pixel images: band and spectrum
-    tables, noise-free band radiance, clipping counts, attributes."""
+    tables, noise-free band radiance, clipping counts, attributes; ``stage_values``: what the chain's stages did
+    to each band (their attributes, :func:`s2cl.forward.stages.band_attrs`), as coordinates along ``band``."""
     coords = band_table(sensor.bands)
+    for key, values in (stage_values or {}).items():
+        coords[key] = ("band", np.asarray(values))
     coords["spectrum_name"] = ("spectrum", np.array(lib.names, dtype=object))
     coords["spectrum_group"] = ("spectrum", np.array(lib.groups, dtype=object))
     for key, values in lib.params.items():

@@ -1,4 +1,5 @@
-"""The instrument's own artefacts on an image cube (the scene's [instrument] section), each off unless asked for.
+"""The instrument's own artefacts on an image cube (the ``[effects]`` keys psf, coregistration, smile and
+nonuniformity; stages of :mod:`s2cl.forward.stages` that act on images), each off unless asked for.
 
 Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
 
@@ -8,17 +9,17 @@ Where each acts in :func:`s2cl.forward.cube.simulate_cube`'s chain:
   :data:`SMILE_NODES` node SRFs spanning the smile's range (per axis: their product when the width varies too) in
   one pass, and each column takes the Lagrange interpolation (cubic) between its band's nodes (:func:`lagrange`).
   Its error against the exact per-column integral (:func:`smile_twin`) is tested. Off: no node band is in the kernel.
-* **mtf** and **coregistration** — on the input grid before the box average: the band's image goes through a
-  Gaussian's transfer function (whose product with the box average's sinc gives the band's MTF at Nyquist,
-  :func:`gaussian_sigma`) and the phase ramp of the band's sub-pixel shift (a band-limited shift: it moves the image
-  without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at half a pixel), as a
-  finite filter along each axis (:func:`fir_kernel`: the transfer function's inverse DFT, kept whole over the
-  Gaussian's reach around the shifted centre and tapered to 0 over a few more taps, :func:`taper_taps`; borders act
-  as a half-sample mirror). The filter reaches :func:`fir_radius` pixels and no further: that is the halo of a block of
-  rows (so blocks give the same bands as the whole image, bit for bit) and how far a NODATA input pixel reaches
-  (so a valid pixel is the same as from a cube without the hole). The twin :func:`spatial_twin` applies the
-  transfer function exactly, by FFTs of the mirrored image along both axes. Off: the band's image is returned as
-  it is, no filter runs.
+* **psf** and **coregistration** — on the input grid before the box average: the band's image goes through a
+  Gaussian's transfer function (of the given FWHM, or whose product with the box average's sinc gives the band's
+  MTF at Nyquist, :func:`gaussian_sigma`) and the phase ramp of the band's sub-pixel shift (a band-limited shift:
+  it moves the image without blurring it, as linear interpolation would, whose own MTF at Nyquist drops to 0 at
+  half a pixel), as a finite filter along each axis (:func:`fir_kernel`: the transfer function's inverse DFT, kept
+  whole over the Gaussian's reach around the shifted centre and tapered to 0 over a few more taps,
+  :func:`taper_taps`; borders act as a half-sample mirror). The filter reaches :func:`fir_radius` pixels and no
+  further: that is the halo of a block of rows (so blocks give the same bands as the whole image, bit for bit) and
+  how far a NODATA input pixel reaches (so a valid pixel is the same as from a cube without the hole). The twin
+  :func:`spatial_twin` applies the transfer function exactly, by FFTs of the mirrored image along both axes. Off:
+  the band's image is returned as it is, no filter runs. The one PSF: there is no other.
 * **nonuniformity** — on each band's grid after the box average: per-column gain ``g`` and offset ``o``; a relative
   calibration estimates them with errors ``ε`` (relative) and ``δ``, so the product holds
   ``(g·L + o − (o + δ)) / (g·(1 + ε))`` (or ``g·L + o`` without equalisation). Drawn from the scene's seed.
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import fft as sfft
@@ -36,7 +38,14 @@ from scipy.ndimage import correlate1d
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.grid import SpectralGrid
-from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST, InstrumentSpec
+from s2cl.scene.instrument_schema import (
+    BOX_MTF_NYQUIST,
+    CoregistrationSpec,
+    NonUniformitySpec,
+    PsfSpec,
+    SmileSpec,
+    setting,
+)
 from s2cl.scene.scene import Scene
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
@@ -51,6 +60,8 @@ GAUSSIAN_TRUNCATE = 4.0
 #: cosine), when the Gaussian leaves the signal at Nyquist whole: room for the tails of the shift's band-limited
 #: (sinc) interpolation (:func:`taper_taps`)
 TAPER_TAPS = 8
+#: a Gaussian's σ per unit FWHM
+FWHM_TO_SIGMA = 1.0 / (2.0 * math.sqrt(2.0 * math.log(2.0)))
 #: random-stream tags (the second word of each generator's seed), one per effect
 _COREG_TAG, _NU_TAG = 0x636F7267, 0x6E756E69
 
@@ -184,10 +195,10 @@ class Smile:
     width_factor: np.ndarray
 
     @classmethod
-    def of(cls, spec: InstrumentSpec, cols: int) -> Smile:
+    def of(cls, spec: SmileSpec, cols: int) -> Smile:
         x = 2.0 * (np.arange(cols) + 0.5) / cols - 1.0
-        shift = np.polynomial.polynomial.polyval(x, spec.smile_centre_nm)
-        width = 1.0 + np.polynomial.polynomial.polyval(x, spec.smile_width_pct) / 100.0
+        shift = np.polynomial.polynomial.polyval(x, spec.centre_nm)
+        width = 1.0 + np.polynomial.polynomial.polyval(x, spec.width_pct) / 100.0
         return cls(np.atleast_1d(shift), np.atleast_1d(width))
 
     def node_grid(self) -> tuple[np.ndarray, np.ndarray]:
@@ -218,7 +229,7 @@ class SmileResampler:
     band's node values, :meth:`combine` interpolates each column's bands from them."""
 
     def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None):
-        self.smile = Smile.of(scene.spec.instrument, cols)
+        self.smile = Smile.of(Instrument.of(scene).smile_spec, cols)
         self.n_bands, self.cols = scene.sensor.size, cols
         self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere=atmosphere)
 
@@ -244,7 +255,7 @@ def smile_radiance(rt: Runtime, scene: Scene, spectra: np.ndarray, rows: int, co
 def smile_twin(scene: Scene, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
     """float64 numpy twin of :func:`smile_radiance` (spectra already radiance): each column integrated over its
     own moved SRF, no interpolation."""
-    smile = Smile.of(scene.spec.instrument, cols)
+    smile = Smile.of(Instrument.of(scene).smile_spec, cols)
     cube = np.asarray(spectra, dtype=np.float64).reshape(rows, cols, -1)
     out = np.empty((scene.sensor.size, rows, cols))
     for k, band in enumerate(scene.sensor.bands):
@@ -256,9 +267,10 @@ def smile_twin(scene: Scene, spectra: np.ndarray, rows: int, cols: int) -> np.nd
 
 @dataclass(frozen=True)
 class Instrument:
-    """The scene's instrument effects, resolved per band (band order of the scene's sensor)."""
+    """The scene's image effects (``[effects]`` psf, coregistration, smile, nonuniformity), resolved per band (band
+    order of the scene's sensor)."""
 
-    spec: InstrumentSpec
+    effects: Any
     seed: int
     band_names: tuple[str, ...]
     lref: tuple[float, ...]
@@ -266,38 +278,63 @@ class Instrument:
     @classmethod
     def of(cls, scene: Scene) -> Instrument:
         bands = scene.sensor.bands
-        return cls(scene.spec.instrument, scene.run.seed, tuple(b.name for b in bands), tuple(b.lref for b in bands))
+        return cls(scene.spec.effects, scene.run.seed, tuple(b.name for b in bands), tuple(b.lref for b in bands))
+
+    @property
+    def psf(self) -> PsfSpec | None:
+        return setting(self.effects.psf, PsfSpec)  # type: ignore[return-value]
+
+    @property
+    def coregistration(self) -> CoregistrationSpec | None:
+        return setting(self.effects.coregistration, CoregistrationSpec)  # type: ignore[return-value]
+
+    @property
+    def smile_spec(self) -> SmileSpec | None:
+        return setting(self.effects.smile, SmileSpec)  # type: ignore[return-value]
+
+    @property
+    def nonuniformity(self) -> NonUniformitySpec | None:
+        return setting(self.effects.nonuniformity, NonUniformitySpec)  # type: ignore[return-value]
+
+    def describe(self) -> str:
+        """The image effects that are on, or ``ideal``."""
+        on = [n for n, v in (("psf", self.psf), ("coregistration", self.coregistration), ("smile", self.smile_spec),
+                             ("nonuniformity", self.nonuniformity)) if v is not None]
+        return ", ".join(on) if on else "ideal"
 
     def _lookup(self, table: dict, k: int):
         name = self.band_names[k].lower()
         return next((v for b, v in table.items() if b.lower() == name), None)
 
-    def mtf_sigma(self, k: int) -> float | None:
-        """Band ``k``'s Gaussian PSF σ in band pixels, None when the MTF effect is off."""
-        if not self.spec.mtf:
+    def psf_sigma(self, k: int) -> float | None:
+        """Band ``k``'s Gaussian PSF σ in band pixels (from its FWHM, or from its MTF at Nyquist with the box
+        average), None when the PSF is off."""
+        psf = self.psf
+        if psf is None:
             return None
-        m = self._lookup(self.spec.mtf_nyquist_bands, k)
-        return gaussian_sigma(self.spec.mtf_nyquist if m is None else m)
+        v = psf.value(self.band_names[k])
+        return v * FWHM_TO_SIGMA if psf.unit == "fwhm" else gaussian_sigma(v)
 
     def shift(self, k: int) -> tuple[float, float] | None:
         """Band ``k``'s shift (dx, dy) in band pixels, None when co-registration error is off."""
-        if not self.spec.coregistration:
+        spec = self.coregistration
+        if spec is None:
             return None
-        given = self._lookup(self.spec.coregistration_shifts, k)
+        given = self._lookup(spec.shifts, k)
         if given is not None:
             return float(given[0]), float(given[1])
         angle = np.random.default_rng([self.seed, _COREG_TAG, k]).uniform(0.0, 2.0 * math.pi)
-        r = self.spec.coregistration_px
+        r = spec.px
         return r * math.cos(angle), r * math.sin(angle)
 
     @property
     def spatial_on(self) -> bool:
-        return self.spec.mtf or self.spec.coregistration
+        return self.psf is not None or self.coregistration is not None
 
     def response(self, k: int, factor: int) -> tuple[float, float, float]:
         """Band ``k``'s Gaussian σ and shift ``(dx, dy)`` in input pixels (``factor`` input pixels per band pixel),
         0 for an effect that is off: what its filter (:func:`spatial_response`) and its reach are made of."""
-        sigma, (dx, dy) = self.mtf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
+        sigma, (dx, dy) = self.psf_sigma(k) or 0.0, self.shift(k) or (0.0, 0.0)
         return sigma * factor, dx * factor, dy * factor
 
     def reach(self, ids: list[int], factor: int) -> tuple[int, int]:
@@ -322,8 +359,8 @@ class Instrument:
     def column_response(self, k: int, cols: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Band ``k``'s per-column (gain, offset) as the product sees them — ``L' = gain · L + offset`` on the
         band's grid of ``cols`` columns — or None when non-uniformity is off."""
-        s = self.spec
-        if not s.nonuniformity:
+        s = self.nonuniformity
+        if s is None:
             return None
         z = np.random.default_rng([self.seed, _NU_TAG, k]).standard_normal((4, cols))
         lref = self.lref[k]
@@ -336,22 +373,23 @@ class Instrument:
         return 1.0 / (1.0 + eps), -delta / (g * (1.0 + eps))
 
     def band_attrs(self, k: int) -> dict[str, float | str]:
-        """What the instrument did to band ``k``, as attributes of its variables (empty when ideal)."""
+        """What the image effects did to band ``k``, as attributes of its variables (empty when ideal)."""
         attrs: dict[str, float | str] = {}
-        sigma, shift = self.mtf_sigma(k), self.shift(k)
-        if sigma is not None:
-            m = self._lookup(self.spec.mtf_nyquist_bands, k)
-            attrs.update(mtf_nyquist=float(self.spec.mtf_nyquist if m is None else m), psf_sigma_px=sigma)
+        sigma, shift, psf = self.psf_sigma(k), self.shift(k), self.psf
+        if psf is not None and sigma is not None:
+            v = psf.value(self.band_names[k])
+            attrs.update({"psf_fwhm_px" if psf.unit == "fwhm" else "mtf_nyquist": v, "psf_sigma_px": sigma})
         if shift is not None:
             attrs.update(shift_x_px=shift[0], shift_y_px=shift[1])
-        if self.spec.smile:
-            attrs.update(smile_centre_nm=", ".join(f"{c:g}" for c in self.spec.smile_centre_nm),
-                         smile_width_pct=", ".join(f"{c:g}" for c in self.spec.smile_width_pct))
+        smile = self.smile_spec
+        if smile is not None:
+            attrs.update(smile_centre_nm=", ".join(f"{c:g}" for c in smile.centre_nm),
+                         smile_width_pct=", ".join(f"{c:g}" for c in smile.width_pct))
         return attrs
 
     def columns(self, images: np.ndarray, ids: list[int]) -> np.ndarray:
         """Band images ``(len(ids), rows, cols)`` with their per-column response; returned untouched when off."""
-        if not self.spec.nonuniformity:
+        if self.nonuniformity is None:
             return images
         out = np.empty_like(images)
         for j, k in enumerate(ids):

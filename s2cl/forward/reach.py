@@ -2,23 +2,19 @@
 (:mod:`s2cl.forward.nodata`), the halo a block of rows is read with (:func:`s2cl.forward.cube.simulate_cube`) and
 the memory rule of ``s2cl simulate`` (:func:`s2cl.app.simulate_scene.cube_block_rows`) all take.
 
-The filters before the box average are the [instrument] MTF and shift (a finite filter along each axis,
-:func:`s2cl.forward.instrument.fir_radius`) and then the [spatial] Gaussian PSF (``scipy.ndimage.gaussian_filter``
-with its kernel radius, :func:`s2cl.forward.row_blocks.gaussian_radius`). No input pixel beyond their reach enters an
-output pixel, so a block read with the row reach gives the whole image's rows, and a valid pixel outside a no-data
-pixel's reach is the pixel of the cube without the hole, bit for bit.
+The filter before the box average is each band's one PSF and co-registration shift (``[effects]`` psf and
+coregistration: a finite filter along each axis, :func:`s2cl.forward.instrument.fir_radius`). No input pixel beyond
+its reach enters an output pixel, so a block read with the row reach gives the whole image's rows, and a valid pixel
+outside a no-data pixel's reach is the pixel of the cube without the hole, bit for bit.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from s2cl.errors import InputError
-from s2cl.forward.instrument import Instrument
-from s2cl.forward.row_blocks import gaussian_radius
+from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument
 from s2cl.scene.scene import Scene
 
-FWHM_TO_SIGMA = 1.0 / (2.0 * np.sqrt(2.0 * np.log(2.0)))
+__all__ = ["FWHM_TO_SIGMA", "band_groups", "cube_halo", "gsd_factor", "spatial_reach"]
 
 
 def gsd_factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
@@ -46,16 +42,11 @@ def band_groups(scene: Scene) -> list[tuple[int, list[int]]]:
 
 
 def spatial_reach(scene: Scene, ids: list[int], factor: int) -> tuple[int, int]:
-    """Input pixels ``(rows, cols)`` on each side that the spatial filters of bands ``ids`` (``factor`` input pixels
-    per band pixel) reach: the [instrument] MTF and shift's finite filter
-    (:meth:`s2cl.forward.instrument.Instrument.reach`) and then the [spatial] Gaussian PSF (its kernel radius,
-    :func:`s2cl.forward.row_blocks.gaussian_radius`); one runs after the other, so their reaches add. No input pixel
-    farther from an output pixel's box enters it: this is the NODATA footprint's widening, and its row count the
-    halo of a block of rows (:func:`cube_halo`)."""
-    rows, cols = Instrument.of(scene).reach(ids, factor)
-    sigma = _psf_sigma(scene, factor)
-    psf = gaussian_radius(sigma) if sigma else 0
-    return rows + psf, cols + psf
+    """Input pixels ``(rows, cols)`` on each side that the spatial filter of bands ``ids`` (``factor`` input pixels
+    per band pixel) reaches: each band's PSF and shift in one finite filter
+    (:meth:`s2cl.forward.instrument.Instrument.reach`). No input pixel farther from an output pixel's box enters it:
+    this is the NODATA footprint's widening, and its row count the halo of a block of rows (:func:`cube_halo`)."""
+    return Instrument.of(scene).reach(ids, factor)
 
 
 def cube_halo(scene: Scene) -> int:
@@ -63,10 +54,3 @@ def cube_halo(scene: Scene) -> int:
     the band groups), so that its output rows equal those of the whole image: the block reader of
     :func:`s2cl.forward.cube.simulate_cube` and the memory rule of ``s2cl simulate`` both take it from here."""
     return max(spatial_reach(scene, ids, factor)[0] for factor, ids in band_groups(scene))
-
-
-def _psf_sigma(scene: Scene, factor: int) -> float | None:
-    """σ (input pixels) of the scene's [spatial] Gaussian PSF for bands of ``factor`` input pixels per band pixel;
-    None without one."""
-    s = scene.spec.spatial
-    return s.psf_fwhm * factor * FWHM_TO_SIGMA if s.psf == "gaussian" else None

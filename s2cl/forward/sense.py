@@ -1,8 +1,10 @@
-"""Host side of ``kernels/sense.cl.mako``: noise → quantise → calibrate on band radiance."""
+"""Host side of ``kernels/sense.cl.mako``: the chain's per-pixel stages (:mod:`s2cl.forward.stages`) on band
+radiance, per band and pixel, for a library or an image."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -10,77 +12,36 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
+from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError
+from s2cl.forward.radiometry import Radiometry
+from s2cl.forward.stages import ALL_OUTPUTS, Stage, Value, chain, compute, inputs, segments
 from s2cl.scene.effects import EffectSet
-from s2cl.sensor.sensor import Band
 from s2cl.status import PixelFlag
+
+__all__ = ["MAX_PIXELS", "Radiometry", "SenseResult", "Sensing", "clipped_counts", "sense_args"]
 
 TEMPLATE = "sense.cl.mako"
 MAX_PIXELS = 2**32 - 1
-
-
-@dataclass(frozen=True, eq=False)
-class Radiometry:
-    """Per-band radiometric constants, float64 arrays of length ``n_bands``.
-
-    :param lmin, lmax: quantisation range, W m⁻² sr⁻¹ µm⁻¹.
-    :param noise_a, noise_b: σ² = a + b·max(L, 0) at each band's actual width.
-    :param band_ids: global index of each band (keys its noise stream).
-    :param bits: radiometric resolution.
-    """
-
-    lmin: np.ndarray
-    lmax: np.ndarray
-    noise_a: np.ndarray
-    noise_b: np.ndarray
-    band_ids: tuple[int, ...]
-    bits: int
-
-    @classmethod
-    def of(cls, bands: list[Band] | tuple[Band, ...], bits: int, band_ids: list[int] | None = None) -> Radiometry:
-        coeffs = np.array([b.noise_coefficients() for b in bands], dtype=np.float64).reshape(-1, 2)
-        return cls(
-            lmin=np.array([b.lmin for b in bands], dtype=np.float64),
-            lmax=np.array([b.lmax for b in bands], dtype=np.float64),
-            noise_a=coeffs[:, 0],
-            noise_b=coeffs[:, 1],
-            band_ids=tuple(band_ids if band_ids is not None else range(len(bands))),
-            bits=bits,
-        )
-
-    @property
-    def n_bands(self) -> int:
-        return int(self.lmin.size)
-
-    @property
-    def maxdn(self) -> int:
-        return 2**self.bits - 1
-
-    @property
-    def scale(self) -> np.ndarray:
-        """DN per unit radiance."""
-        return self.maxdn / (self.lmax - self.lmin)
-
-    @property
-    def gain(self) -> np.ndarray:
-        """Radiance per DN."""
-        return (self.lmax - self.lmin) / self.maxdn
+_OUTPUT_NAMES = tuple(dict.fromkeys(o.name for o in ALL_OUTPUTS))
 
 
 @dataclass
 class SenseResult:
-    """Outputs of the radiometric stage; arrays are ``(n_bands, n_pixels)``, None when the stage is off.
+    """Outputs of the chain's per-pixel stages: ``outputs`` by name, each ``(n_bands, n_pixels)`` (an output of a
+    stage that is off is absent; ``result.noisy``, ``result.dn``, ...: None then).
 
-    :param clipped: ``(2, n_bands)`` counts of pixels below Lmin (NaN included) / above Lmax (quantise only).
-    :param flags: ``(n_bands, n_pixels)`` uint8 :class:`s2cl.status.PixelFlag` bits (quantise only).
+    :param clipped: ``(2, n_bands)`` counts of pixels below Lmin (NaN included) / above Lmax (where the chain
+        writes pixel flags).
     """
 
-    noisy: np.ndarray | None
-    dn: np.ndarray | None
-    calibrated: np.ndarray | None
-    clipped: np.ndarray | None
-    reflectance: np.ndarray | None = None
-    flags: np.ndarray | None = None
+    outputs: dict[str, np.ndarray] = field(default_factory=dict)
+    clipped: np.ndarray | None = None
+
+    def __getattr__(self, name: str) -> np.ndarray | None:
+        if name in _OUTPUT_NAMES:
+            return self.__dict__.get("outputs", {}).get(name)
+        raise AttributeError(name)
 
 
 def clipped_counts(flags: np.ndarray) -> np.ndarray:
@@ -91,69 +52,119 @@ def clipped_counts(flags: np.ndarray) -> np.ndarray:
     return np.stack([low.sum(axis=1), high.sum(axis=1)]).astype(np.int64)
 
 
-def _args(effects: EffectSet) -> list[Arg]:
-    args: list[Arg] = []
-    if effects.noise:
-        args.append(Arg("noisy", "out", "real"))
-    if effects.quantise:
-        args += [Arg("dn", "out", "ushort"), Arg("flags", "out", "uchar")]
-    if effects.calibrate:
-        args.append(Arg("calibrated", "out", "real"))
-    if effects.correct:
-        args.append(Arg("reflectance", "out", "real"))
+_CASTS = {"ushort": "(ushort)", "uchar": "(uchar)"}
+
+
+@dataclass(frozen=True)
+class SenseSite:
+    """Where band ``k``'s steps run in the sense kernel: values are per-band buffers (``NAME[k]``), scalars
+    arguments, outputs written at ``at`` (see ``kernels/common/stages.mako``)."""
+
+    T: VecTypes
+    k: int
+    band_id: int
+    values: dict[str, Value]
+    outputs: dict[str, str]
+
+    def has(self, name: str) -> bool:
+        return name in self.values
+
+    def value(self, name: str) -> str:
+        v = self.values[name]
+        if v.varies == "scalar":
+            return f"({self.T.R}){name}"
+        return f"{name}[{self.k}]"
+
+    def store(self, name: str, expr: str) -> str:
+        if name not in self.outputs:
+            return ""
+        return f"{name}[at] = {_CASTS.get(self.outputs[name], '')}{expr};"
+
+    def deviate(self) -> str:
+        return f"z{self.band_id >> 2}.s{self.band_id & 3}"
+
+
+@dataclass(frozen=True)
+class SenseAcross:
+    """Where a stage across bands runs in the sense kernel: on ``X[0 … n-1]``, its ``pairs`` values as literals."""
+
+    T: VecTypes
+    n: int
+    pair_values: dict[str, np.ndarray]
+    outputs: dict[str, str]
+
+    def pairs(self, name: str) -> list[list[float]]:
+        return [[float(x) for x in row] for row in self.pair_values[name]]
+
+    def store(self, name: str, k: int, expr: str) -> str:
+        if name not in self.outputs:
+            return ""
+        return f"{name}[(size_t){k}u * n_pixels + i] = {_CASTS.get(self.outputs[name], '')}{expr};"
+
+
+def sense_args(stages: list[Stage]) -> list[Arg]:
+    """The sense kernel's arguments for ``stages`` (in the chain's order): their outputs, the radiance, their
+    per-band values, the deviates' keys, the pixel offset, their scalars, the pixel count."""
+    outs = {o.name: o for s in stages for o in s.outputs}
+    values = inputs(stages, "sense")
+    args = [Arg(o.name, "out", o.ctype) for o in outs.values()]
     args.append(Arg("radiance", "in", "real"))
-    if effects.noise:
-        args += [Arg("noise_a", "in", "real"), Arg("noise_b", "in", "real")]
-    if effects.quantise:
-        args += [Arg(n, "in", "real") for n in ("lmin", "lmax", "scale")]
-    if effects.calibrate:
-        args.append(Arg("gain", "in", "real"))
-    if effects.correct:
-        args += [Arg(n, "in", "real") for n in ("band_lp", "band_g", "band_s")]
-    if effects.noise:
+    args += [Arg(v.name, "in", v.ctype) for v in values if v.varies in ("band", "variant")]
+    if any(s.deviates for s in stages):
         args += [Arg("seed", "scalar", "uint"), Arg("frame", "scalar", "uint")]
     args.append(Arg("pixel_offset", "scalar", "uint"))
-    if effects.quantise:
-        args.append(Arg("maxdn", "scalar", "uint"))
+    args += [Arg(v.name, "scalar", v.ctype) for v in values if v.varies == "scalar"]
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
 class Sensing:
-    """Compiled radiometric stage for a band count, an effect set and a precision.
+    """The chain's per-pixel stages compiled for a band set, an effect set and a precision.
 
-    :param correction: band-effective terms of the state assumed by the atmospheric correction
-        (needed when ``effects.correct``).
+    :param correction: band-effective terms of the state assumed by the atmospheric correction (its stage needs
+        them; also taken from ``radiometry.correction``).
     """
 
     def __init__(self, rt: Runtime, radiometry: Radiometry, effects: EffectSet, real_t: str = "float32",
                  correction: BandAtmosphere | None = None):
         if not 1 <= radiometry.bits <= 16:
             raise InputError(f"bits must be in 1–16, got {radiometry.bits}", key="effects.bits")
+        if correction is not None:
+            radiometry = replace(radiometry, correction=correction)
+        if radiometry.correction is not None and radiometry.correction.n_bands != radiometry.n_bands:
+            raise InputError("the correct effect needs band-effective atmospheric terms for every band")
         self.rt, self.radiometry, self.effects, self.real_t = rt, radiometry, effects, real_t
         self.T = rt.types(real_t, vector=False)
         self.dtype = self.T.dtype.type
-        self.args = _args(effects)
-        if effects.correct and (correction is None or correction.n_bands != radiometry.n_bands):
-            raise InputError("the correct effect needs band-effective atmospheric terms for every band")
-        self.source = render(TEMPLATE, args=self.args, signature=signature, n_bands=radiometry.n_bands,
-                             band_ids=list(radiometry.band_ids), noise=effects.noise, T=self.T,
-                             quantise=effects.quantise, calibrate=effects.calibrate, correct=effects.correct)
+        self.stages = chain(effects)
+        self.args = sense_args(self.stages)
+        self.values = compute(self.stages, radiometry)
+        wanted = inputs(self.stages, "sense")
+        missing = [(s.name, v.name) for s in self.stages for v in s.values if v.sense and v.name not in self.values]
+        if missing:
+            name, value = missing[0]
+            raise InputError(f"the {name} effect needs its per-band value {value!r} for every band (none was given "
+                             "for this band set)", key=f"effects.{name}")
+        self.outputs = {o.name: o for s in self.stages for o in s.outputs}
+        kinds = {v.name: v for v in wanted}
+        ctypes = {n: o.ctype for n, o in self.outputs.items()}
+        n = radiometry.n_bands
+        ids = list(radiometry.band_ids)
+        pairs = {v.name: np.asarray(self.values[v.name]) for v in wanted if v.varies == "pairs"}
+        self.source = render(
+            TEMPLATE, args=self.args, signature=signature, n_bands=n, band_ids=ids, T=self.T, stages=self.stages,
+            segments=segments(self.stages), deviates=any(s.deviates for s in self.stages),
+            site=lambda k: SenseSite(self.T, k, ids[k], kinds, ctypes), across=SenseAcross(self.T, n, pairs, ctypes))
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "sense_bands")
         self.local_size = rt.work_group(self.kernel)
-        r = radiometry
-        constants = {"noise_a": r.noise_a, "noise_b": r.noise_b, "lmin": r.lmin, "lmax": r.lmax,
-                     "scale": r.scale, "gain": r.gain}
-        if effects.correct:
-            constants.update(band_lp=correction.path_radiance, band_g=correction.ground_term,
-                             band_s=correction.spherical_albedo)
-        names = {a.name for a in self.args}
-        self.constants_dev = {k: rt.to_device(v.astype(self.dtype)) for k, v in constants.items() if k in names}
+        self.scalars = {v.name: self.values[v.name] for v in wanted if v.varies == "scalar"}
+        self.constants_dev = {v.name: rt.to_device(np.asarray(self.values[v.name]).astype(self.dtype))
+                              for v in wanted if v.varies in ("band", "variant")}
 
     def __call__(self, radiance: np.ndarray, *, seed: int = 0, frame: int = 0, pixel_offset: int = 0,
                  chunk_pixels: int | None = None, local_size: int | None = None) -> SenseResult:
         """Run on ``radiance`` ``(n_bands, n_pixels)`` (W m⁻² sr⁻¹ µm⁻¹); pixel ``j`` keys its
-        noise as global pixel ``pixel_offset + j``."""
+        deviates as global pixel ``pixel_offset + j``."""
         radiance = np.asarray(radiance)
         nb, n = radiance.shape
         if nb != self.radiometry.n_bands:
@@ -164,49 +175,27 @@ class Sensing:
         for name, v in (("seed", seed), ("frame", frame)):
             if not 0 <= int(v) <= 2**32 - 1:
                 raise InputError(f"must be in 0–{2**32 - 1}, got {v}", key=f"effects.{name}")
-        e = self.effects
-        result = SenseResult(
-            noisy=np.empty((nb, n), self.dtype) if e.noise else None,
-            dn=np.empty((nb, n), np.uint16) if e.quantise else None,
-            calibrated=np.empty((nb, n), self.dtype) if e.calibrate else None,
-            clipped=None,
-            reflectance=np.empty((nb, n), self.dtype) if e.correct else None,
-            flags=np.empty((nb, n), np.uint8) if e.quantise else None,
-        )
+        result = SenseResult({name: np.empty((nb, n), o.dtype or self.dtype) for name, o in self.outputs.items()})
         chunk = chunk_pixels or max(1, (64 * 2**20) // (nb * 8))
         for lo in range(0, n, chunk):
             hi = min(n, lo + chunk)
             self._chunk(radiance[:, lo:hi], lo, hi, result, seed, frame, pixel_offset, local_size)
-        if result.flags is not None:
-            result.clipped = clipped_counts(result.flags)
+        if "flags" in result.outputs:
+            result.clipped = clipped_counts(result.outputs["flags"])
         return result
 
-    def _chunk(self, radiance, lo, hi, result, seed, frame, pixel_offset, local_size) -> None:
+    def _chunk(self, radiance: np.ndarray, lo: int, hi: int, result: SenseResult, seed: int, frame: int,
+               pixel_offset: int, local_size: int | None) -> None:
         rt, nb, m = self.rt, self.radiometry.n_bands, hi - lo
-        item = self.dtype().itemsize
-        values = dict(self.constants_dev)
+        values: dict[str, Any] = {**self.constants_dev, **self.scalars}
         values["radiance"] = rt.to_device(np.ascontiguousarray(radiance, dtype=self.dtype))
-        outs = {}
-        if self.effects.noise:
-            outs["noisy"] = rt.empty(nb * m * item)
+        outs = {name: rt.empty(nb * m * (o.dtype or np.dtype(self.dtype)).itemsize)
+                for name, o in self.outputs.items()}
+        if any(s.deviates for s in self.stages):
             values.update(seed=seed, frame=frame)
-        if self.effects.quantise:
-            outs["dn"] = rt.empty(nb * m * 2)
-            outs["flags"] = rt.empty(nb * m)
-            values["maxdn"] = self.radiometry.maxdn
-        if self.effects.calibrate:
-            outs["calibrated"] = rt.empty(nb * m * item)
-        if self.effects.correct:
-            outs["reflectance"] = rt.empty(nb * m * item)
         values.update(outs, pixel_offset=pixel_offset + lo, n_pixels=m)
         local = local_size or self.local_size
         global_size = -(-m // local) * local
         self.kernel(rt.queue, (global_size,), (local,), *bind(self.args, values, self.T))
-        if "noisy" in outs:
-            result.noisy[:, lo:hi] = rt.fetch(outs["noisy"], (nb, m), self.dtype)
-        if "dn" in outs:
-            result.dn[:, lo:hi] = rt.fetch(outs["dn"], (nb, m), np.uint16)
-            result.flags[:, lo:hi] = rt.fetch(outs["flags"], (nb, m), np.uint8)
-        for name in ("calibrated", "reflectance"):
-            if name in outs:
-                getattr(result, name)[:, lo:hi] = rt.fetch(outs[name], (nb, m), self.dtype)
+        for name, buf in outs.items():
+            result.outputs[name][:, lo:hi] = rt.fetch(buf, (nb, m), self.outputs[name].dtype or self.dtype)

@@ -1,4 +1,5 @@
-"""Simulate a scene: library spectra (× noisy copies) → band radiance → noise → DN → calibrated radiance."""
+"""Simulate a scene: library spectra (× noisy copies) → band radiance → the chain's per-pixel stages
+(:mod:`s2cl.forward.stages`: noise, DN, calibrated radiance, band reflectance, ...)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,10 @@ import numpy as np
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import InputError, token
+from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
-from s2cl.forward.sense import Radiometry, SenseResult, Sensing, clipped_counts
+from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
+from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
 from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.effects import EffectSet
@@ -25,6 +28,7 @@ from s2cl.status import PixelFlag
 from s2cl.version import __version__
 
 Progress = Callable[[int], None]
+OUTPUT_NAMES = tuple(dict.fromkeys(o.name for o in ALL_OUTPUTS))
 
 
 @dataclass
@@ -42,15 +46,20 @@ class LibrarySimulation:
     copies: int
     effects: EffectSet
     band_radiance: np.ndarray
-    noisy: np.ndarray | None = None
-    dn: np.ndarray | None = None
-    calibrated: np.ndarray | None = None
-    reflectance: np.ndarray | None = None
+    #: the per-pixel outputs of the chain's stages by name (:mod:`s2cl.forward.stages`): ``sim.noisy``, ``sim.dn``,
+    #: ``sim.flags`` (:class:`s2cl.status.PixelFlag` bits), ``sim.calibrated``, ``sim.reflectance``, ...; None when
+    #: the stage is off
+    outputs: dict[str, np.ndarray] = field(default_factory=dict)
     clipped: np.ndarray | None = None
-    #: per band and pixel, :class:`s2cl.status.PixelFlag` bits (below Lmin, saturated, no data)
-    flags: np.ndarray | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
+    #: what the chain's stages did to each band (such as its calibration error), per attribute a value per band
+    stage_values: dict[str, list[Any]] = field(default_factory=dict)
+
+    def __getattr__(self, name: str) -> np.ndarray | None:
+        if name in OUTPUT_NAMES:
+            return self.__dict__.get("outputs", {}).get(name)
+        raise AttributeError(name)
 
     @property
     def n_pixels(self) -> int:
@@ -144,16 +153,14 @@ class Simulator:
 
     def __init__(self, rt: Runtime, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
                  precision: str = "float32", atmosphere: AtmosphereArrays | None = None,
-                 correction: BandAtmosphere | None = None):
+                 correction: BandAtmosphere | None = None, settings: Any = None, seed: int = 0):
         self.rt = rt
         self.sensor, self.effects, self.precision = sensor, effects, precision
         self.correction = correction
         self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
         self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere)
-        self.sensing = (
-            Sensing(self.rt, Radiometry.of(sensor.bands, sensor.bits), effects, precision, correction=correction)
-            if effects.senses else None
-        )
+        radiometry = Radiometry.of(sensor.bands, sensor.bits, correction=correction, settings=settings, seed=seed)
+        self.sensing = Sensing(self.rt, radiometry, effects, precision) if senses(effects) else None
 
     @classmethod
     def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None) -> Simulator:
@@ -166,10 +173,17 @@ class Simulator:
         if scene.effects.correct:
             from s2cl.scene.terms import correction_terms
 
-            correction = BandAtmosphere.of(correction_terms(scene), weights).with_calibration_gain(
-                scene.run.calibration_gain)
+            correction = BandAtmosphere.of(correction_terms(scene), weights)
         return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
-                   atmosphere=atmosphere, correction=correction)
+                   atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
+
+    def stage_values(self) -> dict[str, list[Any]]:
+        """What the per-pixel stages do to each band (:func:`s2cl.forward.stages.band_attrs`): per attribute, a value
+        per band (empty without a stage that says)."""
+        if self.sensing is None:
+            return {}
+        per_band = [band_attrs(self.sensing.stages, self.sensing.radiometry, k) for k in range(self.sensor.size)]
+        return {key: [a[key] for a in per_band] for key in per_band[0]} if per_band else {}
 
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
         """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
@@ -190,7 +204,7 @@ class Simulator:
         band_radiance = self.band_radiance(library.spectra)
         seconds = {"resample": time.perf_counter() - t0}
         result = LibrarySimulation(scene, self.sensor, library, copies, self.effects, band_radiance,
-                                   seconds=seconds)
+                                   seconds=seconds, stage_values=self.stage_values())
         if progress:
             progress(0)
         if self.sensing is not None:
@@ -203,26 +217,20 @@ class Simulator:
 
     def _sense_library(self, result: LibrarySimulation, seed: int, frame: int, progress: Progress | None) -> None:
         nb, ns, c = self.sensor.size, result.library.size, result.copies
-        e = self.effects
+        assert self.sensing is not None
         dtype = result.band_radiance.dtype
-        result.noisy = np.empty((nb, ns, c), dtype) if e.noise else None
-        result.dn = np.empty((nb, ns, c), np.uint16) if e.quantise else None
-        result.calibrated = np.empty((nb, ns, c), dtype) if e.calibrate else None
-        result.reflectance = np.empty((nb, ns, c), dtype) if e.correct else None
-        result.flags = np.empty((nb, ns, c), np.uint8) if e.quantise else None
+        result.outputs = {name: np.empty((nb, ns, c), o.dtype or dtype) for name, o in self.sensing.outputs.items()}
         per_chunk = max(1, (1 << 20) // c)
         for lo in range(0, ns, per_chunk):
             hi = min(ns, lo + per_chunk)
             expanded = np.repeat(result.band_radiance[:, lo:hi], c, axis=1)
             out = self.sensing(expanded, seed=seed, frame=frame, pixel_offset=lo * c)
-            for name in ("noisy", "dn", "calibrated", "reflectance", "flags"):
-                part = getattr(out, name)
-                if part is not None:
-                    getattr(result, name)[:, lo:hi] = part.reshape(nb, hi - lo, c)
+            for name, part in out.outputs.items():
+                result.outputs[name][:, lo:hi] = part.reshape(nb, hi - lo, c)
             if progress:
                 progress((hi - lo) * c)
-        if result.flags is not None:
-            result.clipped = clipped_counts(result.flags.reshape(nb, -1))
+        if "flags" in result.outputs:
+            result.clipped = clipped_counts(result.outputs["flags"].reshape(nb, -1))
 
 
 def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,

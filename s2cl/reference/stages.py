@@ -1,16 +1,28 @@
-"""float64 numpy twins of the stage functions in ``kernels/common/stages.mako``: quantise, calibrate,
-correct, GVMI, SAM. Same rules, same statuses and flags (:mod:`s2cl.status`); simple on purpose.
-Tests and bench compare every kernel that splices a stage against these.
+"""float64 numpy twins of the stage functions in ``kernels/common/stages.mako``: the chain's stages, GVMI, SAM.
+Same rules, same statuses and flags (:mod:`s2cl.status`); simple on purpose. Tests and bench compare every kernel
+that splices a stage against these.
+
+Each stage of the chain (:mod:`s2cl.forward.stages`) names its twin here, a *step* with one signature,
+``step(L, v, out) -> L``: ``L`` the radiance of a set of bands (band axis first, float64), ``v`` the stage's values
+by name broadcastable against it (band axis first; ``z``: the deviates; a ``pairs`` value ``[n, n]``), ``out`` the
+outputs so far (a step writes its own and may read an earlier step's). :mod:`s2cl.reference.forward` and
+:mod:`s2cl.reference.sweep` run the steps of the stages that are on in the chain's order.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from s2cl.atmos.correction import correct  # the host correction is the twin of s2_correct
 from s2cl.status import MAX_ABS_REFLECTANCE, PixelFlag, Status
 
-__all__ = ["calibrate", "correct", "normalised_difference", "quantise", "sam", "sam_classify", "spectral_angles"]
+__all__ = ["calibrate", "calibrate_step", "calibration_error_step", "correct", "correct_step", "crosstalk_step",
+           "noise_step", "normalised_difference", "quantise", "quantise_step", "sam", "sam_classify", "spectral_angles"]
+
+Values = Mapping[str, Any]
 
 
 
@@ -36,6 +48,49 @@ def calibrate(dn: np.ndarray, flags: np.ndarray, lmin, gain) -> np.ndarray:
     """Radiance from DN, ``lmin + DN gain``; NaN where the pixel has no data."""
     L = np.asarray(lmin, dtype=np.float64) + np.asarray(dn, dtype=np.float64) * np.asarray(gain, dtype=np.float64)
     return np.where((np.asarray(flags) & PixelFlag.NODATA) != 0, np.nan, L)
+
+
+def noise_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """L + σ z, σ from the table ``sigma`` where given (a sweep), else sqrt(a + b max(L, 0)); writes ``noisy``."""
+    sigma = v["sigma"] if "sigma" in v else np.sqrt(v["noise_a"] + v["noise_b"] * np.maximum(L, 0.0))
+    out["noisy"] = L = L + sigma * v["z"]
+    return L
+
+
+def crosstalk_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """L_k + Σ_j c[k][j] L_j over the bands (axis 0), every band from the others' radiance before the step; writes
+    ``noisy`` where the chain has it."""
+    c = np.asarray(v["crosstalk"], dtype=np.float64)
+    L = L + np.tensordot(c, L, axes=(1, 0))
+    if "noisy" in out:
+        out["noisy"] = L
+    return L
+
+
+def quantise_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """Writes ``dn`` (float64) and ``flags``; L unchanged."""
+    out["dn"], out["flags"] = quantise(L, v["lmin"], v["lmax"], int(v["maxdn"]))
+    return L
+
+
+def calibrate_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """Radiance from the DN of the quantisation step; writes ``calibrated``."""
+    out["calibrated"] = L = calibrate(out["dn"], out["flags"], v["lmin"], v["gain"])
+    return L
+
+
+def calibration_error_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """L (1 + e), the band's calibration error; writes ``calibrated`` again where the chain has it."""
+    L = L * v["cal_error_gain"]
+    if "calibrated" in out:
+        out["calibrated"] = L
+    return L
+
+
+def correct_step(L: np.ndarray, v: Values, out: dict[str, np.ndarray]) -> np.ndarray:
+    """Band reflectance through the band-effective terms ``lp``, ``g``, ``s``; writes ``reflectance``."""
+    out["reflectance"] = L = correct(L, v["lp"], v["g"], v["s"])
+    return L
 
 
 def normalised_difference(rho_a: np.ndarray, rho_b: np.ndarray, offsets: tuple[float, float] = (0.1, 0.02),

@@ -2,19 +2,20 @@
 "same sweep written as vectorised numpy" baseline of the benchmarks (pass a :class:`NumpyEvaluator` to
 :func:`s2cl.sweep.engine.run_sweep` to run a whole sweep this way).
 
-Per configuration and pixel: gather noise-free band radiance and σ → add σ·z → quantise (ties
-up) → calibrate → band-effective correction (a calibration error is folded into its terms) → the
-analysis, through the stage twins of :mod:`s2cl.reference.stages` (the kernel's rules).
+Per configuration and pixel: gather noise-free band radiance → the twins of the chain's per-pixel stages that are
+on (:mod:`s2cl.reference.stages`, in the chain's order: the kernel's rules) → the analysis.
 """
 
 from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from s2cl.reference import stages
+from s2cl.forward.stages import stage
+from s2cl.reference.forward import run_steps
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.sweep.raw import RawChunk, variant_indices
 from s2cl.sweep.tables import SweepTables
@@ -24,18 +25,23 @@ def band_reflectance(t: SweepTables, start: int, stop: int) -> tuple[list[np.nda
     """Corrected band reflectance per slot ``(n_configs, n_pixels)`` and band centres ``(n_configs, n_slots)``."""
     idx = variant_indices(t, start, stop)
     spectrum = np.arange(t.n_pixels) // t.copies
-    rhos, centres = [], np.empty((stop - start, t.n_slots))
-    for k in range(t.n_slots):
-        v = idx[:, k]
-        L = t.radiance[k][v][:, spectrum]
-        if t.noise:
-            L = L + t.sigma[k][v][:, spectrum] * t.z[k][None, :]
-        if t.quantise:
-            dn, flags = stages.quantise(L, t.lmin[k], t.lmax[k], t.maxdn)
-            L = stages.calibrate(dn, flags, t.lmin[k], (t.lmax[k] - t.lmin[k]) / t.maxdn)
-        rhos.append(stages.correct(L, t.lp[k][v][:, None], t.g[k][v][:, None], t.s[k][v][:, None]))
-        centres[:, k] = t.centre[k][v]
-    return rhos, centres
+    slots = range(t.n_slots)
+    L = np.stack([t.radiance[k][idx[:, k]][:, spectrum] for k in slots])  # (n_slots, n_configs, n_pixels)
+    v: dict[str, Any] = {}
+    for val in t.inputs():
+        x = t.values[val.name]
+        if val.varies == "band":
+            v[val.name] = np.asarray(x, dtype=np.float64).reshape(-1, 1, 1)
+        elif val.varies == "variant":
+            v[val.name] = np.stack([x[k][idx[:, k]] for k in slots])[:, :, None]
+        elif val.varies == "pixel":
+            v[val.name] = np.stack([x[k][idx[:, k]][:, spectrum] for k in slots])
+        else:
+            v[val.name] = x
+    v["z"] = np.asarray(t.z)[:, None, :]
+    L, _ = run_steps([stage(n) for n in t.stages], L, v)
+    centres = np.stack([t.centre[k][idx[:, k]] for k in slots], axis=1)
+    return list(L), centres
 
 
 def evaluate(t: SweepTables, a: AnalysisSettings, start: int, stop: int) -> RawChunk:

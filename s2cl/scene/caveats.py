@@ -11,15 +11,13 @@ A warning is a :class:`Caveat` (scene key + sentence); commands log it through t
 - **Tabulated SRFs in a sweep** (``sensor.srf``): a measured or tabulated SRF describes the band at
   its own centre and width only; every swept variant, and the reference row with it (so that the
   ranking compares like with like), uses the model SRF (Segl et al. 2012 eq. 1).
-- **Quantisation against noise** (``effects.bits``): when the quantisation step's own noise
-  (step / √12) exceeds the sensor noise at Lref, quantisation dominates the signal and retrievals
-  degrade or fail (1 bit: every IGRM fit fails).
+- **A stage's own caveats**: each stage of the chain may declare its own (:mod:`s2cl.forward.stages`), such as
+  quantisation noise above the sensor noise.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -70,24 +68,6 @@ def grid_caveats(scene: Any, widths: dict[str, float]) -> list[Caveat]:
     return [Caveat("grid.step_nm", f"{step:g} nm samples band(s) {', '.join(coarse)} with fewer than "
                                    f"{SAMPLES_PER_FWHM} points per FWHM: band radiances may be off by about the "
                                    "noise or more (1 nm resolves every band)")]
-
-
-def quantisation_caveats(scene: Any, bands: list[str]) -> list[Caveat]:
-    """Bands of ``bands`` whose quantisation noise exceeds their sensor noise at Lref."""
-    if not scene.effects.quantise:
-        return []
-    bits = scene.sensor.bits
-    coarse = []
-    for name in bands:
-        b = scene.sensor.band(name)
-        step = (b.lmax - b.lmin) / (2**bits - 1)
-        noise = b.lref / float(b.noise.snr(b.lref))
-        if step / math.sqrt(12) > noise:
-            coarse.append(b.name)
-    if not coarse:
-        return []
-    return [Caveat("effects.bits", f"{bits} bits: quantisation noise exceeds the sensor noise at Lref in band(s) "
-                                   f"{', '.join(coarse)}; retrievals degrade or fail (Sentinel-2 has 12 bits)")]
 
 
 def report(caveats: list[Caveat]) -> list[str]:

@@ -26,7 +26,7 @@ class RunConfig:
     :param precision: ``"float32"`` or ``"float64"``, the working precision of every kernel.
     :param lanes: pixels per work-item of the vectorised kernels (None: the device's choice).
     :param device: the OpenCL device the scene asks for (None: the default; the CLI's ``--device`` wins).
-    :param calibration_gain: relative calibration error folded into the correction (1.0: none).
+    :param calibration_gain: [correction] calibration_gain (1.0: none), the shorthand of a common calibration error.
     :param copies: noisy copies per library spectrum.
     :param layout: ``"rows"`` or ``"blocks"``: how library pixels are laid out as an image.
     """

@@ -29,11 +29,22 @@ def _strip_none(annotation: Any) -> tuple[Any, bool]:
     return annotation, False
 
 
+def _switch(annotation: Any) -> type[BaseModel] | None:
+    """The settings' model of a key that takes ``true``/``false`` or a table of settings (``Model | bool``)."""
+    args = get_args(annotation)
+    if get_origin(annotation) in (Union, types.UnionType) and bool in args and len(args) == 2:
+        model = next(a for a in args if a is not bool)
+        return model if isinstance(model, type) and issubclass(model, BaseModel) else None
+    return None
+
+
 def _model(annotation: Any) -> type[BaseModel] | None:
-    """The section model a field opens: its type, the value type of a ``dict[str, Model]``, or None."""
+    """The section model a field opens: its type, the value type of a ``dict[str, Model]``, the settings of a
+    switch, or None."""
     inner, _ = _strip_none(annotation)
     if get_origin(inner) is dict:
         inner = get_args(inner)[1]
+    inner = _switch(inner) or inner
     return inner if isinstance(inner, type) and issubclass(inner, BaseModel) else None
 
 
@@ -41,7 +52,9 @@ def type_name(annotation: Any) -> str:
     """A short, TOML-minded name of a field's type (``float``, ``list of str``, ``table of str → str``)."""
     inner, optional = _strip_none(annotation)
     origin, args = get_origin(inner), get_args(inner)
-    if origin is Literal:
+    if _switch(inner) is not None:
+        name = "bool or table"
+    elif origin is Literal:
         name = "str" if all(isinstance(a, str) for a in args) else "choice"
     elif origin is list:
         name = f"list of {type_name(args[0])}"

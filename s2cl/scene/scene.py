@@ -9,6 +9,7 @@ range are errors that name the file, the key and the allowed range.
 
 from __future__ import annotations
 
+import logging
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -24,10 +25,13 @@ from s2cl.libraries.fields import fields_shape, is_builtin_cube
 from s2cl.resources import scene_dir
 from s2cl.scene.config import RunConfig, resolve_run
 from s2cl.scene.effects import EffectSet
-from s2cl.scene.instrument_schema import check_instrument
-from s2cl.scene.schema import GridSpec, SceneSpec, input_error
+from s2cl.scene.instrument_schema import check_image_effects, moved_effects
+from s2cl.scene.schema import GridSpec, SceneSpec
+from s2cl.scene.schema_errors import input_error
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import load_srf_csv, measured_sentinel2_srf
+
+_log = logging.getLogger(__name__)
 
 #: largest scene file read (bytes): scenes are a few kB; this refuses a wrong file before parsing it
 MAX_SCENE_BYTES = 1_000_000
@@ -89,13 +93,13 @@ class Scene:
             spec = SceneSpec.model_validate(data)
         except ValidationError as err:
             raise input_error(err, source) from None
+        spec = _moved_keys(spec, source)
         base = base_dir or (path.parent if path else Path.cwd())
         grid = _grid(spec.grid, source)
         sensor = _sensor(spec, base, source)
         effects = _effects(spec, source)
         _check_surface(spec, source)
-        check_instrument(spec.instrument, sensor.band_names, psf=spec.spatial.psf, cube=spec.surface.cube is not None,
-                         resample=effects.resample, source=source)
+        check_image_effects(spec.effects, sensor.band_names, resample=effects.resample, source=source)
         _check_atmosphere(spec, source)
         if effects.resample:
             for band in sensor.bands:
@@ -197,9 +201,7 @@ def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
 
 def _effects(spec: SceneSpec, source: str) -> EffectSet:
     e = spec.effects
-    effects = EffectSet(atmosphere=e.atmosphere, resample=e.resample, noise=e.noise, quantise=e.quantise,
-                        calibrate=e.calibrate, correct=e.correct)
-    effects.validate(source)
+    effects = EffectSet.of(e).validate(source)
     if e.atmosphere and spec.surface.quantity != "reflectance":
         raise InputError("atmosphere = true needs surface.quantity = 'reflectance'", source=source,
                          key="effects.atmosphere")
@@ -209,6 +211,24 @@ def _effects(spec: SceneSpec, source: str) -> EffectSet:
             source=source, key="surface.quantity",
         )
     return effects
+
+
+def _moved_keys(spec: SceneSpec, source: str) -> SceneSpec:
+    """The deprecated [instrument] and [spatial] keys moved into [effects], one WARNING line per key given."""
+    if spec.instrument is None and spec.spatial is None:
+        return spec
+    try:
+        moved, notes = moved_effects(spec.instrument, spec.spatial)
+    except ValueError as err:
+        raise InputError(str(err), source=source, key="spatial.psf") from None
+    for name in moved:
+        if name in spec.effects.model_fields_set:
+            raise InputError(f"effects.{name} and the deprecated [instrument] or [spatial] keys both set it: keep "
+                             f"effects.{name} only", source=source, key=f"effects.{name}")
+    for note in notes:
+        _log.warning("%s: %s", source, note)
+    return spec.model_copy(update={"effects": spec.effects.model_copy(update=moved), "instrument": None,
+                                   "spatial": None})
 
 
 def _check_surface(spec: SceneSpec, source: str) -> None:

@@ -1,19 +1,25 @@
-"""The scene file's schema (pydantic models of every TOML section and key, with their ranges and
-descriptions) and the one-line errors made from its validation problems: file, dotted key, what is
-allowed (``scenes/default.toml`` documents every key).
+"""The scene file's schema: pydantic models of every TOML section and key, with their ranges and descriptions
+(``scenes/default.toml`` documents every key; :mod:`s2cl.scene.schema_errors` makes one-line errors of its
+validation problems).
 """
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from s2cl.errors import InputError, key_token, token
-from s2cl.scene.instrument_schema import InstrumentSpec
+from s2cl.scene.instrument_schema import (
+    CoregistrationSpec,
+    EffectSpec,
+    InstrumentSpec,
+    NonUniformitySpec,
+    PsfSpec,
+    SmileSpec,
+    SpatialSpec,
+)
 from s2cl.scene.section import Section
 from s2cl.scene.study_schema import (  # noqa: F401  (re-exported: the [study] section's model and limits)
     MAX_GAS_FACTOR,
@@ -91,19 +97,95 @@ class GridSpec(Section):
                            "warned above a fifth)")
 
 
+_IMAGE_ONLY = " (image cubes only: a library or sweep scene names it in a caveat)"
+
+
+def _relative(values: dict[str, float], what: str) -> dict[str, float]:
+    for band, v in values.items():
+        if not (math.isfinite(v) and -0.5 < v < 0.5):
+            raise ValueError(f"{band}: a relative {what} must be > -0.5 and < 0.5, got {v}")
+    return values
+
+
+class CalibrationErrorSpec(EffectSpec):
+    """Each band's absolute calibration error e: the calibrated radiance is (1 + e) times the true one (the
+    product's radiance, and the reflectance corrected from it, carry it); differing between bands, it bends the
+    spectrum. A band of bands takes its own; every other band error + uncertainty z, z a standard normal deviate
+    drawn once per band (from the seed and the band's name)."""
+
+    error: float = Field(0.0, gt=-0.5, lt=0.5, description="relative error of every band not in bands (0.05: +5 %)")
+    uncertainty: float = Field(0.0, ge=0, le=0.5, description="1-sigma relative uncertainty of the bands not in "
+                               "bands: each draws its error once from the seed (Sentinel-2 requirement: 0.05)")
+    bands: dict[str, float] = Field(default_factory=dict, description="relative error per band, e.g. {B5 = 0.02}")
+
+    @field_validator("bands")
+    @classmethod
+    def _range(cls, value: dict[str, float]) -> dict[str, float]:
+        return _relative(value, "calibration error")
+
+
+class CrosstalkSpec(EffectSpec):
+    """Inter-band crosstalk within one focal plane: band k's radiance gains the sum over the other bands j of its plane
+    of c_kj L_j (VNIR: centres below swir_from_nm; SWIR: from there on), after the noise and before the
+    quantisation. c_kj: the pairs entry of band k for band j where given, else coefficient, else the sensor table's
+    crosstalk column (band k's), else 0.002 (an assumption, not a Sentinel-2 figure). In a sweep the design's bands
+    are the plane; on an image cube, the bands of one GSD (the pixels they share)."""
+
+    coefficient: float | None = Field(None, ge=-0.1, le=0.1, description="c of every pair of bands of one plane "
+                                      "not in pairs")
+    pairs: dict[str, dict[str, float]] = Field(default_factory=dict, description="c per pair: {B5 = {B4 = 0.003, "
+                                               "B6 = 0.001}} (B5 gains 0.003 L_B4 + 0.001 L_B6)")
+    swir_from_nm: float = Field(1000.0, gt=0, le=3000, description="band centres from here on lie on the SWIR focal "
+                                "plane, those below on the VNIR plane")
+
+    @field_validator("pairs")
+    @classmethod
+    def _range(cls, value: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+        for band, row in value.items():
+            for other, c in row.items():
+                if not (math.isfinite(c) and -0.1 <= c <= 0.1):
+                    raise ValueError(f"{band}.{other}: a crosstalk coefficient must be >= -0.1 and <= 0.1, got {c}")
+        return value
+
+
 class EffectsSpec(Section):
+    """The stages of the forward chain, in its order (s2cl.forward.stages), each on or off; an effect with settings
+    takes a table of them (which switches it on), e.g. psf = {mtf_nyquist = 0.2}; the one home of every effect."""
+
     atmosphere: bool = Field(False, description="surface reflectance to TOA radiance at each wavelength (6S LUT)")
+    smile: SmileSpec | bool = Field(False, description="spectral smile: each band's SRF moved (and widened) across "
+                                    "the swath, {centre_nm = [c0, c1, c2], width_pct = [w0]}" + _IMAGE_ONLY)
     resample: bool = Field(True, description="integrate the spectra over each band's SRF (false: ideal monochromatic "
                            "bands at the centres)")
+    psf: PsfSpec | bool = Field(False, description="each band's Gaussian PSF before the box average to its GSD, "
+                                "{mtf_nyquist = 0.15} (the system MTF at Nyquist) or {fwhm = 1.0} (band pixels), "
+                                "per band in bands = {B2 = 0.25}; true: MTF 0.15" + _IMAGE_ONLY)
+    coregistration: CoregistrationSpec | bool = Field(False, description="band-to-band co-registration error: each "
+                                                      "band shifted by a sub-pixel amount, {px = 0.15, shifts = "
+                                                      "{B5 = [0.1, -0.2]}}" + _IMAGE_ONLY)
+    nonuniformity: NonUniformitySpec | bool = Field(False, description="detector non-uniformity: per-column gain and "
+                                                    "offset of each band drawn from the seed, {gain_pct = 2, "
+                                                    "residual_gain_pct = 0.2, ...}" + _IMAGE_ONLY)
     noise: bool = Field(True, description="add the sensor's noise (SNR model of each band)")
+    crosstalk: CrosstalkSpec | bool = Field(False, description="inter-band crosstalk within a focal plane (VNIR, "
+                                            "SWIR): each band's radiance gains c L_j from the other bands of its "
+                                            "plane, after the noise, e.g. {coefficient = 0.002} or {pairs = {B5 = "
+                                            "{B4 = 0.003}}}; true: the sensor table's crosstalk column, else 0.002")
     seed: int = Field(0, ge=0, le=UINT32_MAX, description="noise generator seed (Philox key): same seed, same noise")
     frame: int = Field(0, ge=0, le=UINT32_MAX, description="noise frame (Philox counter word): another frame draws "
                        "independent noise for the same pixels")
     quantise: bool = Field(True, description="quantise radiance to digital numbers between Lmin and Lmax")
     bits: int | None = Field(None, ge=1, le=16, description="radiometric resolution (default: the sensor's, 12)")
-    calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)")
+    calibrate: bool = Field(True, description="convert digital numbers back to radiance (W m-2 sr-1 um-1)",
+                            json_schema_extra={"needs": ["quantise", "calibration turns DN back into radiance"]})
+    calibration_error: CalibrationErrorSpec | bool = Field(
+        False, description="each band's absolute calibration error: its calibrated radiance is (1 + e) times the "
+        "true one, e per band ({bands = {B5 = 0.02}}), common ({error = 0.05}) or drawn once per band from a 1-sigma "
+        "uncertainty with the seed ({uncertainty = 0.05}; Sentinel-2: 5 %); correction.calibration_gain g is the "
+        "shorthand {error = g - 1}")
     correct: bool = Field(False, description="band-effective atmospheric correction of band radiance back to "
-                          "surface reflectance (the state of [correction])")
+                          "surface reflectance (the state of [correction])",
+                          json_schema_extra={"needs": ["atmosphere", "the correction inverts an atmosphere"]})
 
 
 class AtmosphereSpec(Section):
@@ -130,8 +212,9 @@ class CorrectionSpec(Section):
     visibility_km: float | None = Field(None, gt=0, description="assumed horizontal visibility, km")
     ozone: float | None = Field(None, gt=0, description="assumed ozone column, DU")
     solar_zenith: float | None = Field(None, ge=0, lt=90, description="assumed solar zenith angle, degrees")
-    calibration_gain: float = Field(1.0, gt=0, le=10, description="factor applied to calibrated radiance "
-                                                                  "(1.05: a +5 % calibration error)")
+    calibration_gain: float = Field(1.0, gt=0.5, lt=1.5, description="factor applied to calibrated radiance "
+                                    "(1.05: a +5 % calibration error in every band; the shorthand of "
+                                    "effects.calibration_error = {error = 0.05})")
 
 
 class RangeSpec(Section):
@@ -231,12 +314,6 @@ class AnalysisSpec(Section):
         return data
 
 
-class SpatialSpec(Section):
-    psf: Literal["none", "gaussian"] = Field("none", description="point spread function applied to an image cube "
-                                             "before it is averaged to each band's GSD")
-    psf_fwhm: float = Field(1.0, gt=0, le=10, description="Gaussian PSF FWHM in units of the band's GSD")
-
-
 class OutputSpec(Section):
     directory: str | None = Field(None, description="output folder (default: s2cl-out/<scene name>)")
     format: Literal["netcdf", "cog"] = Field("netcdf", description="image outputs of s2cl simulate: simulation.nc "
@@ -267,10 +344,12 @@ class SceneSpec(Section):
     grid: GridSpec = Field(GridSpec(), description="the spectral grid everything is simulated on")
     atmosphere: AtmosphereSpec = Field(AtmosphereSpec(), description="the true atmospheric state (6S LUT)")
     correction: CorrectionSpec = Field(CorrectionSpec(), description="the state the atmospheric correction assumes")
-    effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run")
-    spatial: SpatialSpec = Field(SpatialSpec(), description="spatial effects on image cubes (PSF)")
-    instrument: InstrumentSpec = Field(InstrumentSpec(), description="the instrument's own artefacts on image cubes "
-                                       "(per-band MTF, co-registration, smile, non-uniformity), each off by default")
+    effects: EffectsSpec = Field(EffectsSpec(), description="which stages of the chain run, and their settings: the "
+                                 "one home of every effect")
+    spatial: SpatialSpec | None = Field(None, description="deprecated: its PSF is effects.psf (still read, with a "
+                                        "note)")
+    instrument: InstrumentSpec | None = Field(None, description="deprecated: its effects are [effects] keys (psf, "
+                                              "coregistration, smile, nonuniformity; still read, with a note)")
     analysis: AnalysisSpec | None = Field(None, description="the retrieval scored on the simulated bands")
     sweep: SweepSpec | None = Field(None, description="which bands move, and where (s2cl optimise)")
     study: StudySpec | None = Field(None, description="an atmospheric-band, stability or cellulose study "
@@ -278,84 +357,13 @@ class SceneSpec(Section):
     compute: ComputeSpec = Field(ComputeSpec(), description="precision, vector width and device")
     output: OutputSpec = Field(OutputSpec(), description="where the outputs are written")
 
-
-def input_error(err: ValidationError, source: str) -> InputError:
-    """The first validation problem as one line: file, dotted key, what is allowed."""
-    e = err.errors()[0]
-    loc = [str(x) for x in e["loc"]]
-    if loc[:2] == ["analysis", "roles"]:  # role keys are written as keys of [analysis]
-        loc = ["analysis", *loc[2:]]
-    key = ".".join(key_token(x) for x in loc)
-    if e["type"] == "extra_forbidden":
-        allowed = _allowed_keys(loc[:-1])
-        near = difflib.get_close_matches(loc[-1], allowed, n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else ""
-        return InputError(f"unknown key{hint}; allowed keys here: {', '.join(allowed)}", source=source, key=key)
-    if e["type"] == "missing":
-        return InputError("required key is missing", source=source, key=key)
-    if e["type"] == "value_error":
-        return InputError(str((e.get("ctx") or {}).get("error", e["msg"])), source=source, key=key)
-    return InputError(f"{_allowed_text(e, loc)}, got {token(e.get('input'))}", source=source, key=key)
-
-
-_BOUNDS = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))
-
-
-def _allowed_text(e: dict[str, Any], loc: list[str]) -> str:
-    """'must be >= 1 and <= 16' from the field's declared range (not only the violated side)."""
-    info = _field(loc)
-    declared = []
-    for meta in getattr(info, "metadata", []):
-        for attr, sym in _BOUNDS:
-            if getattr(meta, attr, None) is not None:
-                declared.append(f"{sym} {getattr(meta, attr)}")
-    ctx = e.get("ctx") or {}
-    if declared and any(k in ctx for k, _ in _BOUNDS):
-        return "must be " + " and ".join(declared)
-    if "expected" in ctx:
-        return f"must be one of {ctx['expected']}"
-    return e["msg"].replace("Input should be", "must be")
-
-
-def _field(loc: list[str]) -> Any:
-    """The pydantic FieldInfo at a dotted location, or None."""
-    info, _ = _walk(loc)
-    return info
-
-
-def _walk(loc: list[str]) -> tuple[Any, Any]:
-    """(FieldInfo, type) at a dotted location; the type of an entry of a ``dict[str, Model]`` field (such as
-    ``sweep.ranges.B4``) is the model, with no FieldInfo. (None, None) where the location leaves the schema."""
-    model: Any = SceneSpec
-    info = None
-    for part in loc:
-        model = _unwrap_optional(model)
-        if getattr(model, "__origin__", None) is dict:  # an entry of a dict field: its key is the user's
-            info, model = None, model.__args__[1]
-            continue
-        fields = getattr(model, "model_fields", None)
-        if not fields or part not in fields:
-            return None, None
-        info = fields[part]
-        model = info.annotation
-    return info, model
-
-
-def _allowed_keys(loc: list[str]) -> list[str]:
-    if not loc:
-        return list(SceneSpec.model_fields)
-    if loc == ["analysis"]:
-        return [k for k in AnalysisSpec.model_fields if k != "roles"] + ["an index's band roles (nir, swir, ...)"]
-    _, model = _walk(loc)
-    fields = getattr(_unwrap_optional(model), "model_fields", None)
-    return list(fields) if fields else []
-
-
-def _unwrap_optional(annotation: Any) -> Any:
-    """``X | None`` → ``X`` (for walking nested sections)."""
-    args = getattr(annotation, "__args__", None)
-    if args and type(None) in args:
-        rest = [a for a in args if a is not type(None)]
-        if len(rest) == 1:
-            return rest[0]
-    return annotation
+    @model_validator(mode="after")
+    def _calibration_gain(self) -> SceneSpec:
+        """``correction.calibration_gain`` g is the shorthand of ``effects.calibration_error = {error = g - 1}``."""
+        gain = self.correction.calibration_gain
+        if gain == 1.0:
+            return self
+        if self.effects.calibration_error is not False:
+            raise ValueError("correction.calibration_gain is the shorthand of effects.calibration_error: give one")
+        effects = self.effects.model_copy(update={"calibration_error": CalibrationErrorSpec(error=gain - 1.0)})
+        return self.model_copy(update={"effects": effects})

@@ -36,6 +36,8 @@ class Band:
     :param gsd_m: ground sampling distance (m).
     :param fwhm_ref_nm: the width the SNR values refer to (noise scales with √(w_ref/w)).
     :param tabulated: a measured/tabulated SRF, or None for the paper's model (eq. 1).
+    :param extra: the band's values in a sensor table's optional numeric columns (name, value), such as a per-band
+        coefficient a stage of the forward chain reads (:mod:`s2cl.forward.stages`).
     """
 
     name: str
@@ -48,6 +50,7 @@ class Band:
     gsd_m: float
     fwhm_ref_nm: float = 0.0
     tabulated: TabulatedResponse | None = field(default=None, repr=False)
+    extra: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.fwhm_ref_nm == 0.0:
@@ -79,7 +82,13 @@ class Band:
 
     @cached_property
     def noise(self) -> NoiseModel:
-        """Shot-noise model fitted to this band's SNR points (see :mod:`s2cl.sensor.noise_model`)."""
+        """Shot-noise model fitted to this band's SNR points (see :mod:`s2cl.sensor.noise_model`); measured in-flight
+        coefficients where the sensor table gives them (optional columns ``noise_alpha``, ``noise_beta``, as
+        Sentinel-2 L1C products carry them: σ² = α² + β·L at the band's own width, W m⁻² sr⁻¹ µm⁻¹)."""
+        extra = dict(self.extra)
+        alpha, beta = extra.get("noise_alpha"), extra.get("noise_beta")
+        if alpha is not None and beta is not None and math.isfinite(alpha) and math.isfinite(beta) and beta >= 0:
+            return NoiseModel(alpha * alpha, beta, self.fwhm_ref_nm or self.fwhm_nm)
         return fit_noise_model(list(self.snr_points), self.fwhm_ref_nm, band=self.name)
 
     def noise_coefficients(self) -> tuple[float, float]:
@@ -174,6 +183,7 @@ class Sensor:
             raise InputError(f"missing columns: {', '.join(missing)} (expected {', '.join(SENSOR_COLUMNS)})",
                              source=path)
         col = {c: header.index(c) for c in SENSOR_COLUMNS}
+        extra = _numeric_columns(header, rows, set(SENSOR_COLUMNS))
         bands = []
         for line_no, row in rows:
             band_name = check_band_name(row[col["band"]].strip(), source=path, key="band", where=f"line {line_no}")
@@ -206,6 +216,21 @@ class Sensor:
                     lmax=levels["lmax"],
                     snr_points=points,
                     gsd_m=number("gsd_m"),
+                    extra=tuple((c, parse_number(row[i].strip())) for c, i in extra.items() if row[i].strip()),
                 )
             )
         return cls(name=name or Path(path).stem, bands=tuple(bands), bits=bits, source=str(path))
+
+
+def _numeric_columns(header: list[str], rows: list[tuple[int, list[str]]], known: set[str]) -> dict[str, int]:
+    """The optional columns of a sensor table whose every filled cell is a number (others are ignored)."""
+    out = {}
+    for i, name in enumerate(header):
+        if name in known or not name.strip():
+            continue
+        try:
+            [parse_number(r[i].strip()) for _, r in rows if i < len(r) and r[i].strip()]
+        except ValueError:
+            continue
+        out[name.strip()] = i
+    return out

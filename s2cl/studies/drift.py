@@ -27,6 +27,7 @@ import numpy as np
 
 from s2cl.app.checks import check_sweep
 from s2cl.errors import InputError, key_token
+from s2cl.forward.stages import stage
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.params import PARAMETER_UNITS
@@ -143,8 +144,11 @@ def drift_tables(app: Application, drifts: Drifts, *, noise: bool = True) -> Swe
     def nominal(arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
         return tuple(np.repeat(a[:1], len(a), axis=0) for a in arrays)
 
-    return replace(t, centre=nominal(t.centre), width=nominal(t.width), lp=nominal(t.lp), g=nominal(t.g),
-                   s=nominal(t.s), references=nominal(t.references), noise=noise and t.noise)
+    # the processing's per-variant values (the correction's terms) are the nominal's; per-pixel ones (σ) the variant's
+    values = {**t.values, **{v.name: nominal(t.values[v.name]) for v in t.inputs() if v.varies == "variant"}}
+    stages = t.stages if noise else tuple(n for n in t.stages if not stage(n).deviates)
+    return replace(t, centre=nominal(t.centre), width=nominal(t.width), values=values,
+                   references=nominal(t.references), stages=stages)
 
 
 def drift_configs(app: Application, drifts: Drifts, kind: str, values: tuple[float, ...]) -> np.ndarray:

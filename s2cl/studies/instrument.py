@@ -7,7 +7,7 @@ scene's own image cube — any cube scene with a [study] of kind ``instrument``;
 cube's truth (:func:`s2cl.app.instrument_costs.analysis_score`).
 
 Also timed: the spatial step alone (every band's PSF and shift, :meth:`s2cl.forward.instrument.Instrument.spatial`)
-with ``mtf`` and with ``coregistration`` on, against the whole run, which says whether that step is worth a
+with ``psf`` and with ``coregistration`` on, against the whole run, which says whether that step is worth a
 device kernel.
 """
 
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.app.instrument_costs import EFFECTS, analysis_score, effect_costs, product_variable, with_instrument
+from s2cl.app.instrument_costs import analysis_score, effect_costs, effect_settings, product_variable, with_effects
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube
@@ -54,8 +54,7 @@ def cube_scene(scene: Scene, image_px: int = 0) -> Scene:
 def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
     """Seconds of the spatial step alone (every band's PSF and shift on the input grid) with ``effect`` on, on
     an input image of ``size``."""
-    spec = {**scene.spec.instrument.model_dump(), **dict.fromkeys(EFFECTS, False), effect: True}
-    inst = Instrument.of(with_instrument(scene, spec))
+    inst = Instrument.of(with_effects(scene, effect_settings(scene, effect)))
     gsd = float(scene.spec.surface.gsd_m or 10.0)
     image = np.random.default_rng(0).random(size).astype(np.float32)
     t0 = time.perf_counter()
@@ -93,7 +92,7 @@ def run(setup: StudySetup) -> StudyResult:
     cube = load_scene_cube(scene)
     load_before = _load()
     rows = effect_costs(rt, scene, cube, score=analysis_score(rt), repeats=2)
-    spatial = {e: spatial_seconds(scene, (cube.rows, cube.cols), e) for e in ("mtf", "coregistration")}
+    spatial = {e: spatial_seconds(scene, (cube.rows, cube.cols), e) for e in ("psf", "coregistration")}
     every_pixel = resample_seconds(rt, scene, cube)
     load_after = _load()
     ideal = rows[0].seconds

@@ -44,7 +44,7 @@ def design_tables(t: SweepTables, designs: np.ndarray, copies: int, rows: int | 
         return tuple(np.ascontiguousarray(a[pad[:, k]]) for k, a in enumerate(arrays))
 
     return replace(t, counts=(rows,) * t.n_slots, centre=take(t.centre), width=take(t.width),
-                   radiance=take(t.radiance), sigma=take(t.sigma), lp=take(t.lp), g=take(t.g), s=take(t.s),
+                   radiance=take(t.radiance), values={**t.values, **{n: take(t.values[n]) for n in t.per_row()}},
                    references=take(t.references) if t.references else (), copies=copies,
                    z=np.ascontiguousarray(t.z[:, pix]), target=np.ascontiguousarray(t.target[pix]), diagonal=True)
 

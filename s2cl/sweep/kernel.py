@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 
 from s2cl.cl.kernel_args import Arg, bind, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
+from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError
+from s2cl.forward.stages import Stage, Value, inputs, segments, stage
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.family import SweepContext
 from s2cl.status import MAX_ABS_REFLECTANCE
@@ -15,14 +20,9 @@ from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
 
 TEMPLATE = "sweep.cl.mako"
-#: per-(variant, spectrum) and per-variant tables on the device, in the kernel's argument order
-TABLES = ("radiance", "sigma", "z", "centre", "lp", "g", "s", "refs")
-
-
-#: the kernel's arguments (kernels/sweep.cl.mako), in order
-ARGS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
-        Arg("condition", "out", "uchar"), *(Arg(n, "in", "real") for n in TABLES),
-        Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"))
+#: the per-pixel outputs of every sweep kernel, in the kernel's argument order
+OUTPUTS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
+           Arg("condition", "out", "uchar"))
 #: profile builds (the ``profile`` switches of kernels/sweep.cl.mako; bench/sweep_profile.py times them): none
 #: is ever part of a sweep's kernel
 PROFILES = ("iterations", "reflectance", "no_fit", "fit_only")
@@ -30,9 +30,86 @@ PROFILES = ("iterations", "reflectance", "no_fit", "fit_only")
 PROFILE_ARGS = {"reflectance": Arg("rho_out", "out", "real"), "fit_only": Arg("rho_in", "in", "real")}
 
 
-def kernel_args(profile: frozenset[str] = frozenset()) -> tuple[Arg, ...]:
-    """The kernel's arguments for a build with the ``profile`` switches (:data:`ARGS` without any)."""
-    return ARGS + tuple(PROFILE_ARGS[p] for p in PROFILES if p in profile and p in PROFILE_ARGS)
+def kernel_args(stages: list[Stage], profile: frozenset[str] = frozenset()) -> tuple[Arg, ...]:
+    """The kernel's arguments for the chain's ``stages`` and a build with the ``profile`` switches: the outputs, the
+    radiance table, each stage's per-pixel and per-variant tables, the deviates (where a stage takes them), the
+    band centres, the SAM references, the configuration range."""
+    tables = [Arg(v.name, "in", v.ctype) for v in inputs(stages, "sweep") if v.varies in ("pixel", "variant")]
+    deviates = [Arg("z", "in", "real")] if any(s.deviates for s in stages) else []
+    return (*OUTPUTS, Arg("radiance", "in", "real"), *tables, *deviates, Arg("centre", "in", "real"),
+            Arg("refs", "in", "real"), Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"),
+            *(PROFILE_ARGS[p] for p in PROFILES if p in profile and p in PROFILE_ARGS))
+
+
+@dataclass(frozen=True)
+class VectorCode:
+    """OpenCL C of ``T.lanes`` pixels per work-item: gathers from a per-spectrum table, vector loads and stores,
+    one lane of a vector."""
+
+    T: VecTypes
+
+    def gather(self, table: str, row: str) -> str:
+        L = self.T.lanes
+        if L == 1:
+            return f"{table}[{row} + sp0]"
+        return f"({self.T.V})(" + ", ".join(f"{table}[{row} + sp{lane}]" for lane in range(L)) + ")"
+
+    def vload(self, ptr: str) -> str:
+        return f"{ptr}[0]" if self.T.lanes == 1 else f"vload{self.T.lanes}(0, {ptr})"
+
+    def vstore(self, value: str, ptr: str) -> str:
+        return f"{ptr}[0] = {value};" if self.T.lanes == 1 else f"vstore{self.T.lanes}({value}, 0, {ptr});"
+
+    def lane(self, expr: str, lane: int) -> str:
+        return expr if self.T.lanes == 1 else f"({expr}).s{'0123456789abcdef'[lane]}"
+
+
+@dataclass(frozen=True)
+class SweepSite:
+    """Where slot ``k``'s steps run in the sweep kernel (see ``kernels/common/stages.mako``): a per-band value is a
+    literal (every variant takes its band's), a per-variant one the table entry of the variant (``[var]``), a
+    per-pixel one a gather from the per-spectrum table (``row``); no output is written."""
+
+    vc: VectorCode
+    k: int
+    pitch: int
+    values: dict[str, Value]
+    literals: dict[str, Any]
+
+    def has(self, name: str) -> bool:
+        return name in self.values
+
+    def value(self, name: str) -> str:
+        v, T = self.values[name], self.vc.T
+        if v.varies == "band":
+            return T.lit(float(self.literals[name][self.k]))
+        if v.varies == "scalar":
+            return T.lit(float(self.literals[name]))
+        if v.varies == "variant":
+            return f"{name}[var]"
+        return self.vc.gather(name, "row")
+
+    def store(self, name: str, expr: str) -> str:
+        return ""
+
+    def deviate(self) -> str:
+        return self.vc.vload(f"(z + {self.k}u * {self.pitch}u + p0)")
+
+
+@dataclass(frozen=True)
+class SweepAcross:
+    """Where a stage across the slots runs in the sweep kernel: on ``X[0 … n-1]``, its pair values as literals."""
+
+    T: VecTypes
+    n: int
+    literals: dict[str, Any]
+
+    def pairs(self, name: str) -> list[list[float]]:
+        return [[float(x) for x in row] for row in np.asarray(self.literals[name])]
+
+    def store(self, name: str, k: int, expr: str) -> str:
+        return ""
+
 
 #: configuration numbers the kernel addresses (``config_start`` and ``n_configs`` are 32-bit): a design numbered
 #: beyond is evaluated through its own tables (:func:`s2cl.sweep.design_tables.design_tables`)
@@ -61,7 +138,7 @@ class SweepKernel:
         if unknown or ("iterations" in profile and not analysis.family.iterative) or {"no_fit", "fit_only"} <= profile:
             raise InputError(f"profile switches {sorted(profile)}: allowed {', '.join(PROFILES)} (iterations: an "
                              "iterative fit only; not no_fit with fit_only)")
-        self.profile, self.args = frozenset(profile), kernel_args(frozenset(profile))
+        self.profile = frozenset(profile)
         self.rt = rt
         self.tables, self.analysis = tables, analysis
         self.T = rt.types(precision, lanes)
@@ -74,11 +151,17 @@ class SweepKernel:
         ctx = SweepContext(tuple(t.bands), tuple(counts), tuple(strides), tuple(row0), len(t.class_names),
                            MAX_ABS_REFLECTANCE)
         functions, body = analysis.family.sweep_code(analysis, self.T, ctx)
+        self.stages = [stage(n) for n in t.stages]
+        self.args = kernel_args(self.stages, self.profile)
+        values = {v.name: v for v in t.inputs()}
+        literals = {n: t.values[n] for n, v in values.items() if v.varies in ("band", "scalar", "pairs")}
+        vc = VectorCode(self.T)
         variables = dict(T=self.T, n_slots=t.n_slots, counts=counts, strides=strides, row0=row0, var0=row0,
-                         n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch,
-                         lmin=[float(v) for v in t.lmin], lmax=[float(v) for v in t.lmax], maxdn=t.maxdn,
-                         noise=t.noise, quantise=t.quantise, analysis_functions=functions, analysis_body=body,
-                         profile=self.profile, args=self.args, signature=signature)
+                         n_spectra=t.n_spectra, copies=t.copies, pitch=self.pitch, stages=self.stages,
+                         segments=segments(self.stages), vc=vc,
+                         site=lambda k: SweepSite(vc, k, self.pitch, values, literals),
+                         across=SweepAcross(self.T, t.n_slots, literals), analysis_functions=functions,
+                         analysis_body=body, profile=self.profile, args=self.args, signature=signature)
         self.source = render(TEMPLATE, **variables)
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
@@ -86,25 +169,24 @@ class SweepKernel:
 
     def _upload(self) -> None:
         t, dtype, rt = self.tables, self.T.dtype, self.rt
-        z = np.zeros((t.n_slots, self.pitch), dtype)
-        z[:, : t.n_pixels] = t.z
         refs = np.concatenate(t.references) if t.references else np.zeros(1)
         self.buffers = {
             "radiance": rt.to_device(np.concatenate(t.radiance).astype(dtype)),
-            "sigma": rt.to_device(np.concatenate(t.sigma).astype(dtype)),
-            "z": rt.to_device(z),
+            **{n: rt.to_device(np.concatenate(t.values[n]).astype(dtype)) for n in t.per_row()},
             "centre": rt.to_device(np.concatenate(t.centre).astype(dtype)),
-            "lp": rt.to_device(np.concatenate(t.lp).astype(dtype)),
-            "g": rt.to_device(np.concatenate(t.g).astype(dtype)),
-            "s": rt.to_device(np.concatenate(t.s).astype(dtype)),
             "refs": rt.to_device(refs.astype(dtype)),
         }
+        if any(s.deviates for s in self.stages):
+            z = np.zeros((t.n_slots, self.pitch), dtype)
+            z[:, : t.n_pixels] = t.z
+            self.buffers["z"] = rt.to_device(z)
 
     def load(self, tables: SweepTables) -> None:
         """Evaluate ``tables`` from now on: tables of the same shape (a search's next batch of designs on the same
         copies, :mod:`s2cl.sweep.design_tables`), so the built kernels and the metrics' target stay valid."""
         t = self.tables
-        if tables.counts != t.counts or tables.n_pixels != t.n_pixels or tables.diagonal != t.diagonal:
+        if (tables.counts != t.counts or tables.n_pixels != t.n_pixels or tables.diagonal != t.diagonal
+                or tables.stages != t.stages):
             raise ValueError("tables of another shape need their own kernel")
         self.tables = tables
         self._upload()

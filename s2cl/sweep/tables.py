@@ -6,8 +6,10 @@ spectrum, here, in float64; every configuration is then a gather from these tabl
 
 - ``radiance[k][v, s]``: noise-free TOA band radiance of spectrum ``s`` in variant ``v`` of band
   slot ``k`` (W m⁻² sr⁻¹ µm⁻¹), under the true atmosphere;
-- ``sigma[k][v, s]``: its noise standard deviation (the band's shot-noise model at that width);
-- ``lp, g, s[k][v]``: band-effective correction terms of the atmosphere the correction assumes;
+- ``values``: what the chain's per-pixel stages that are on (:mod:`s2cl.forward.stages`) read, by name, as each
+  declares it: one per band slot (a literal of the kernel: every variant takes its band's), one per variant (such
+  as the band-effective correction terms of the atmosphere the correction assumes), one per variant and spectrum
+  (such as the noise σ of the band at that width, of its noise-free radiance), or one per pair of slots;
 - ``z[k, p]``: the standard normal deviate of pixel ``p`` in slot ``k``, the same for every
   configuration (common random numbers: configurations differ by their bands, not by their
   luck). ``z`` is the sensor-noise stream of s2cl's Philox generator keyed by (seed, pixel, the
@@ -17,17 +19,19 @@ spectrum, here, in float64; every configuration is then a gather from these tabl
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.errors import InputError
 from s2cl.forward.noise import sensor_noise
+from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays
+from s2cl.forward.stages import Value, chain, compute, inputs, stage
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.scene import Scene
-from s2cl.sensor.noise_model import noise_sigma
 from s2cl.sensor.variants import SweepSpace
 from s2cl.sweep.space import sweep_space
 
@@ -43,21 +47,18 @@ class SweepTables:
     centre: tuple[np.ndarray, ...]
     width: tuple[np.ndarray, ...]
     radiance: tuple[np.ndarray, ...]
-    sigma: tuple[np.ndarray, ...]
-    lp: tuple[np.ndarray, ...]
-    g: tuple[np.ndarray, ...]
-    s: tuple[np.ndarray, ...]
-    lmin: np.ndarray
-    lmax: np.ndarray
     bits: int
     copies: int
     z: np.ndarray
     target: np.ndarray
-    calibration_gain: float = 1.0
     class_names: tuple[str, ...] = ()
     references: tuple[np.ndarray, ...] = ()
-    noise: bool = True
-    quantise: bool = True
+    #: the chain's per-pixel stages the configurations run, in order (:func:`s2cl.forward.stages.chain`)
+    stages: tuple[str, ...] = ()
+    #: their values by name (:class:`s2cl.forward.stages.Value`): ``band`` an array over the slots, ``scalar`` a
+    #: number, ``pairs`` ``[n_slots, n_slots]``; ``variant`` per slot an array over its variants, ``pixel`` per slot
+    #: ``[variants, spectra]``
+    values: dict[str, Any] = field(default_factory=dict)
     #: a design list rather than a product space: configuration ``c`` takes variant ``c`` of every slot (the
     #: tables hold each design's variants row by row: :func:`s2cl.sweep.design_tables.design_tables`)
     diagonal: bool = False
@@ -82,16 +83,28 @@ class SweepTables:
     def maxdn(self) -> int:
         return 2**self.bits - 1
 
+    def inputs(self) -> list[Value]:
+        """The values the stages read in the sweep kernel, each once, in order."""
+        return inputs([stage(n) for n in self.stages], "sweep")
+
+    def per_row(self) -> list[str]:
+        """Names of the values held per variant (a table row per variant: what a design list gathers)."""
+        return [v.name for v in self.inputs() if v.varies in ("variant", "pixel")]
+
     def fingerprint(self) -> str:
         """sha256 of every table: two sweeps with the same fingerprint compute the same numbers."""
         h = hashlib.sha256()
-        for name in ("bands", "counts", "bits", "copies", "calibration_gain", "class_names", "noise", "quantise",
-                     "diagonal"):
+        for name in ("bands", "counts", "bits", "copies", "class_names", "stages", "diagonal"):
             h.update(repr(getattr(self, name)).encode())
-        for name in ("centre", "width", "radiance", "sigma", "lp", "g", "s", "references"):
+        for name in ("centre", "width", "radiance", "references"):
             for a in getattr(self, name):
                 h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
-        for a in (self.lmin, self.lmax, self.z, self.target):
+        for name in sorted(self.values):
+            h.update(name.encode())
+            value = self.values[name]
+            for a in (value if isinstance(value, tuple) else (value,)):
+                h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        for a in (self.z, self.target):
             h.update(np.ascontiguousarray(a).tobytes())
         return h.hexdigest()
 
@@ -104,52 +117,51 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
     if library.quantity != "reflectance":
         raise InputError("a sweep needs a reflectance library (it runs the atmosphere and its correction)",
                          source=scene.source, key="surface.quantity")
-    grid, support = scene.grid, scene.run.support
+    grid, support, e = scene.grid, scene.run.support, scene.run
     rho = library.spectra
     toa = truth.path_radiance + truth.ground_term * rho / (1.0 - truth.spherical_albedo * rho)
-    per_slot: dict[str, list[np.ndarray]] = {k: [] for k in
-                                             ("centre", "width", "radiance", "sigma", "lp", "g", "s", "refs")}
-    for rng, variants in zip(space.ranges, space.per_band, strict=True):
-        base = scene.sensor.band(rng.band)
-        radiance, sigma, weights_all, surface = [], [], [], []
-        for c, w in variants:
-            band = base.with_shape(c, w)
-            weights = band.weights(grid, support, scene.source)
-            sl = slice(weights.start, weights.stop)
-            L = toa[:, sl] @ weights.weights
-            radiance.append(L)
-            sigma.append(noise_sigma(L, *band.noise_coefficients()))
-            weights_all.append(weights)
-            surface.append(rho[:, sl] @ weights.weights)
-        corr = BandAtmosphere.of(assumed, weights_all).with_calibration_gain(scene.run.calibration_gain)
-        per_slot["centre"].append(variants[:, 0].copy())
-        per_slot["width"].append(variants[:, 1].copy())
-        per_slot["radiance"].append(np.array(radiance))
-        per_slot["sigma"].append(np.array(sigma))
-        per_slot["lp"].append(corr.path_radiance)
-        per_slot["g"].append(corr.ground_term)
-        per_slot["s"].append(corr.spherical_albedo)
-        if class_names:
-            groups = np.array(library.groups)
-            surf = np.array(surface)  # (n_v, n_spectra)
-            per_slot["refs"].append(np.stack([surf[:, groups == c].mean(axis=1) for c in class_names], axis=1))
-    copies = scene.run.copies
-    n_pixels = library.size * copies
-    e = scene.run
+    stages = chain(scene.effects)
     bands = [scene.sensor.band(r.band) for r in space.ranges]
     # keyed by each band's index in the sensor, as `s2cl simulate` keys it: pixel p of band B gets the
     # same deviate on both paths (and in every configuration: common random numbers)
     band_ids = [scene.sensor.band_names.index(b.name) for b in bands]
+    settings = dict(settings=scene.spec.effects, seed=e.seed)
+    base = compute(stages, Radiometry.of(bands, scene.sensor.bits, band_ids, **settings))
+    wanted = inputs(stages, "sweep")
+    values: dict[str, Any] = {v.name: base[v.name] for v in wanted if v.varies in ("band", "scalar", "pairs")}
+    per_variant: dict[str, list[np.ndarray]] = {v.name: [] for v in wanted if v.varies in ("variant", "pixel")}
+    per_slot: dict[str, list[np.ndarray]] = {k: [] for k in ("centre", "width", "radiance", "refs")}
+    for variants, band, band_id in zip(space.per_band, bands, band_ids, strict=True):
+        shaped, radiance, weights_all, surface = [], [], [], []
+        for c, w in variants:
+            shaped.append(band.with_shape(c, w))
+            weights = shaped[-1].weights(grid, support, scene.source)
+            sl = slice(weights.start, weights.stop)
+            radiance.append(toa[:, sl] @ weights.weights)
+            weights_all.append(weights)
+            surface.append(rho[:, sl] @ weights.weights)
+        corr = BandAtmosphere.of(assumed, weights_all)
+        table = np.array(radiance)
+        of_variants = compute(stages, Radiometry.of(shaped, scene.sensor.bits, [band_id] * len(shaped),
+                                                    correction=corr, radiance=table, **settings))
+        for name, rows in per_variant.items():
+            rows.append(np.asarray(of_variants[name]))
+        per_slot["centre"].append(variants[:, 0].copy())
+        per_slot["width"].append(variants[:, 1].copy())
+        per_slot["radiance"].append(table)
+        if class_names:
+            groups = np.array(library.groups)
+            surf = np.array(surface)  # (n_v, n_spectra)
+            per_slot["refs"].append(np.stack([surf[:, groups == c].mean(axis=1) for c in class_names], axis=1))
+    copies = e.copies
+    n_pixels = library.size * copies
     z = sensor_noise(e.seed, np.arange(n_pixels), band_ids, e.frame)
+    values.update({name: tuple(rows) for name, rows in per_variant.items()})
     return SweepTables(
         bands=tuple(r.band for r in space.ranges), counts=tuple(space.counts),
-        centre=tuple(per_slot["centre"]), width=tuple(per_slot["width"]),
-        radiance=tuple(per_slot["radiance"]), sigma=tuple(per_slot["sigma"]),
-        lp=tuple(per_slot["lp"]), g=tuple(per_slot["g"]), s=tuple(per_slot["s"]),
-        lmin=np.array([b.lmin for b in bands]), lmax=np.array([b.lmax for b in bands]),
+        centre=tuple(per_slot["centre"]), width=tuple(per_slot["width"]), radiance=tuple(per_slot["radiance"]),
         bits=scene.sensor.bits, copies=copies, z=z,
         target=np.zeros(n_pixels) if target is None else np.repeat(np.asarray(target), copies),
-        calibration_gain=scene.run.calibration_gain,
         class_names=tuple(class_names), references=tuple(per_slot["refs"]),
-        noise=e.effects.noise, quantise=e.effects.quantise,
+        stages=tuple(s.name for s in stages), values=values,
     )
