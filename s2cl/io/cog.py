@@ -107,7 +107,7 @@ def _radiometry_tags(kind: str, attrs: dict[str, Any]) -> dict[str, str]:
     if kind == "reflectance":
         return {"RADIOMETRY": L2A_RADIOMETRY, "BOA_QUANTIFICATION_VALUE": f"{L2A_QUANTIFICATION:g}",
                 "BOA_ADD_OFFSET": f"{L2A_ADD_OFFSET:g}", "PROCESSING_BASELINE_ENCODING": "04.00"}
-    what = {"calibrated": "calibrated from DN", "noisy": "with sensor noise, not quantised",
+    what = {"calibrated": "calibrated from DN", "noisy": "with sensor noise, before digitisation",
             "radiance": "noise-free band radiance"}[kind]
     return {"RADIOMETRY": f"TOA radiance, {attrs.get('units', 'W m-2 sr-1 um-1')} ({what})"}
 
