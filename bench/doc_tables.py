@@ -677,6 +677,56 @@ def instrument_costs() -> str:
             f"{_rel(INSTRUMENT_JSON.parent)}`; {m['device']}, {m['cores']} cores, {m['date']}; {load}).")
 
 
+def product_example() -> str:
+    """The worked example of docs/images.md: the scene, the command, what it printed and wrote (read back)."""
+    from bench.bench_product import EXAMPLE_JSON
+
+    r = _load(EXAMPLE_JSON)
+    rows = [(f"`{f['file']}`", " ".join(f["bands"]), f"{f['size'][0]} × {f['size'][1]}", f"{f['pixel_m']:g} m",
+             f"({f['corner'][0]:.10g}, {f['corner'][1]:.10g})", f["crs"], f["dtype"], f["nodata"] or "none")
+            for f in r["files"]]
+    warnings = "\n".join(r["warnings"])
+    return (f"```toml\n{r['scene'].strip()}\n```\n\n```console\n$ {r['command']}\n{warnings}\n{r['stdout']}\n```\n\n"
+            + md_table(("file", "bands", "pixels", "pixel", "upper-left corner", "CRS", "type", "no data"), rows)
+            + f"\n\n`simulation.nc`'s `georeference`: {r['georeference']}. The product: {r['size']} × {r['size']} "
+            "pixels of `builtin:fields` parcels on EnMAP's 224 bands, written in the shipped layout. From "
+            f"`{_rel(EXAMPLE_JSON)}` (written, with the quicklook below, by "
+            "`python -m bench.bench_product --example`).")
+
+
+def product_throughput() -> str:
+    """``python -m bench.bench_product``: a product-sized scene end to end against reading it and the kernel."""
+    path = sorted(RESULTS.glob("product-*.json"))[-1]
+    r = _load(path)
+    m = r["machine"]
+    steps = sorted(r["steps_s"].items(), key=lambda kv: -kv[1])
+    total = r["end_to_end_s"]
+    rows = [("end to end (`s2cl simulate`)", total, r["pixels_per_s"]["end_to_end"], "1"),
+            ("(a) reading the product alone", r["read_alone_s"], r["pixels_per_s"]["read_alone"],
+             f"{r['read_alone_s'] / total:.2f}"),
+            ("(b) resampling kernel alone", r["kernel_alone_s"], r["pixels_per_s"]["kernel_alone"],
+             f"{r['kernel_alone_s'] / total:.2f}"),
+            ("putting the pixels on the grid alone", r["gridding_alone_s"], r["pixels"] / r["gridding_alone_s"],
+             f"{r['gridding_alone_s'] / total:.2f}")]
+    where = md_table(("step of the end-to-end run (self time)", "s", "share"),
+                     [(name, sec, f"{100 * sec / total:.0f} %") for name, sec in steps]
+                     + [("the rest (scene, checks, NODATA pass's own work, kernel builds, JSON)", r["other_s"],
+                         f"{100 * r['other_s'] / total:.0f} %")])
+    loads = (m["load_average"][0], r["load_average_after"][0])
+    busy = max(loads) > 1.25 * m["cores"]
+    return (md_table(("run", "s", "pixels/s", "share of end to end"), rows)
+            + f"\n\nEnd to end is **{r['ratio_to_read_plus_kernel']:.1f}×** (a) + (b) (the goal was within 2×). "
+            f"Peak memory (max RSS of the run's process): **{r['max_rss_bytes'] / 1e9:.2f} GB** under "
+            f"`--max-memory {r['max_memory']}`, in blocks of {r['block_rows']} input rows.\n\n" + where
+            + f"\n\nThe product: {r['size']} × {r['size']} pixels × {r['bands']} bands, {r['dtype']} "
+            f"({r['product_bytes'] / 1e6:,.0f} MB), to all 13 bands and an IGRM map. From `{_rel(path)}` (written by "
+            f"`python -m bench.bench_product --size {r['size']} --max-memory {r['max_memory']}`; "
+            f"{m.get('opencl_device', 'device')}, {m['cores']} cores, {m['date']}; 1-minute load average "
+            f"{loads[0]:.1f} before and {loads[1]:.1f} after: "
+            + ("other jobs shared the machine, so the times are upper bounds" if busy else "the machine was otherwise "
+               "quiet") + ").")
+
+
 def search_joint(joint: str) -> str:
     """The six-band search and its local checks with the joint step ``joint`` (``python -m bench.search_wide
     --scene ...``)."""
@@ -808,6 +858,8 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "search.joint-b3-b8a": lambda: search_joint("split"),
     "search.joint-b3-b8a-full": lambda: search_joint("full"),
     "machines": machines,
+    "images.product-example": product_example,
+    "images.product-throughput": product_throughput,
     "stages.costs": stage_costs,
     "stages.table3": stage_table3,
 }

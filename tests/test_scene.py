@@ -80,7 +80,7 @@ def test_relative_paths_resolve_against_scene_file(tmp_path) -> None:
         ({"effects": {"seed": -1}}, "effects.seed", ">= 0"),
         ({"effects": {"seed": 2**32}}, "effects.seed", "<= 4294967295"),
         ({"surface": {"library": "a.csv", "cube": "b.nc", "gsd_m": 10}}, "surface", "exactly one"),
-        ({"surface": {"cube": "b.nc"}}, "surface.gsd_m", "gsd_m"),
+        ({"surface": {"cube": "builtin:fields"}}, "surface.gsd_m", "gsd_m"),  # a file: its product may give it
         ({"surface": {"library": "a.csv", "quantity": "reflectance"}}, "surface.quantity", "atmosphere"),
         ({"output": {"precision": "float16"}}, "output.precision", "float32"),
         ({"compute": {"precision": "half"}}, "compute.precision", "float32"),

@@ -8,6 +8,7 @@
 #     CPUs newer than LLVM 14 (AMD Zen 5: "unknown target CPU 'generic'") and compiles for an AVX2 target on
 #     AMD Zen 4, half the AVX-512 width. With the `test` extra it is installed wherever it can be, so that
 #     the kernel tests run on both drivers.
+# The `test` extra includes `geo` (rasterio with its GDAL wheel, pyproj): GeoTIFF products and --format cog.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extras="${1:-}"

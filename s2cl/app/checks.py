@@ -97,7 +97,8 @@ def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
         assert cube is not None  # the scene has one of them (s2cl.scene.scene)
         if is_builtin_cube(cube):  # generated: its name was checked with the scene
             return None
-        input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
+        if not scene.resolve(cube).is_dir():  # a folder is a product (EnMAP), checked by its reader
+            input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
     from s2cl.forward.simulate import scene_library
 

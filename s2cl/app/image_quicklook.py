@@ -14,6 +14,10 @@ from s2cl.status import Status
 
 #: bands of the true-colour panel (red, green, blue), Sentinel-2 names
 TRUE_COLOUR = ("B4", "B3", "B2")
+#: the true-colour stretch: each channel's percentiles (%) mapped to 0 and 1, stated on the panel
+STRETCH_PERCENTILES = (2.0, 98.0)
+TRUE_COLOUR_TITLE = (f"true colour ({' '.join(TRUE_COLOUR)})\nL2 reflectance, each channel stretched "
+                     f"{STRETCH_PERCENTILES[0]:g}–{STRETCH_PERCENTILES[1]:g} %")
 #: largest side (pixels) of a panel: a larger image is read every n-th row and column
 MAX_SIDE = 600
 
@@ -26,8 +30,9 @@ def _decimated(store: ImageStore, name: str) -> np.ndarray:
 
 
 def true_colour(ds: Any) -> np.ndarray | None:
-    """An RGB image ``(ny, nx, 3)`` in 0–1 of the corrected reflectance (each channel stretched to its 2–98 %
-    percentiles), or None when a true-colour band is missing."""
+    """An RGB image ``(ny, nx, 3)`` in 0–1 of the corrected reflectance, each channel stretched linearly from its
+    :data:`STRETCH_PERCENTILES` (2 and 98 %, over the pixels finite in all three) to 0 and 1 and clipped; NaN stays
+    NaN (drawn blank); None when a true-colour band is missing."""
     names = [f"reflectance_{b}" for b in TRUE_COLOUR]
     if not all(n in ds for n in names):
         return None
@@ -38,7 +43,7 @@ def true_colour(ds: Any) -> np.ndarray | None:
     finite = rgb[np.isfinite(rgb).all(axis=-1)]
     if finite.size == 0:
         return None
-    lo, hi = np.percentile(finite, 2, axis=0), np.percentile(finite, 98, axis=0)
+    lo, hi = (np.percentile(finite, q, axis=0) for q in STRETCH_PERCENTILES)
     return np.clip((rgb - lo) / np.where(hi > lo, hi - lo, 1.0), 0.0, 1.0)
 
 
@@ -59,7 +64,7 @@ def write_quicklook(ds: ImageStore, path: str | Path, map_name: str = "analysis_
         ax.set_yticks([])
         if name == "rgb":
             ax.imshow(rgb, interpolation="nearest")
-            ax.set_title("true colour (" + " ".join(TRUE_COLOUR) + ")")
+            ax.set_title(TRUE_COLOUR_TITLE)
             continue
         data = _decimated(ds, name)
         if name == "analysis_status":

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,8 @@ CUBE_BYTES_FILE = 16
 #: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
 #: float32, DN, flags)
 CUBE_DISK_BYTES_PER_BAND = 23
+#: bytes on disk per input pixel and band of a COG at most (float32 radiance, uncompressed)
+COG_BYTES_PER_BAND = 4
 
 
 @dataclass(frozen=True)
@@ -45,10 +47,11 @@ class SimulationRun:
 def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None = None, *,
                    device: str | None = None, max_memory: str | None = None,
                    progress: Callable[[int], None] | None = None,
-                   on_start: Callable[[str, int], None] | None = None) -> SimulationRun:
+                   on_start: Callable[[str, int], None] | None = None, fmt: str | None = None) -> SimulationRun:
     """Check ``scene`` (memory, disk, device and output folder included) before anything is created, then simulate
     it into ``out`` (default: the scene's output folder). ``on_start(label, total)`` is called once before the
-    pixels stream, ``progress(n)`` as they do."""
+    pixels stream, ``progress(n)`` as they do. ``fmt``: ``netcdf`` or ``cog`` (also Cloud-Optimised GeoTIFFs of an
+    image, :mod:`s2cl.io.cog`); default the scene's ``output.format``."""
     from s2cl.app.checks import check_simulate
     from s2cl.app.optimise import output_folder
     from s2cl.app.simulate import require_netcdf_disk, simulate_memory, simulate_to_netcdf
@@ -61,10 +64,17 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
+    cog = _cog_format(sc, fmt)
+    product_caveats: tuple = ()
+    if sc.spec.surface.cube is not None:  # what the cube file's metadata completes (GSD, grid), before the checks
+        from s2cl.forward.product_scene import resolve_product_scene
+
+        sc, product_caveats = resolve_product_scene(sc)
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)
     if sc.spec.surface.cube is not None:
-        return _simulate_cube(checked, folder, device, budget, progress, on_start)
+        checked = replace(checked, caveats=[*product_caveats, *checked.caveats])
+        return _simulate_cube(checked, folder, device, budget, progress, on_start, cog)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)
     get_runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
@@ -82,6 +92,24 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
                                               "warnings": warnings})
     return SimulationRun(sc.name, folder, (folder / "simulation.nc", folder / SIMULATION_JSON), result.rows,
                          result.attrs, result.analysis, total, seconds)
+
+
+def _cog_format(sc: Scene, fmt: str | None) -> bool:
+    """Whether the run writes COGs (``fmt``, else ``output.format``), checked: an image scene, the geo extra."""
+    from s2cl.errors import InputError
+
+    fmt = fmt or sc.spec.output.format
+    if fmt not in ("netcdf", "cog"):
+        raise InputError(f"must be 'netcdf' or 'cog', got {fmt!r}", key="--format")
+    if fmt != "cog":
+        return False
+    if sc.spec.surface.cube is None:
+        raise InputError("'cog' writes GeoTIFFs of an image; a library scene has none (simulation.nc holds its "
+                         "pixels)", source=sc.source, key="output.format")
+    from s2cl.io.products.geotiff import rasterio_module
+
+    rasterio_module()  # the geo extra, before anything is created
+    return True
 
 
 def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0) -> int | None:
@@ -125,11 +153,11 @@ def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
 
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                    progress: Callable[[int], None] | None,
-                   on_start: Callable[[str, int], None] | None) -> SimulationRun:
+                   on_start: Callable[[str, int], None] | None, cog: bool = False) -> SimulationRun:
     """Simulate the scene's image cube (sized from its metadata, checked before the folder is made) into
     ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
-    (:mod:`s2cl.app.image_analysis`)."""
+    (:mod:`s2cl.app.image_analysis`); with ``cog``, the GSD groups and the maps as COGs (:mod:`s2cl.io.cog`)."""
     from s2cl.app.image_quicklook import write_quicklook
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
@@ -148,8 +176,8 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths)
     rt = get_runtime(device or sc.run.device)
     cube = load_scene_cube(sc)
-    require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * CUBE_DISK_BYTES_PER_BAND * sc.sensor.size
-                 + 2e6)
+    per_band = CUBE_DISK_BYTES_PER_BAND + (2 * COG_BYTES_PER_BAND if cog else 0)  # a COG and its strips, at once
+    require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
     nc = folder / "simulation.nc"
@@ -166,6 +194,11 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                     analysis = _analyse_cube(rt, checked, store, cube, block_rows)
                     written.append(folder / "quicklook.png")
                     write_quicklook(store, written[-1], analysis["map"])
+                if cog:
+                    from s2cl.forward.reach import band_groups
+                    from s2cl.io.cog import write_cogs
+
+                    written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
                 attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
             finally:
                 store.close()

@@ -17,8 +17,12 @@ from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, quiet_option
               help="output folder (default: the scene's output.directory, else s2cl-out/<scene name>)")
 @click.option("--device", "-d", help=DEVICE_HELP)
 @click.option("--max-memory", help=MAX_MEMORY_HELP)
+@click.option("--format", "fmt", type=click.Choice(["netcdf", "cog"]), default=None,
+              help="netcdf: simulation.nc (default: the scene's output.format); cog: also Cloud-Optimised GeoTIFFs "
+                   "of an image, one per GSD group and one per retrieval map, on the input's map grid (geo extra)")
 @quiet_option
-def simulate(scene: str, output: Path | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
+def simulate(scene: str, output: Path | None, device: str | None, max_memory: str | None, fmt: str | None,
+             quiet: bool) -> None:
     """Simulate SCENE (a .toml file or a built-in scene name; default: `default`).
 
     Writes OUTPUT/simulation.nc (per-band images: noise-free radiance, noisy radiance, DN,
@@ -28,13 +32,15 @@ def simulate(scene: str, output: Path | None, device: str | None, max_memory: st
     summary.json). Memory stays bounded whatever surface.copies: images are written chunk by chunk.
     An image cube is written in row blocks that fit --max-memory; with an [analysis], its map, status and
     (where the scene knows the truth, as cube-fields does) error go into simulation.nc, and
-    OUTPUT/quicklook.png shows them.
+    OUTPUT/quicklook.png shows them. With --format cog (an image), also OUTPUT/bands_10m.tif … (Sentinel-2 L2A
+    encoding where the chain corrects, else TOA radiance) and the retrieval maps as GeoTIFFs, on the input's map
+    grid.
     """
     from s2cl.app.simulate_scene import simulate_scene
 
     with progress_bar(None, "simulate", not quiet) as advance:
         run = simulate_scene(scene, output, device=device, max_memory=max_memory, progress=advance,
-                             on_start=lambda label, total: advance.start(total, label=label))
+                             on_start=lambda label, total: advance.start(total, label=label), fmt=fmt)
     if not quiet and run.rows:
         _print_summary(run.rows, run.attrs, run.pixels, run.seconds)
         if run.analysis:

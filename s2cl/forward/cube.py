@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -38,6 +39,7 @@ from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
 from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument, SmileResampler, spatial_response
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
+from s2cl.forward.product_scene import resolve_product_scene, scene_reader
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
@@ -46,7 +48,8 @@ from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.forward.stages import band_attrs as stage_attrs
 from s2cl.forward.stages import senses
 from s2cl.grid import SpectralGrid, check_wavelengths
-from s2cl.io.cubes import CubeReader, cube_size, load_cube, open_cube
+from s2cl.io.cubes import CubeReader, cube_size, load_cube
+from s2cl.io.georef import GeoRef, georef_attrs, grid_dimensions, product_attrs
 from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
 from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import resample_to_grid
@@ -128,6 +131,9 @@ class SceneCube:
     truth_params: dict[str, np.ndarray] = field(default_factory=dict)
     parcels: np.ndarray | None = None
     read_rows: Callable[[int, int], np.ndarray] | None = None
+    #: the cube's grid on the map (None: it has none) and what its reader says about it (:func:`product_attrs`)
+    georef: GeoRef | None = None
+    product: dict[str, Any] = field(default_factory=dict)
 
     def block(self, start: int, stop: int) -> np.ndarray:
         """Spectra on the grid ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now;
@@ -163,6 +169,10 @@ def scene_cube_size(scene: Scene) -> tuple[int, int]:
     if is_builtin_cube(cube):
         rows, cols = fields_shape(cube, source=scene.source)
         return rows * cols, 0
+    if scene.spec.surface.geometry != "map":
+        reader = scene_reader(scene)
+        assert reader is not None
+        return reader.rows * reader.cols, reader.bands_read
     return cube_size(scene.resolve(cube))
 
 
@@ -173,8 +183,9 @@ def scene_cube_shape(scene: Scene) -> tuple[int, int, int]:
     assert cube is not None
     if is_builtin_cube(cube):
         return (*fields_shape(cube, source=scene.source), 0)
-    reader = open_cube(scene.resolve(cube), scene.spec.surface.variable)
-    return reader.rows, reader.cols, reader.wavelengths_nm.size + reader.bad_nm.size
+    reader = scene_reader(scene)
+    assert reader is not None
+    return reader.rows, reader.cols, reader.bands_read
 
 
 def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
@@ -182,6 +193,8 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
     """The scene's ``surface.cube`` file (or ``cube`` given in memory: NaN marks no data) loaded onto the
     scene's grid, with every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it
     creates the folder."""
+    if cube is None:
+        scene = resolve_product_scene(scene)[0]
     s = scene.spec
     source = scene.source
     generated, reader, nodata = None, None, None
@@ -193,7 +206,8 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
             generated = fields_image(scene.grid, rows, cols, scene.run.seed)
         else:
             source = str(scene.resolve(s.surface.cube))
-            reader = open_cube(scene.resolve(s.surface.cube), s.surface.variable)
+            reader = scene_reader(scene)
+            assert reader is not None
             if reader.bad_nm.size:
                 weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
                 check_bad_band_gaps([b.name for b in scene.sensor.bands],
@@ -221,7 +235,8 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                          truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
     nodata = nodata if nodata is not None and nodata.any() else None
     if reader is not None:
-        return SceneCube(None, rows, cols, source, nodata, read_rows=_file_rows(reader, scene.grid, source))
+        return SceneCube(None, rows, cols, source, nodata, read_rows=_file_rows(reader, scene.grid, source),
+                         georef=reader.georef, product=product_attrs(reader))
     return SceneCube(spectra, rows, cols, source, nodata)
 
 
@@ -255,6 +270,8 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
     default all), read with the spatial filters' halo (:func:`s2cl.forward.reach.cube_halo`), so the result does
     not depend on it."""
+    if not isinstance(cube, np.ndarray):  # a cube file: the scene completed from its metadata, as it was loaded
+        scene = resolve_product_scene(scene)[0]
     s = scene.spec
     prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
     rows, cols = prepared.rows, prepared.cols
@@ -270,8 +287,9 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
                       "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
                       "psf": "none" if instrument.psf is None else "gaussian",
                       "nodata_input_pixels": int(prepared.nodata_image.sum()), "instrument": instrument.describe()})
+    out.attrs.update(georef_attrs(prepared.georef, prepared.product))
     nodata = prepared.nodata_image
-    groups = [_Group(scene, sim, factor, ids, rows, cols, out, nodata, instrument)
+    groups = [_Group(scene, sim, factor, ids, rows, cols, out, nodata, instrument, prepared.georef)
               for factor, ids in band_groups(scene)]
     halo = cube_halo(scene)
     distinct = band_values(prepared.spectra) if prepared.labels is not None else None
@@ -297,7 +315,8 @@ class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
     def __init__(self, scene: Scene, sim: Simulator, factor: int, ids: list[int], rows: int, cols: int,
-                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, instrument: Instrument):
+                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, instrument: Instrument,
+                 georef: GeoRef | None = None):
         bands = scene.sensor.bands
         gsd = bands[ids[0]].gsd_m
         self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
@@ -305,8 +324,7 @@ class _Group:
         ny, nx = rows // self.factor, cols // self.factor
         self.nx = nx
         self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
-        store.dimension(self.dims[0], (np.arange(ny) + 0.5) * gsd, {"units": "m"})
-        store.dimension(self.dims[1], (np.arange(nx) + 0.5) * gsd, {"units": "m"})
+        grid_dimensions(store, self.dims, georef, factor, gsd, ny, nx)  # x/y and the CF grid mapping
         self.sensing = None
         if senses(scene.effects):
             correction = None

@@ -17,7 +17,6 @@ What each format may mark:
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,14 +26,14 @@ import xarray as xr
 
 from s2cl.errors import InputError, token
 from s2cl.grid import check_wavelengths
+from s2cl.io.cube_reader import CubeReader, floating, real, wavelength_scale
 from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
+from s2cl.io.georef import envi_georef
 from s2cl.io.inputs import input_file, parse_number
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
 NODATA_MEANINGS = frozenset({"no_data", "nodata", "no_data_value", "missing", "missing_data", "missing_value",
                              "fill", "fill_value", "invalid", "invalid_data", "no_data_nan_radiance"})
-_NANOMETRES = ("nanometers", "nanometer", "nanometres", "nanometre", "nm", "unknown", "")
-_MICROMETRES = ("micrometers", "micrometer", "micrometres", "micrometre", "microns", "micron", "um", "µm", "μm")
 
 
 @dataclass(frozen=True)
@@ -50,28 +49,6 @@ class CubeFile:
     bad_nm: np.ndarray = field(default_factory=lambda: np.empty(0))
 
 
-@dataclass(frozen=True)
-class CubeReader:
-    """A cube file opened for reading a band of rows at a time: its shape and wavelengths from the metadata, every
-    rule of :func:`load_cube` checked; :meth:`read` gives rows ``start … stop-1`` exactly as :func:`load_cube` gives
-    them within the whole cube (the same function reads both).
-
-    :param wavelengths_nm: the kept bands' wavelengths (nm, increasing).
-    :param bad_nm: wavelengths (nm) of the bands the file's bad band list dropped (empty when none)."""
-
-    path: Path
-    rows: int
-    cols: int
-    wavelengths_nm: np.ndarray
-    bad_nm: np.ndarray
-    _read: Callable[[int, int], np.ndarray]
-
-    def read(self, start: int, stop: int) -> np.ndarray:
-        """Rows ``start … stop-1`` ``(stop-start, cols, wavelengths)``: floating values, NaN where the file marks no
-        data."""
-        return self._read(start, stop)
-
-
 def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
     """The cube at ``path``: NetCDF (a 3-D variable with a ``wavelength`` dimension and coordinate) or ENVI
     (the ``.hdr`` file), read whole. See the module docstring for the no-data conventions honoured."""
@@ -79,11 +56,49 @@ def load_cube(path: str | Path, variable: str | None = None) -> CubeFile:
     return CubeFile(reader.read(0, reader.rows), reader.wavelengths_nm, reader.bad_nm)
 
 
-def open_cube(path: str | Path, variable: str | None = None) -> CubeReader:
-    """The cube at ``path`` opened for reading by rows (:class:`CubeReader`); nothing but metadata is read."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        return _open_envi(p)
+def open_cube(path: str | Path, variable: str | None = None, *, geometry: str = "map") -> CubeReader:
+    """The cube at ``path`` opened for reading by rows (:class:`CubeReader`); nothing but metadata is read.
+
+    ``path`` is an ENVI header (``.hdr``) or the data file beside it (``x.bsq`` with ``x.hdr`` or ``x.bsq.hdr``), a
+    NetCDF cube, or a product as its mission ships it (:mod:`s2cl.io.products`: an EnMAP L2A folder, image or XML;
+    EMIT L2A; PRISMA L2D; a GeoTIFF with GDAL wavelength metadata). ``geometry``: ``map`` (a product in sensor
+    geometry with a lookup table is orthorectified onto its map grid) or ``sensor``."""
+    from s2cl.io.products import open_product
+
+    p = Path(path)
+    if not p.is_dir():
+        p = input_file(p, what="cube file")
+        if p.suffix.lower() == ".hdr":
+            return _open_envi(p)
+    product = open_product(p, variable, geometry)
+    if product is not None:
+        return product
+    hdr = envi_header_of(p)
+    if hdr is not None:
+        return _open_envi(hdr)
+    return _open_netcdf_cube(p, variable)
+
+
+def envi_header_of(data: Path) -> Path | None:
+    """The ENVI header of a data file named as GDAL users name it: ``x.hdr`` beside ``x.bsq`` (or ``x.img`` …), or
+    ``x.bsq.hdr``; None when there is none (or ``data`` is HDF5 or TIFF)."""
+    from s2cl.io.products import file_kind
+
+    if file_kind(data) != "other":
+        return None
+    for hdr in (data.with_suffix(".hdr"), data.with_name(data.name + ".hdr"), data.with_suffix(".HDR"),
+                data.with_name(data.name + ".HDR")):
+        if hdr != data and hdr.is_file():
+            try:
+                if envi_data_file(hdr).resolve() == data.resolve():
+                    return hdr
+            except InputError:
+                continue
+    return None
+
+
+def _open_netcdf_cube(p: Path, variable: str | None) -> CubeReader:
+    """A NetCDF cube (a 3-D variable with a ``wavelength`` dimension and coordinate)."""
     with _open_netcdf(p) as ds:
         v = _netcdf_cube(ds, p, variable)
         scale = wavelength_scale(ds["wavelength"].attrs.get("units"), p, "wavelength.units")
@@ -95,7 +110,7 @@ def open_cube(path: str | Path, variable: str | None = None) -> CubeReader:
         with _open_netcdf(p) as ds:
             v = _netcdf_cube(ds, p, name)
             window = {v.dims[0]: slice(start, stop)}
-            values = _floating(np.asarray(v.isel(window).values))
+            values = floating(np.asarray(v.isel(window).values))
             flagged = _flagged_nodata(ds, v, p, name, window)
             if flagged is not None:
                 values[flagged] = np.nan
@@ -109,7 +124,9 @@ def _open_netcdf(p: Path) -> xr.Dataset:
     try:
         return xr.open_dataset(p, engine="h5netcdf")
     except Exception as err:  # h5netcdf/h5py raise many types for a bad file
-        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__})", source=p) from err
+        raise InputError(f"cannot read as NetCDF-4 ({type(err).__name__}); s2cl reads NetCDF-4 cubes, EMIT L2A, "
+                         "PRISMA L2D, EnMAP L2A, GeoTIFF with wavelengths, and ENVI (the .hdr, or the data file "
+                         "beside it)", source=p) from err
 
 
 def _netcdf_cube(ds: xr.Dataset, p: Path, variable: str | None) -> xr.DataArray:
@@ -128,16 +145,26 @@ def _netcdf_cube(ds: xr.Dataset, p: Path, variable: str | None) -> xr.DataArray:
 
 
 def cube_size(path: str | Path) -> tuple[int, int]:
-    """(pixels, wavelengths) of the cube at ``path`` from its metadata only (nothing is loaded);
+    """(pixels, wavelengths read per pixel) of the cube at ``path`` from its metadata only (nothing is loaded);
     (0, 0) when a NetCDF file cannot tell (then :func:`load_cube` says what is wrong).
 
-    :raises InputError: ``path`` is not a regular file, or an ENVI header's layout is wrong or lies
-        about its data file (:func:`s2cl.io.envi.envi_layout`)."""
-    p = input_file(path, what="cube file")
-    if p.suffix.lower() == ".hdr":
-        meta = read_envi_header(p)
-        layout = envi_layout(meta, p, envi_data_file(p))
-        _envi_wavelengths(meta, layout.bands, p)
+    :raises InputError: ``path`` is not a regular file (or a product folder), or an ENVI header's layout is wrong or
+        lies about its data file (:func:`s2cl.io.envi.envi_layout`), or a product's metadata is wrong."""
+    from s2cl.io.products import open_product
+
+    p = Path(path)
+    if not p.is_dir():
+        p = input_file(p, what="cube file")
+    hdr = p if p.suffix.lower() == ".hdr" else None
+    if hdr is None:
+        product = open_product(p)
+        if product is not None:
+            return product.rows * product.cols, product.bands_read
+        hdr = envi_header_of(p)
+    if hdr is not None:
+        meta = read_envi_header(hdr)
+        layout = envi_layout(meta, hdr, envi_data_file(hdr))
+        _envi_wavelengths(meta, layout.bands, hdr)
         return layout.samples * layout.lines, layout.bands
     try:
         with xr.open_dataset(p, engine="h5netcdf") as ds:
@@ -148,31 +175,6 @@ def cube_size(path: str | Path) -> tuple[int, int]:
             return int(v.size // v.sizes["wavelength"]), int(v.sizes["wavelength"])
     except Exception:  # a bad file is reported by load_cube, with its reason
         return 0, 0
-
-
-def real(dtype: np.dtype, p: Path, key: str) -> None:
-    """Refuse a cube of complex (or non-numeric) values: casting would drop the imaginary part silently."""
-    if np.dtype(dtype).kind not in "fiu":
-        raise InputError(f"holds {np.dtype(dtype)} values; a cube holds real numbers (radiance or reflectance)",
-                         source=p, key=key)
-
-
-def wavelength_scale(units: Any, p: Path, key: str) -> float:
-    """nm per unit of a file's wavelength ``units`` (1 for nanometres, 1000 for micrometres)."""
-    text = str(units if units is not None else "").strip().lower()
-    if text in _NANOMETRES:
-        return 1.0
-    if text in _MICROMETRES:
-        return 1000.0
-    raise InputError(f"wavelength units {token(str(units))} are not known; write Nanometers or Micrometers",
-                     source=p, key=key)
-
-
-def _floating(values: np.ndarray) -> np.ndarray:
-    """``values`` as a writable floating array: float32 for float32 and 8/16-bit integers (exact), else float64."""
-    small = values.dtype == np.float32 or (values.dtype.kind in "iu" and values.dtype.itemsize <= 2)
-    out = np.asarray(values, dtype=np.float32 if small else np.float64)
-    return out if out.flags.writeable else out.copy()
 
 
 def _flagged_nodata(ds: xr.Dataset, v: xr.DataArray, p: Path, name: str,
@@ -301,7 +303,7 @@ def _open_envi(p: Path) -> CubeReader:
         rows = rows.transpose(*(axes.index(a) for a in "lsb"))
         raw = np.asarray(rows[:, :, good] if not good.all() else rows, dtype=dtype.newbyteorder("="))
         del mm, rows
-        values = _floating(raw)
+        values = floating(raw)
         if ignore is not None:
             # a float file holds the ignore value at its own precision; an integer file compares exactly
             values[raw == (raw.dtype.type(ignore) if raw.dtype.kind == "f" else ignore)] = np.nan
@@ -311,4 +313,4 @@ def _open_envi(p: Path) -> CubeReader:
         return values
 
     return CubeReader(p, layout.lines, layout.samples, check_wavelengths(w[good], source=str(p), key="wavelength"),
-                      w[~good], read)
+                      w[~good], read, georef=envi_georef(meta, p), product="ENVI", stored_bands=layout.bands)

@@ -17,14 +17,22 @@ class MemoryStore:
         self.attrs: dict[str, Any] = {}
         self.vars: dict[str, tuple[tuple[str, ...], np.ndarray, dict[str, Any]]] = {}
         self.coords: dict[str, tuple[np.ndarray, dict[str, Any]]] = {}
+        self.scalars: dict[str, dict[str, Any]] = {}
+        #: the CF grid-mapping variable of each row dimension (``y_10m`` → ``crs_10m``): the variables created on it
+        #: name it in their ``grid_mapping`` attribute
+        self.grid_mappings: dict[str, str] = {}
 
     def dimension(self, name: str, values: np.ndarray, attrs: dict[str, Any]) -> None:
         """A dimension with its coordinate values."""
         self.coords[name] = (np.asarray(values), dict(attrs))
 
+    def scalar(self, name: str, attrs: dict[str, Any]) -> None:
+        """A variable without data that holds attributes (a CF grid mapping)."""
+        self.scalars[name] = dict(attrs)
+
     def create(self, name: str, dims: tuple[str, str], dtype: Any, attrs: dict[str, Any], fill: Any = 0) -> None:
         shape = tuple(self.coords[d][0].size for d in dims)
-        self.vars[name] = (dims, np.full(shape, fill, dtype=dtype), dict(attrs))
+        self.vars[name] = (dims, np.full(shape, fill, dtype=dtype), _mapped(self, dims, attrs))
 
     def write(self, name: str, rows: slice, data: np.ndarray) -> None:
         self.vars[name][1][rows] = data
@@ -56,6 +64,8 @@ class MemoryStore:
         ds = xr.Dataset(attrs=dict(self.attrs))
         for dim, (values, attrs) in self.coords.items():
             ds.coords[dim] = (dim, values, attrs)
+        for name, attrs in self.scalars.items():
+            ds.coords[name] = ((), np.int32(0), attrs)
         for name, (dims, data, attrs) in self.vars.items():
             ds[name] = (dims, data, attrs)
         return ds
@@ -69,6 +79,7 @@ class NetcdfStore:
 
         self.file = h5netcdf.File(path, "w")
         self.attrs: dict[str, Any] = {}
+        self.grid_mappings: dict[str, str] = {}
 
     def dimension(self, name: str, values: np.ndarray, attrs: dict[str, Any]) -> None:
         values = np.asarray(values)
@@ -77,11 +88,17 @@ class NetcdfStore:
         v[...] = values
         v.attrs.update(attrs)
 
+    def scalar(self, name: str, attrs: dict[str, Any]) -> None:
+        """A variable without data that holds attributes (a CF grid mapping)."""
+        v = self.file.create_variable(name, (), np.int32)
+        v[...] = 0
+        v.attrs.update(attrs)
+
     def create(self, name: str, dims: tuple[str, str], dtype: Any, attrs: dict[str, Any], fill: Any = 0) -> None:
         dtype = np.dtype(dtype)
         fillvalue = np.nan if dtype.kind == "f" else None
         v = self.file.create_variable(name, dims, dtype, fillvalue=fillvalue)
-        v.attrs.update(attrs)
+        v.attrs.update(_mapped(self, dims, attrs))
 
     def write(self, name: str, rows: slice, data: np.ndarray) -> None:
         self.file.variables[name][rows, :] = data
@@ -113,3 +130,9 @@ class NetcdfStore:
 
 
 ImageStore = MemoryStore | NetcdfStore
+
+
+def _mapped(store: MemoryStore | NetcdfStore, dims: tuple[str, ...], attrs: dict[str, Any]) -> dict[str, Any]:
+    """``attrs`` with the CF ``grid_mapping`` of the grid ``dims`` lies on, where it has one."""
+    mapping = store.grid_mappings.get(dims[0]) if dims else None
+    return {**attrs, "grid_mapping": mapping} if mapping else dict(attrs)

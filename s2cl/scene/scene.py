@@ -245,7 +245,7 @@ def _check_surface(spec: SceneSpec, source: str) -> None:
                          source=source, key="surface.select")
     if s.cube is not None and is_builtin_cube(s.cube):
         fields_shape(s.cube, source=source)
-    if s.cube is not None and s.gsd_m is None:
+    if s.cube is not None and is_builtin_cube(s.cube) and s.gsd_m is None:
         raise InputError("an image cube needs surface.gsd_m (its ground sampling distance in m)",
                          source=source, key="surface.gsd_m")
 

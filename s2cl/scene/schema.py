@@ -50,12 +50,21 @@ class SceneMeta(Section):
 
 class SurfaceSpec(Section):
     library: str | None = Field(None, description="'builtin:NAME' or a CSV / ENVI (.sli/.hdr) / s2cl .npz library file")
-    cube: str | None = Field(None, description="image cube file: NetCDF (.nc) or ENVI (.hdr), whose no-data values, "
-                             "scale factors and bad band lists are honoured (pixels with no data are flagged NODATA, "
-                             "never used as data); or builtin:fields[:ROWSxCOLS], parcels generated with a known "
-                             "truth (cab, lai)")
-    variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one)")
-    gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m)")
+    cube: str | None = Field(None, description="image cube: a product as shipped (an EnMAP L2A folder, image or "
+                             "METADATA.XML; an EMIT L2A or PRISMA L2D file; a GeoTIFF with GDAL wavelength metadata), "
+                             "an ENVI file (the .hdr, or the data file beside it; AVIRIS-NG/-3 with map info) or a "
+                             "NetCDF cube, whose no-data values, scale factors, bad bands and georeference are "
+                             "honoured (pixels with no data are flagged NODATA, never used as data; GeoTIFF needs "
+                             "the geo extra); or builtin:fields[:ROWSxCOLS], parcels generated with a known truth "
+                             "(cab, lai)")
+    variable: str | None = Field(None, description="NetCDF variable of the cube (default: the only 3-D one; EMIT: "
+                                 "reflectance)")
+    gsd_m: float | None = Field(None, gt=0, le=10000, description="ground sampling distance of the cube (m); default: "
+                                "the pixel size of a product georeferenced in metres (a value that differs from it "
+                                "simulates the bands as if the pixels were that size, and says so)")
+    geometry: Literal["map", "sensor"] = Field("map", description="a product in sensor geometry with a lookup table "
+                                               "(EMIT): orthorectified onto its map grid (map), or kept as the sensor "
+                                               "saw it, without a georeference (sensor)")
     quantity: Literal["reflectance", "radiance"] = Field(
         "radiance", description="what the spectra hold: TOA radiance (W m-2 sr-1 um-1) or surface reflectance"
     )
@@ -307,6 +316,10 @@ class AnalysisSpec(Section):
 
 class OutputSpec(Section):
     directory: str | None = Field(None, description="output folder (default: s2cl-out/<scene name>)")
+    format: Literal["netcdf", "cog"] = Field("netcdf", description="image outputs of s2cl simulate: simulation.nc "
+                                             "alone (netcdf), or also Cloud-Optimised GeoTIFFs, one per GSD group "
+                                             "and one per retrieval map (cog; needs the geo extra; the CLI's --format "
+                                             "wins)")
     precision: Literal["float32", "float64"] | None = Field(
         None, description="deprecated: use compute.precision (still read, with a warning)")
 
