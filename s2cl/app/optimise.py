@@ -110,7 +110,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
     host_metrics = bool(workers or scheduler) or not rt.has_fp64
     plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(folder, overwrite),
-                           host_metrics=host_metrics)
+                           host_metrics=host_metrics, rt=rt)
     searching = sc.spec.sweep is not None and sc.spec.sweep.search != "exhaustive"
     if not searching:  # a search writes the designs it evaluates, not the space
         require_sweep_disk(checked, folder)
@@ -190,8 +190,9 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     variants = count_table(sc)
     if on_counted:
         on_counted(sc.name, variants, checked.space.size)
-    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder),
-                           host_metrics=not get_runtime(sc.run.device).has_fp64)
+    rt = get_runtime(sc.run.device)
+    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder), host_metrics=not rt.has_fp64,
+                           rt=rt)
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)

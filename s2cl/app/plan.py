@@ -9,6 +9,7 @@ import numpy as np
 
 from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.sweep_budget import Budget, SweepPlan, sweep_resources
+from s2cl.cl.runtime import get_runtime
 from s2cl.forward.simulate import scene_library
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
@@ -37,12 +38,14 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
                budget: Budget | None = None, host_metrics: bool = True, device: str | None = None,
                resources: SweepPlan | None = None) -> SweepJob:
     """The sweep a scene describes, ready for :func:`s2cl.sweep.engine.run_sweep`: checked (:mod:`s2cl.app.checks`),
-    its memory estimated against ``budget`` before the tables are built (``host_metrics``: see
-    :func:`s2cl.app.sweep_budget.sweep_resources`), the chunk chosen to fit. A band-addition sweep's base set is
-    scored here, on ``device`` (:func:`fixed_row`), and the job carries it (each row's ``gain``). ``resources``: the
-    estimate the caller already made (its chunk is used; nothing is estimated twice)."""
+    its memory estimated against ``budget`` and the memory of ``device`` before the tables are built
+    (``host_metrics``: see :func:`s2cl.app.sweep_budget.sweep_resources`), the chunk chosen to fit both. A
+    band-addition sweep's base set is scored here, on ``device`` (:func:`fixed_row`), and the job carries it (each
+    row's ``gain``). ``resources``: the estimate the caller already made (its chunk is used; nothing is estimated
+    twice)."""
     checked = checked or check_sweep(scene)
-    plan = resources or sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics)
+    plan = resources or sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics,
+                                        rt=get_runtime(device or scene.run.device))
     assert checked.space is not None and checked.analysis is not None
     tables_scene = addition_scene(scene)  # with [sweep.add]: the added band in the sensor
     tables = _tables(tables_scene, checked.space, checked.analysis, checked.library)

@@ -22,19 +22,30 @@ over all slots, ``G`` grid wavelengths, ``C`` configurations per chunk):
 
 The largest part decides the key an error names: ``surface.copies`` (pixels), ``sweep.step_nm``
 (variants) or ``sweep.chunk`` / ``--chunk``.
+
+The device's memory bounds the chunk too (:mod:`s2cl.sweep.device_footprint`, from the kernels' argument
+declarations): the sweep's buffers together within 80 % of the device's global memory, each within its largest
+allocation (:class:`s2cl.cl.device_memory.DeviceMemory`); a sweep whose tables or single configuration do not fit
+the device is refused in one line naming the device.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from s2cl.app.checks import Checked
+from s2cl.cl.device_memory import DeviceBuffer
+from s2cl.cl.runtime import Runtime, get_runtime
+from s2cl.forward.stages import chain
 from s2cl.io.budget import BASELINE_BYTES, Budget, gb, largest_fitting, require_disk
 from s2cl.scene.scene import Scene
 from s2cl.sensor.variants import BandGrid, BandRange
+from s2cl.sweep.device_footprint import SweepSizes, sweep_device_buffers
 from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BYTES_PER_VARIANT
 from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION, results_disk_bytes
+from s2cl.sweep.metrics_kernel import MetricsKernel
 
 KERNEL_BYTES_PER_EVALUATION = 28
 PHILOX_BYTES_PER_PIXEL = 160
@@ -58,19 +69,25 @@ __all__ = ["Budget", "SweepPlan", "require_sweep_disk", "sweep_resources"]
 
 @dataclass(frozen=True)
 class SweepPlan:
-    """The chunk a sweep will run with and the memory it is expected to take (bytes)."""
+    """The chunk a sweep will run with, the host memory it is expected to take and the device memory of its
+    buffers (bytes)."""
 
     chunk: int
     memory_bytes: float
     configurations: int
+    device_bytes: float = 0.0
 
 
 def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budget | None = None,
-                    resumed: int | None = None, host_metrics: bool = True) -> SweepPlan:
+                    resumed: int | None = None, host_metrics: bool = True,
+                    rt: Runtime | None = None) -> SweepPlan:
     """Estimate the sweep's memory; choose the chunk (``chunk``, else ``resumed``: the chunk of the unfinished
     sweep in the output folder, whose chunk files are keyed by it, else ``sweep.chunk``, else the largest
     that keeps a chunk's work arrays within 1 GB and the whole within ``budget``). ``host_metrics``: whether the
     per-configuration metrics run in numpy on the host (default, the larger estimate) or on the device.
+    ``rt``: the runtime of the device the chunks run on (default: the scene's ``run.device``); the chunk is at most
+    what its buffers leave room for there (:func:`device_buffers`; with the metrics kernel's where it has float64).
+    The chunk of a Dask worker's device is sized from this one.
 
     :raises ResourceError: even one configuration per chunk does not fit, or the chunk asked for does not.
     """
@@ -104,22 +121,56 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
         budget.require(need(1), what=what, key="surface.copies", source=scene.source,
                        fits=f"at most {most:,} copies fit" if most else "")
     space.check_numbered(scene.source)  # after the memory: a space too large to hold is told so first
-    room = largest_fitting(budget.memory_bytes, held, per_config)
+    rt = rt or get_runtime(scene.run.device)
+    device = rt.memory
+    buffers = device_buffers(checked, device_metrics=MetricsKernel.available(rt))
+    on_device = device.units_fitting(buffers)
+    if not on_device:  # the tables, or one configuration's outputs, do not fit the device
+        tables_part = sum(b.fixed for b in buffers if b.name not in ("z", "target"))
+        key = "sweep.step_nm" if tables_part > sum(b.per_unit for b in buffers) else "surface.copies"
+        device.require(buffers, 1, what=what, key=key, source=scene.source,
+                       fits="choose a device with more memory (run.device, --device)")
+    room = min(largest_fitting(budget.memory_bytes, held, per_config), on_device)
     if resumed and not chunk:
         budget.require(need(resumed), what=what + f" resumed in the chunks of {resumed:,} it started with",
                        key="--max-memory", source=scene.source, fits=f"at most {room:,} configurations per chunk "
                        "fit: raise --max-memory, or pass --overwrite to start afresh")
-        return SweepPlan(chunk=int(resumed), memory_bytes=need(resumed), configurations=n_configs)
+        device.require(buffers, resumed, what=what + f" resumed in the chunks of {resumed:,} it started with",
+                       key="--overwrite", source=scene.source, fits=f"at most {on_device:,} configurations per "
+                       "chunk fit this device: pass --overwrite to start afresh, or choose another (--device)")
+        return _plan(resumed, need, n_configs, buffers)
     asked = chunk or scene.spec.sweep.chunk
     if asked:
         key = "--chunk" if chunk else "sweep.chunk"
         budget.require(need(asked), what=what + f" in chunks of {asked:,}", key=key, source=scene.source,
                        fits=f"at most {room:,} configurations per chunk fit")
+        device.require(buffers, asked, what=what + f" in chunks of {asked:,}", key=key, source=scene.source,
+                       fits=f"at most {on_device:,} configurations per chunk fit this device")
         size = asked
     else:
         size = max(1, min(n_configs, int(AUTO_CHUNK_BYTES // (pixels * per_evaluation)), MAX_AUTO_CHUNK,
                           room))
-    return SweepPlan(chunk=int(size), memory_bytes=need(size), configurations=n_configs)
+    return _plan(size, need, n_configs, buffers)
+
+
+def _plan(size: int, need: Callable[[int], float], n_configs: int, buffers: list[DeviceBuffer]) -> SweepPlan:
+    return SweepPlan(chunk=int(size), memory_bytes=need(size), configurations=n_configs,
+                     device_bytes=sum(b.bytes(size) for b in buffers))
+
+
+def device_buffers(checked: Checked, *, device_metrics: bool) -> list[DeviceBuffer]:
+    """The sweep's device buffers (:func:`s2cl.sweep.device_footprint.sweep_device_buffers`), from the checked scene
+    before its tables are built: fixed bytes and bytes per configuration of a chunk; ``device_metrics``: with the
+    metrics kernel's (:class:`s2cl.sweep.metrics_kernel.MetricsKernel`, on devices with float64)."""
+    scene, space, library = checked.scene, checked.space, checked.library
+    assert space is not None and library is not None and checked.analysis is not None
+    classify = checked.analysis.family.metric == "classification"
+    classes = len(set(library.groups)) if classify else 0
+    sizes = SweepSizes(variants=sum(space.counts), spectra=library.size, copies=scene.run.copies,
+                       slots=len(space.ranges), classes=classes)
+    real_bytes = 8 if scene.run.precision == "float64" else 4
+    return sweep_device_buffers(chain(scene.effects), sizes, real_bytes=real_bytes, device_metrics=device_metrics,
+                                classify=classify)
 
 
 def _weights_bytes(r: BandRange | BandGrid, scene: Scene) -> float:

@@ -7,12 +7,14 @@ to bind values (on the host), so the two cannot drift apart. Every s2cl kernel i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
+from s2cl.cl.device_memory import DeviceBuffer
 from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import S2CLError
 
@@ -37,6 +39,9 @@ class Arg:
     name: str
     kind: ArgKind
     ctype: str
+    #: a buffer's element count as the product of named sizes (such as ``("configs", "pitch")``: a value per
+    #: configuration of a launch and padded pixel), which the kernel's host gives numbers for (:func:`buffers`)
+    scales: tuple[str, ...] = ()
 
     def declaration(self, T: VecTypes) -> str:
         ctype = T.R if self.ctype == "real" else self.ctype
@@ -67,4 +72,25 @@ def bind(args: Sequence[Arg], values: dict[str, Any], T: VecTypes) -> list[Any]:
             dtype = T.dtype if a.ctype == "real" else _SCALAR_DTYPES[a.ctype]
             v = np.dtype(dtype).type(v)
         out.append(v)
+    return out
+
+
+#: bytes per element of the OpenCL scalar types a buffer holds ("real": the kernel's working precision)
+_CTYPE_BYTES = {"uchar": 1, "char": 1, "ushort": 2, "short": 2, "uint": 4, "int": 4, "float": 4, "ulong": 8,
+                "long": 8, "double": 8}
+
+
+def buffers(args: Sequence[Arg], sizes: Mapping[str, int], real_bytes: int, unit: str) -> list[DeviceBuffer]:
+    """The device buffers of ``args`` (those that declare :attr:`Arg.scales`) for ``sizes``, each as fixed bytes
+    plus bytes per ``unit`` (a size left out of ``sizes``: the configurations of a chunk, say)."""
+    out = []
+    for a in args:
+        if a.kind == "scalar" or not a.scales:
+            continue
+        item = real_bytes if a.ctype == "real" else _CTYPE_BYTES[a.ctype]
+        count = math.prod(int(sizes[s]) for s in a.scales if s != unit)
+        per = a.scales.count(unit)
+        if per > 1:
+            raise S2CLError(f"kernel argument {a.name}: its size is not linear in {unit}")
+        out.append(DeviceBuffer(a.name, 0.0 if per else float(item * count), float(item * count) if per else 0.0))
     return out

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.builds import STRICT_ENV, pyopencl, quiet_build, save_source
+from s2cl.cl.device_memory import DeviceMemory
 from s2cl.cl.devices import LANES_ENV, builds_at_all, choose_lanes, env_spec, pyopencl_cache_problem, select, widths_of
 from s2cl.cl.probe import Widths
 from s2cl.cl.vectypes import VALID_LANES, VecTypes
@@ -99,12 +100,21 @@ class Runtime:
         return f"{self.info.name} ({self.info.platform})"
 
     @property
+    def memory(self) -> DeviceMemory:
+        """The device's global memory and largest single buffer (bytes), as the driver reports them, lowered by
+        ``$S2CL_DEVICE_GLOBAL_MEM`` / ``$S2CL_DEVICE_MAX_ALLOC`` where set (the test seam: :mod:`s2cl.cl.device_memory`;
+        read at each call, so a test may set them after the runtime is made)."""
+        return DeviceMemory.of(self.name, int(self.device.global_mem_size), int(self.device.max_mem_alloc_size))
+
+    @property
     def max_alloc_bytes(self) -> int:
-        return int(self.device.max_mem_alloc_size)
+        """The largest single buffer (bytes; :attr:`memory`)."""
+        return self.memory.max_alloc_bytes
 
     @property
     def global_mem_bytes(self) -> int:
-        return int(self.device.global_mem_size)
+        """The device's global memory (bytes; :attr:`memory`)."""
+        return self.memory.global_bytes
 
     def build(self, source: str, *, template: str, options: list[str] | tuple[str, ...] = ()) -> Any:
         """Build ``source`` (cached on source + options); :class:`BuildError` on failure.

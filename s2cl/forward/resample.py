@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.device_memory import DeviceBuffer
+from s2cl.cl.kernel_args import Arg, bind, buffers, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.errors import InputError
@@ -82,9 +83,10 @@ class ResamplePlan:
 
 
 def _args(atmosphere: bool) -> list[Arg]:
-    args = [Arg("out", "out", "real"), Arg("spectra", "in", "real"), Arg("weights", "in", "real")]
+    args = [Arg("out", "out", "real", ("bands", "pixels")), Arg("spectra", "in", "real", ("pixels", "wavelengths")),
+            Arg("weights", "in", "real", ("weights",))]
     if atmosphere:
-        args += [Arg(n, "in", "real") for n in ("path_radiance", "ground_term", "spherical_albedo")]
+        args += [Arg(n, "in", "real", ("wavelengths",)) for n in ("path_radiance", "ground_term", "spherical_albedo")]
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
@@ -122,6 +124,7 @@ class Resampler:
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "resample_bands")
         self.local_size = rt.work_group(self.kernel)
+        self.n_weights = int(weights.size)
         self.weights_dev = rt.to_device(weights.astype(self.dtype))
         self.atmosphere_dev = None
         if atmosphere is not None:
@@ -160,13 +163,25 @@ class Resampler:
         self.enqueue(out_dev, spectra_dev, block.shape[0], local_size)
         return self.rt.result(out_dev, out)  # blocking: spectra_dev stays referenced until the kernel is done
 
+    def device_buffers(self) -> list[DeviceBuffer]:
+        """The kernel's buffers (its argument declarations): fixed bytes and bytes per spectrum of a launch."""
+        sizes = {"bands": self.plan.n_bands, "wavelengths": self.plan.n_wavelengths, "weights": self.n_weights}
+        return buffers(self.args, sizes, self.T.dtype.itemsize, "pixels")
+
     def default_chunk(self) -> int:
-        """Pixels per chunk: input at most a quarter of the device's largest allocation, and 256 MiB
-        where it is copied to the device (1 GiB where the device reads host memory in place: no copy,
-        and fewer, larger launches run faster on PoCL)."""
+        """Pixels per chunk: input at most 256 MiB where it is copied to the device (1 GiB where the device reads
+        host memory in place: no copy, and fewer, larger launches run faster on PoCL), and no more than the
+        device's memory holds (:meth:`device_buffers`, :meth:`s2cl.cl.device_memory.DeviceMemory.units_fitting`);
+        a one-line :class:`~s2cl.errors.ResourceError` when not even one spectrum fits."""
         row = self.plan.n_wavelengths * self.dtype().itemsize
         cap = 2**30 if self.rt.host_memory else 256 * 2**20
-        return max(1, min(cap, self.rt.max_alloc_bytes // 4) // row)
+        device, own = self.rt.memory, self.device_buffers()
+        fit = device.units_fitting(own, max(1, cap // row))
+        if not fit:
+            device.require(own, 1, what=f"resampling {self.plan.n_wavelengths:,} wavelengths to "
+                           f"{self.plan.n_bands} bands", key="grid.step_nm", source=None,
+                           fits="coarsen the grid or choose a device with more memory (run.device)")
+        return fit
 
 
 def _round_up(n: int, m: int) -> int:

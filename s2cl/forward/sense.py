@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere
-from s2cl.cl.kernel_args import Arg, bind, signature
+from s2cl.cl.device_memory import DeviceBuffer
+from s2cl.cl.kernel_args import Arg, bind, buffers, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
@@ -107,9 +108,9 @@ def sense_args(stages: list[Stage]) -> list[Arg]:
     per-band values, the deviates' keys, the pixel offset, their scalars, the pixel count."""
     outs = {o.name: o for s in stages for o in s.outputs}
     values = inputs(stages, "sense")
-    args = [Arg(o.name, "out", o.ctype) for o in outs.values()]
-    args.append(Arg("radiance", "in", "real"))
-    args += [Arg(v.name, "in", v.ctype) for v in values if v.varies in ("band", "variant")]
+    args = [Arg(o.name, "out", o.ctype, ("bands", "pixels")) for o in outs.values()]
+    args.append(Arg("radiance", "in", "real", ("bands", "pixels")))
+    args += [Arg(v.name, "in", v.ctype, ("bands",)) for v in values if v.varies in ("band", "variant")]
     if any(s.deviates for s in stages):
         args += [Arg("seed", "scalar", "uint"), Arg("frame", "scalar", "uint")]
     args.append(Arg("pixel_offset", "scalar", "uint"))
@@ -176,13 +177,27 @@ class Sensing:
             if not 0 <= int(v) <= 2**32 - 1:
                 raise InputError(f"must be in 0–{2**32 - 1}, got {v}", key=f"effects.{name}")
         result = SenseResult({name: np.empty((nb, n), o.dtype or self.dtype) for name, o in self.outputs.items()})
-        chunk = chunk_pixels or max(1, (64 * 2**20) // (nb * 8))
+        chunk = chunk_pixels or self.default_chunk()
         for lo in range(0, n, chunk):
             hi = min(n, lo + chunk)
             self._chunk(radiance[:, lo:hi], lo, hi, result, seed, frame, pixel_offset, local_size)
         if "flags" in result.outputs:
             result.clipped = clipped_counts(result.outputs["flags"])
         return result
+
+    def device_buffers(self) -> list[DeviceBuffer]:
+        """The kernel's buffers (its argument declarations): fixed bytes and bytes per pixel of a launch."""
+        return buffers(self.args, {"bands": self.radiometry.n_bands}, self.T.dtype.itemsize, "pixels")
+
+    def default_chunk(self) -> int:
+        """Pixels per launch: 64 MiB of float64 per band at most, and no more than the device's memory holds
+        (:meth:`device_buffers`); a one-line :class:`~s2cl.errors.ResourceError` when not even one pixel fits."""
+        device, own = self.rt.memory, self.device_buffers()
+        fit = device.units_fitting(own, max(1, (64 * 2**20) // (self.radiometry.n_bands * 8)))
+        if not fit:
+            device.require(own, 1, what=f"sensing {self.radiometry.n_bands} bands", key="run.device", source=None,
+                           fits="choose a device with more memory")
+        return fit
 
     def _chunk(self, radiance: np.ndarray, lo: int, hi: int, result: SenseResult, seed: int, frame: int,
                pixel_offset: int, local_size: int | None) -> None:

@@ -21,23 +21,29 @@ from s2cl.sweep.tables import SweepTables
 
 TEMPLATE = "sweep.cl.mako"
 #: the per-pixel outputs of every sweep kernel, in the kernel's argument order
-OUTPUTS = (Arg("index", "out", "real"), Arg("status", "out", "uchar"), Arg("bounds", "out", "uchar"),
-           Arg("condition", "out", "uchar"))
+PER_LAUNCH = ("configs", "pitch")
+OUTPUTS = (Arg("index", "out", "real", PER_LAUNCH), Arg("status", "out", "uchar", PER_LAUNCH),
+           Arg("bounds", "out", "uchar", PER_LAUNCH), Arg("condition", "out", "uchar", PER_LAUNCH))
 #: profile builds (the ``profile`` switches of kernels/sweep.cl.mako; bench/sweep_profile.py times them): none
 #: is ever part of a sweep's kernel
 PROFILES = ("iterations", "reflectance", "no_fit", "fit_only")
 #: the extra arguments of the profile switches that have one
-PROFILE_ARGS = {"reflectance": Arg("rho_out", "out", "real"), "fit_only": Arg("rho_in", "in", "real")}
+PROFILE_ARGS = {"reflectance": Arg("rho_out", "out", "real", ("configs", "slots", "pitch")),
+                "fit_only": Arg("rho_in", "in", "real", ("configs", "slots", "pitch"))}
+#: the sizes of a sweep table that varies per variant and spectrum, or per variant
+_TABLE_SCALES = {"pixel": ("variants", "spectra"), "variant": ("variants",)}
 
 
 def kernel_args(stages: list[Stage], profile: frozenset[str] = frozenset()) -> tuple[Arg, ...]:
     """The kernel's arguments for the chain's ``stages`` and a build with the ``profile`` switches: the outputs, the
     radiance table, each stage's per-pixel and per-variant tables, the deviates (where a stage takes them), the
     band centres, the SAM references, the configuration range."""
-    tables = [Arg(v.name, "in", v.ctype) for v in inputs(stages, "sweep") if v.varies in ("pixel", "variant")]
-    deviates = [Arg("z", "in", "real")] if any(s.deviates for s in stages) else []
-    return (*OUTPUTS, Arg("radiance", "in", "real"), *tables, *deviates, Arg("centre", "in", "real"),
-            Arg("refs", "in", "real"), Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"),
+    tables = [Arg(v.name, "in", v.ctype, _TABLE_SCALES[v.varies]) for v in inputs(stages, "sweep")
+              if v.varies in _TABLE_SCALES]
+    deviates = [Arg("z", "in", "real", ("slots", "pitch"))] if any(s.deviates for s in stages) else []
+    return (*OUTPUTS, Arg("radiance", "in", "real", ("variants", "spectra")), *tables, *deviates,
+            Arg("centre", "in", "real", ("variants",)), Arg("refs", "in", "real", ("variants", "classes")),
+            Arg("config_start", "scalar", "uint"), Arg("n_configs", "scalar", "uint"),
             *(PROFILE_ARGS[p] for p in PROFILES if p in profile and p in PROFILE_ARGS))
 
 

@@ -27,9 +27,11 @@ REGRESSION = ("rms", "r2", "robust_rms", "n_valid", "constant_index", "rms_unbou
               "stalled_fraction", "iteration_limit_fraction", "degenerate_fraction", "invalid_fraction",
               "failed_fraction", "bound_fraction", "excluded_fraction", "log10_condition_median", "host")
 CLASSIFICATION = ("omission_error_pct", "overall_accuracy_pct", "unclassified_fraction", "failed_fraction", "host")
-ARGS = (Arg("out", "out", "double"), Arg("scratch", "inout", "double"), Arg("index", "in", "real"),
-        Arg("status", "in", "uchar"), Arg("bounds", "in", "uchar"), Arg("condition", "in", "uchar"),
-        Arg("target", "in", "double"), Arg("n_configs", "scalar", "uint"))
+#: (the sweep kernel's outputs it reads are that kernel's buffers: their sizes are declared there; ``scratch``: the
+#: regression's median copy, ``scratch`` pixels per configuration, none for a classification)
+ARGS = (Arg("out", "out", "double", ("configs", "columns")), Arg("scratch", "inout", "double", ("configs", "scratch")),
+        Arg("index", "in", "real"), Arg("status", "in", "uchar"), Arg("bounds", "in", "uchar"),
+        Arg("condition", "in", "uchar"), Arg("target", "in", "double", ("pixels",)), Arg("n_configs", "scalar", "uint"))
 
 
 class MetricsKernel:
