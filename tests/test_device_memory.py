@@ -216,3 +216,52 @@ def test_a_small_device_sizes_the_resampling_and_sensing_launches(rt, monkeypatc
     monkeypatch.setenv(MAX_ALLOC_ENV, "10")
     with pytest.raises(ResourceError, match=r"^grid.step_nm: resampling .* of device memory"):
         Resampler(rt, plan).default_chunk()
+
+
+def test_simulate_refuses_a_device_too_small_in_one_line_before_any_work(tmp_path: Path) -> None:
+    out = run("simulate", "-q", "default", "-o", "out", cwd=tmp_path, env={GLOBAL_ENV: "20K"})
+    one_line_error(out, "default.toml: grid.step_nm: resampling ", "of device memory", f"${GLOBAL_ENV} 20K")
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_declared_forward_buffers_are_what_resampling_and_sensing_allocate(rt, monkeypatch) -> None:
+    """The resampling and sensing launches' buffers (recorded where the runtime creates them, the resampler's
+    weights and atmosphere included) against their declarations for one launch of ``n`` pixels: the same bytes."""
+    from s2cl.forward.resample import ResamplePlan, Resampler
+    from s2cl.forward.sense import Radiometry, Sensing
+    from s2cl.grid import DEFAULT_GRID
+    from s2cl.scene.effects import EffectSet
+    from s2cl.sensor.sensor import Sensor
+
+    sizes: list[int] = []
+    to_device, output, empty = rt.to_device, rt.output, rt.empty
+
+    def record_upload(array, **kw):
+        sizes.append(np.asarray(array).nbytes)
+        return to_device(array, **kw)
+
+    def record_output(shape, dtype):
+        sizes.append(int(np.prod(shape)) * np.dtype(dtype).itemsize)
+        return output(shape, dtype)
+
+    def record_empty(nbytes):
+        sizes.append(int(nbytes))
+        return empty(nbytes)
+
+    monkeypatch.setattr(rt, "to_device", record_upload)
+    monkeypatch.setattr(rt, "output", record_output)
+    monkeypatch.setattr(rt, "empty", record_empty)
+    bands, n, grid = Sensor.sentinel2().bands, 997, DEFAULT_GRID
+    plan = ResamplePlan(tuple(b.name for b in bands), tuple(b.weights(grid) for b in bands), grid.size)
+
+    class Terms:
+        path_radiance = ground_term = spherical_albedo = np.full(grid.size, 0.1)
+
+    resampler = Resampler(rt, plan, atmosphere=Terms())
+    resampler(np.full((n, grid.size), 0.2, np.float32))
+    declared = sum(b.bytes(n) for b in resampler.device_buffers())
+    assert sum(sizes) == declared, (sizes, resampler.device_buffers())
+    sizes.clear()
+    sensing = Sensing(rt, Radiometry.of(bands, 12), EffectSet())
+    sensing(np.full((13, n), 50.0), seed=1)
+    assert sum(sizes) == sum(b.bytes(n) for b in sensing.device_buffers()), (sizes, sensing.device_buffers())

@@ -24,10 +24,13 @@ from s2cl.version import __version__
 
 if TYPE_CHECKING:
     from s2cl.cl.runtime import Runtime
+    from s2cl.scene.scene import Scene
 from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
+from s2cl.forward.resample import resample_buffers
+from s2cl.forward.sense import sense_buffers
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
-from s2cl.forward.stages import image_stage_names, outputs
+from s2cl.forward.stages import chain, image_stage_names, outputs
 from s2cl.io.budget import (
     ANALYSIS_BYTES_PER_PIXEL,
     ANALYSIS_BYTES_PER_PIXEL_BAND,
@@ -77,6 +80,24 @@ def simulate_memory(checked: Checked, budget: Budget) -> float:
     budget.require(need, what=what, key="surface.copies", source=scene.source,
                    fits=f"at most {most:,} copies fit (or remove [analysis])" if per_copy else "")
     return need
+
+
+def require_device_launches(rt: Runtime, scene: Scene) -> None:
+    """Refuse in one line, before any work, a device that cannot hold one spectrum of the resampling or one pixel of
+    the per-pixel stages (:func:`s2cl.forward.resample.resample_buffers`, :func:`s2cl.forward.sense.sense_buffers`:
+    the kernels' declarations; their launches are then sized to it). Row blocks of an image do not change what the
+    device holds: their pixels go through these launches."""
+    real_bytes = 8 if scene.run.precision == "float64" else 4
+    nb, device = scene.sensor.size, rt.memory
+    resampling = resample_buffers(nb, scene.grid.size, real_bytes, atmosphere=True)
+    if not device.units_fitting(resampling, 1):
+        device.require(resampling, 1, what=f"resampling {scene.grid.size:,} wavelengths to {nb} bands",
+                       key="grid.step_nm", source=scene.source, fits="coarsen the grid or choose a device with "
+                       "more memory (compute.device, --device)")
+    sensing = sense_buffers(chain(scene.effects), nb, real_bytes)
+    if not device.units_fitting(sensing, 1):
+        device.require(sensing, 1, what=f"the per-pixel stages of {nb} bands", key="compute.device",
+                       source=scene.source, fits="choose a device with more memory (--device)")
 
 
 def netcdf_bytes(checked: Checked) -> float:

@@ -54,7 +54,7 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     image, :mod:`s2cl.io.cog`); default the scene's ``output.format``."""
     from s2cl.app.checks import check_simulate
     from s2cl.app.optimise import output_folder
-    from s2cl.app.simulate import require_netcdf_disk, simulate_memory, simulate_to_netcdf
+    from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
     from s2cl.cl.runtime import get_runtime
     from s2cl.io.budget import Budget
     from s2cl.io.outdir import check_output_dir, claim
@@ -77,7 +77,8 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
         return _simulate_cube(checked, folder, device, budget, progress, on_start, cog)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)
-    get_runtime(device or sc.run.device)  # a device that does not exist is refused before the folder is made
+    # a device that does not exist, or cannot hold one launch, is refused before the folder is made
+    require_device_launches(get_runtime(device or sc.run.device), sc)
     warnings = report(checked.caveats)
     total = checked.library.size * sc.run.copies
     t0 = time.perf_counter()
@@ -159,6 +160,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
     (:mod:`s2cl.app.image_analysis`); with ``cog``, the GSD groups and the maps as COGs (:mod:`s2cl.io.cog`)."""
     from s2cl.app.image_quicklook import write_quicklook
+    from s2cl.app.simulate import require_device_launches
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
     from s2cl.io.budget import BASELINE_BYTES
@@ -175,6 +177,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     rows, cols, wavelengths = scene_cube_shape(sc)  # and one block of rows must fit before it is read
     block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths)
     rt = get_runtime(device or sc.run.device)
+    require_device_launches(rt, sc)
     cube = load_scene_cube(sc)
     per_band = CUBE_DISK_BYTES_PER_BAND + (2 * COG_BYTES_PER_BAND if cog else 0)  # a COG and its strips, at once
     require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)

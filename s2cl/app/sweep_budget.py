@@ -85,7 +85,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     sweep in the output folder, whose chunk files are keyed by it, else ``sweep.chunk``, else the largest
     that keeps a chunk's work arrays within 1 GB and the whole within ``budget``). ``host_metrics``: whether the
     per-configuration metrics run in numpy on the host (default, the larger estimate) or on the device.
-    ``rt``: the runtime of the device the chunks run on (default: the scene's ``run.device``); the chunk is at most
+    ``rt``: the runtime of the device the chunks run on (default: the scene's ``compute.device``); the chunk is at most
     what its buffers leave room for there (:func:`device_buffers`; with the metrics kernel's where it has float64).
     The chunk of a Dask worker's device is sized from this one.
 
@@ -129,7 +129,7 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
         tables_part = sum(b.fixed for b in buffers if b.name not in ("z", "target"))
         key = "sweep.step_nm" if tables_part > sum(b.per_unit for b in buffers) else "surface.copies"
         device.require(buffers, 1, what=what, key=key, source=scene.source,
-                       fits="choose a device with more memory (run.device, --device)")
+                       fits="choose a device with more memory (compute.device, --device)")
     room = min(largest_fitting(budget.memory_bytes, held, per_config), on_device)
     if resumed and not chunk:
         budget.require(need(resumed), what=what + f" resumed in the chunks of {resumed:,} it started with",

@@ -90,6 +90,15 @@ def _args(atmosphere: bool) -> list[Arg]:
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
+def resample_buffers(n_bands: int, n_wavelengths: int, real_bytes: int, *, atmosphere: bool,
+                     n_weights: int | None = None) -> list[DeviceBuffer]:
+    """The resampling kernel's device buffers, from its argument declarations: fixed bytes and bytes per spectrum of
+    a launch; ``n_weights``: the packed SRF weights (None: every band over the whole grid, an upper bound)."""
+    sizes = {"bands": n_bands, "wavelengths": n_wavelengths,
+             "weights": n_bands * n_wavelengths if n_weights is None else n_weights}
+    return buffers(_args(atmosphere), sizes, real_bytes, "pixels")
+
+
 class Resampler:
     """Compiled resampling kernel for one plan, precision and (optional) atmosphere.
 
@@ -164,9 +173,9 @@ class Resampler:
         return self.rt.result(out_dev, out)  # blocking: spectra_dev stays referenced until the kernel is done
 
     def device_buffers(self) -> list[DeviceBuffer]:
-        """The kernel's buffers (its argument declarations): fixed bytes and bytes per spectrum of a launch."""
-        sizes = {"bands": self.plan.n_bands, "wavelengths": self.plan.n_wavelengths, "weights": self.n_weights}
-        return buffers(self.args, sizes, self.T.dtype.itemsize, "pixels")
+        """The kernel's buffers (:func:`resample_buffers`): fixed bytes and bytes per spectrum of a launch."""
+        return resample_buffers(self.plan.n_bands, self.plan.n_wavelengths, self.T.dtype.itemsize,
+                                atmosphere=self.atmosphere_dev is not None, n_weights=self.n_weights)
 
     def default_chunk(self) -> int:
         """Pixels per chunk: input at most 256 MiB where it is copied to the device (1 GiB where the device reads
@@ -180,7 +189,7 @@ class Resampler:
         if not fit:
             device.require(own, 1, what=f"resampling {self.plan.n_wavelengths:,} wavelengths to "
                            f"{self.plan.n_bands} bands", key="grid.step_nm", source=None,
-                           fits="coarsen the grid or choose a device with more memory (run.device)")
+                           fits="coarsen the grid or choose a device with more memory (compute.device)")
         return fit
 
 

@@ -118,6 +118,12 @@ def sense_args(stages: list[Stage]) -> list[Arg]:
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
+def sense_buffers(stages: list[Stage], n_bands: int, real_bytes: int) -> list[DeviceBuffer]:
+    """The sense kernel's device buffers for ``stages``, from its argument declarations: fixed bytes and bytes per
+    pixel of a launch."""
+    return buffers(sense_args(stages), {"bands": n_bands}, real_bytes, "pixels")
+
+
 class Sensing:
     """The chain's per-pixel stages compiled for a band set, an effect set and a precision.
 
@@ -186,8 +192,8 @@ class Sensing:
         return result
 
     def device_buffers(self) -> list[DeviceBuffer]:
-        """The kernel's buffers (its argument declarations): fixed bytes and bytes per pixel of a launch."""
-        return buffers(self.args, {"bands": self.radiometry.n_bands}, self.T.dtype.itemsize, "pixels")
+        """The kernel's buffers (:func:`sense_buffers`): fixed bytes and bytes per pixel of a launch."""
+        return sense_buffers(self.stages, self.radiometry.n_bands, self.T.dtype.itemsize)
 
     def default_chunk(self) -> int:
         """Pixels per launch: 64 MiB of float64 per band at most, and no more than the device's memory holds
@@ -195,7 +201,7 @@ class Sensing:
         device, own = self.rt.memory, self.device_buffers()
         fit = device.units_fitting(own, max(1, (64 * 2**20) // (self.radiometry.n_bands * 8)))
         if not fit:
-            device.require(own, 1, what=f"sensing {self.radiometry.n_bands} bands", key="run.device", source=None,
+            device.require(own, 1, what=f"sensing {self.radiometry.n_bands} bands", key="compute.device", source=None,
                            fits="choose a device with more memory")
         return fit
 
