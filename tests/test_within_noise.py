@@ -441,7 +441,7 @@ def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch:
         seen.append({"top": top["config"].tolist(), "metric": metric, **kwargs})
         return real(job, top, metric, **kwargs)
 
-    monkeypatch.setattr(module, "within_noise", spy)
+    monkeypatch.setattr("s2cl.app.optimise.within_noise", spy)  # where optimise() looks it up
     scene = tmp_path / "small.toml"
     scene.write_text(SMALL_SWEEP_TOML.format(copies=4).replace("[sweep.ranges]",
                                                                f"within_noise_top = {candidates}\n[sweep.ranges]"))
