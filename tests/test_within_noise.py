@@ -467,6 +467,7 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
     through the designs' own tables (config_tables), smaller ones through the sweep's: with the limit at the largest
     candidate it takes their own tables, one above it the sweep's, with the same result."""
     from s2cl.sweep import design_tables, kernel
+    from s2cl.sweep import within_noise as module
     from s2cl.sweep.engine import evaluate_chunk
     from s2cl.sweep.report import metric_of
 
@@ -481,11 +482,12 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
         own.append(np.asarray(configs).tolist())
         return real(tables, configs)
 
-    monkeypatch.setattr(design_tables, "config_tables", spy)
+    monkeypatch.setattr(module, "config_tables", spy)  # where within_noise() looks them up
     limit = int(top["config"].max())
     out = {}
     for k in (limit + 1, limit):
         monkeypatch.setattr(kernel, "KERNEL_CONFIGS", k)
+        monkeypatch.setattr(module, "KERNEL_CONFIGS", k)
         out[k] = {key: v for key, v in within_noise(job, top, metric, replicates=200).items() if key != "seconds"}
     assert own == [top["config"].tolist()]  # at the limit only, every candidate
     assert out[limit] == out[limit + 1]

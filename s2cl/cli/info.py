@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -47,8 +49,6 @@ def devices(quiet: bool, as_json: bool) -> None:
     Widths are decided by building (a reported width the compiler cannot build cleanly steps down); works
     whatever $PYOPENCL_CTX holds: a value that matches no device is reported, and the default without it is marked.
     """
-    import json
-
     from s2cl.cl.devices import builds_at_all, device_of, list_devices, widths_of
     from s2cl.cl.probe import describe, target
     from s2cl.cl.runtime import get_runtime
@@ -96,8 +96,6 @@ def devices(quiet: bool, as_json: bool) -> None:
 
 def _default_runtime() -> Any:
     """The default device's runtime; when $PYOPENCL_CTX matches no device, a warning and the default without it."""
-    import os
-
     from s2cl.cl.runtime import Runtime, get_runtime
     from s2cl.errors import DeviceError, token
     from s2cl.logs import LOGGER

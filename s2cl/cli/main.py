@@ -12,6 +12,7 @@ import signal
 import sys
 
 import click
+from click.utils import PacifyFlushWrapper
 
 from s2cl.cli.info import devices, libraries, residuals, scenes, sensor, srf
 from s2cl.cli.lut import lut
@@ -131,7 +132,6 @@ def _invoke(args: list[str]) -> None:
     except (KeyboardInterrupt, EOFError):
         raise click.exceptions.Abort() from None
     except BrokenPipeError:  # `s2cl scenes | head -1`: the reader left; as click does, exit 1 quietly
-        from click.utils import PacifyFlushWrapper
 
         sys.stdout = PacifyFlushWrapper(sys.stdout)
         sys.stderr = PacifyFlushWrapper(sys.stderr)

@@ -24,6 +24,7 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube
 from s2cl.forward.instrument import Instrument
+from s2cl.forward.simulate import Simulator, scene_atmosphere
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.scene.scene import Scene
 from s2cl.studies.common import StudyResult, StudySetup
@@ -66,8 +67,6 @@ def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
 def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> float:
     """Seconds the resampling kernel would take over every pixel of the image, as for a cube read from a file
     (a generated cube resamples its distinct spectra only): timed on ``sample`` pixels' spectra, scaled."""
-    from s2cl.forward.simulate import Simulator, scene_atmosphere
-
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))

@@ -22,12 +22,15 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from s2cl.status import Status
+from s2cl.sweep.design_tables import config_tables
+from s2cl.sweep.engine import kernel_evaluator
+from s2cl.sweep.kernel import KERNEL_CONFIGS
 from s2cl.sweep.raw import ChunkEvaluator
 
 LEVEL = 0.95
@@ -256,12 +259,6 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
     configs = top["config"].to_numpy(np.int64)
     rows = configs
     if evaluator is None:
-        from dataclasses import replace
-
-        from s2cl.sweep.design_tables import config_tables
-        from s2cl.sweep.engine import kernel_evaluator
-        from s2cl.sweep.kernel import KERNEL_CONFIGS
-
         if configs.max() < KERNEL_CONFIGS:
             evaluator = kernel_evaluator(job, device)
         else:  # numbers beyond the kernel's reach: the designs' own tables, row i for configs[i]
