@@ -18,19 +18,22 @@ import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 
 from s2cl.reference.sweep import NumpyEvaluator
+from s2cl.retrieve.metric import metric_scored_by
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.retrieve.spectrum_stats import (
+    classification_score,
+    classification_stats,
+    regression_score,
+    regression_stats,
+)
 from s2cl.status import Status
 from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.within_noise import (
-    FAMILIES,
-    classification_score,
-    classification_stats,
     kept_within_noise,
     mark_top,
     paired_bootstrap,
-    regression_score,
-    regression_stats,
     resample_indices,
+    spectrum_stats,
     within_column,
     within_noise,
     within_pairs,
@@ -216,14 +219,15 @@ def test_every_family_known_answers(kind: str) -> None:
                                rtol=1e-9, atol=1e-9)
 
     best = int(top["config"][0])
-    family = FAMILIES[metric]
+    scored = metric_scored_by(metric)
+    assert scored is job.analysis.family.metric
     t = job.tables
     other_noise = replace(t, z=np.random.default_rng(8).standard_normal(t.z.shape))
     noisier = replace(t, values={**t.values, "sigma": tuple(20.0 * s for s in t.values["sigma"])})
-    stats = np.concatenate([family.stats(NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
+    stats = np.concatenate([spectrum_stats(scored, NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
                             for tables in (t, other_noise, noisier)])
-    strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
-    boot = paired_bootstrap(stats, family.score, 0, replicates=1000, strata=strata)
+    strata = np.asarray(t.target)[:: t.copies] if scored.stratified else None
+    boot = paired_bootstrap(stats, scored.score, 0, replicates=1000, strata=strata)
     assert boot.within[1], (kind, boot.low, boot.high)
     assert not boot.within[2], (kind, boot.low, boot.high)
     assert boot.difference[2] > 0

@@ -15,6 +15,7 @@ from s2cl.cl.vectypes import VecTypes
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import same_band
 from s2cl.retrieve.family import Family, Outcome, SweepContext
+from s2cl.retrieve.metric import CLASSIFICATION
 from s2cl.retrieve.sam import SamClassifier
 
 TEMPLATE = "common/analysis_sam.mako"
@@ -22,7 +23,7 @@ TEMPLATE = "common/analysis_sam.mako"
 
 class SamFamily(Family):
     kind = "sam"
-    metric = "classification"
+    metric = CLASSIFICATION
     keys = ("classes", "angle_threshold_deg")
     uses_every_band = True
     twin = "s2cl.reference.families:sam"
