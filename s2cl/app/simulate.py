@@ -165,7 +165,6 @@ def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed:
         expanded = np.repeat(band_radiance[:, lo:hi], copies, axis=1)
         out = sim.sense(expanded, seed=seed, frame=frame, pixel_offset=lo * copies)
         if out is None:  # no per-pixel stage: the images are the noise-free radiance
-
             out = SenseResult()
         yield lo, hi, out
 

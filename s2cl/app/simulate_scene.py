@@ -75,7 +75,6 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     cog = _cog_format(sc, fmt)
     product_caveats: tuple = ()
     if sc.spec.surface.cube is not None:  # what the cube file's metadata completes (GSD, grid), before the checks
-
         sc, product_caveats = resolve_product_scene(sc)
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)

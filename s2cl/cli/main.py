@@ -131,7 +131,6 @@ def _invoke(args: list[str]) -> None:
     except (KeyboardInterrupt, EOFError):
         raise click.exceptions.Abort() from None
     except BrokenPipeError:  # `s2cl scenes | head -1`: the reader left; as click does, exit 1 quietly
-
         sys.stdout = PacifyFlushWrapper(sys.stdout)
         sys.stderr = PacifyFlushWrapper(sys.stderr)
         sys.exit(1)
