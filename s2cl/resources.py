@@ -7,6 +7,7 @@ folders next to the package. Never relative to the working directory.
 
 from __future__ import annotations
 
+import hashlib
 import importlib.resources
 from functools import cache
 from pathlib import Path
@@ -41,8 +42,6 @@ def scene_dir() -> Path:
 def code_fingerprint() -> str:
     """SHA-256 (hex) of s2cl's package (sources and data) and its OpenCL kernels: it keys results that a
     code change could alter (a resumed sweep never reuses chunks computed by other code)."""
-    import hashlib
-
     h = hashlib.sha256()
     for root in (Path(__file__).resolve().parent, kernel_dir()):
         for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):

@@ -151,6 +151,7 @@ def test_the_declared_device_buffers_are_what_the_sweep_allocates(rt, monkeypatc
     :func:`s2cl.sweep.device_footprint.sweep_device_buffers` at the kernel's own lanes: the same total within 64
     bytes (an empty SAM reference table still takes one element), the same largest buffer."""
     from s2cl.forward.stages import stage
+    from s2cl.retrieve.metric import REGRESSION
     from s2cl.sweep.device_footprint import SweepSizes, sweep_device_buffers
     from s2cl.sweep.kernel import SweepKernel
 
@@ -174,7 +175,7 @@ def test_the_declared_device_buffers_are_what_the_sweep_allocates(rt, monkeypatc
     kernel.metrics(0, n)
     declared = sweep_device_buffers([stage(s) for s in t.stages], SweepSizes(
         variants=sum(t.counts), spectra=t.n_spectra, copies=t.copies, slots=t.n_slots, lanes=kernel.T.lanes),
-        real_bytes=kernel.T.dtype.itemsize, device_metrics=rt.has_fp64, classify=False)
+        real_bytes=kernel.T.dtype.itemsize, device_metrics=rt.has_fp64, metric=REGRESSION)
     expected = sum(b.bytes(n) for b in declared)
     assert expected <= sum(sizes) <= expected + 64, (sizes, declared)
     assert max(sizes) == max(b.bytes(n) for b in declared)

@@ -399,8 +399,8 @@ def test_effect_costs_on_a_small_fields_image(rt) -> None:
     """The instrument study's core on a 48 × 48 builtin:fields image: the ideal row has no effect and the noise
     floor against the truth; each effect differs from the ideal; the Cab map's error against the truth is scored
     for every row."""
-    from s2cl.app.instrument_costs import EFFECTS, analysis_score, effect_costs
     from s2cl.studies.instrument import cube_scene
+    from s2cl.studies.instrument_costs import EFFECTS, analysis_score, effect_costs
 
     scene = cube_scene(Scene.load("study-instrument"), 48)
     rows = effect_costs(rt, scene, score=analysis_score(rt))
@@ -427,7 +427,7 @@ def test_study_refuses_a_library_scene_and_resizing_a_file_cube(tmp_path) -> Non
 
 def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
     """A scene with every effect on still gets an ideal row that is ideal, and its magnitudes are used."""
-    from s2cl.app.instrument_costs import effect_settings, with_effects
+    from s2cl.studies.instrument_costs import effect_settings, with_effects
 
     s = _scene({"mtf": True, "mtf_nyquist": 0.3, "smile": True})
     ideal = with_effects(s, effect_settings(s))

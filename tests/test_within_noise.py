@@ -18,19 +18,22 @@ import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 
 from s2cl.reference.sweep import NumpyEvaluator
+from s2cl.retrieve.metric import metric_scored_by
 from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.retrieve.spectrum_stats import (
+    classification_score,
+    classification_stats,
+    regression_score,
+    regression_stats,
+)
 from s2cl.status import Status
 from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.within_noise import (
-    FAMILIES,
-    classification_score,
-    classification_stats,
     kept_within_noise,
     mark_top,
     paired_bootstrap,
-    regression_score,
-    regression_stats,
     resample_indices,
+    spectrum_stats,
     within_column,
     within_noise,
     within_pairs,
@@ -216,14 +219,15 @@ def test_every_family_known_answers(kind: str) -> None:
                                rtol=1e-9, atol=1e-9)
 
     best = int(top["config"][0])
-    family = FAMILIES[metric]
+    scored = metric_scored_by(metric)
+    assert scored is job.analysis.family.metric
     t = job.tables
     other_noise = replace(t, z=np.random.default_rng(8).standard_normal(t.z.shape))
     noisier = replace(t, values={**t.values, "sigma": tuple(20.0 * s for s in t.values["sigma"])})
-    stats = np.concatenate([family.stats(NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
+    stats = np.concatenate([spectrum_stats(scored, NumpyEvaluator(tables, job.analysis)(best, best + 1), job)
                             for tables in (t, other_noise, noisier)])
-    strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
-    boot = paired_bootstrap(stats, family.score, 0, replicates=1000, strata=strata)
+    strata = np.asarray(t.target)[:: t.copies] if scored.stratified else None
+    boot = paired_bootstrap(stats, scored.score, 0, replicates=1000, strata=strata)
     assert boot.within[1], (kind, boot.low, boot.high)
     assert not boot.within[2], (kind, boot.low, boot.high)
     assert boot.difference[2] > 0
@@ -441,7 +445,7 @@ def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch:
         seen.append({"top": top["config"].tolist(), "metric": metric, **kwargs})
         return real(job, top, metric, **kwargs)
 
-    monkeypatch.setattr(module, "within_noise", spy)
+    monkeypatch.setattr("s2cl.app.optimise.within_noise", spy)  # where optimise() looks it up
     scene = tmp_path / "small.toml"
     scene.write_text(SMALL_SWEEP_TOML.format(copies=4).replace("[sweep.ranges]",
                                                                f"within_noise_top = {candidates}\n[sweep.ranges]"))
@@ -467,6 +471,7 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
     through the designs' own tables (config_tables), smaller ones through the sweep's: with the limit at the largest
     candidate it takes their own tables, one above it the sweep's, with the same result."""
     from s2cl.sweep import design_tables, kernel
+    from s2cl.sweep import within_noise as module
     from s2cl.sweep.engine import evaluate_chunk
     from s2cl.sweep.report import metric_of
 
@@ -481,11 +486,12 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
         own.append(np.asarray(configs).tolist())
         return real(tables, configs)
 
-    monkeypatch.setattr(design_tables, "config_tables", spy)
+    monkeypatch.setattr(module, "config_tables", spy)  # where within_noise() looks them up
     limit = int(top["config"].max())
     out = {}
     for k in (limit + 1, limit):
         monkeypatch.setattr(kernel, "KERNEL_CONFIGS", k)
+        monkeypatch.setattr(module, "KERNEL_CONFIGS", k)
         out[k] = {key: v for key, v in within_noise(job, top, metric, replicates=200).items() if key != "seconds"}
     assert own == [top["config"].tolist()]  # at the limit only, every candidate
     assert out[limit] == out[limit + 1]

@@ -15,7 +15,6 @@ from s2cl.forward.simulate import LibrarySimulation
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import check_design
 from s2cl.retrieve.family import family_of
-from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 
@@ -86,7 +85,7 @@ def retrieve_pixels(rt: Runtime, scene: Scene, bands: list[str], settings: Analy
     refl = np.asarray(refl)
     target = np.empty(0) if target is None else target
     family = settings.family
-    if family.metric == "classification" and (references is None or classes is None):
+    if family.metric.classifies and (references is None or classes is None):
         raise InputError(f"{settings.kind} needs class references from a spectral library", source=scene.source,
                          key="analysis.kind")
     centres = np.array([scene.sensor.band(b).centre_nm for b in bands])
@@ -115,7 +114,7 @@ def pixel_results(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> PixelRes
     rows = [sim.sensor.band_names.index(scene.sensor.band(b).name) for b in bands]
     refl = sim.reflectance[rows].reshape(len(rows), -1)
     lib = sim.library
-    if settings.family.metric == "classification":
+    if settings.family.metric.classifies:
         classes = scene.spec.analysis.classes or sorted(set(lib.groups))
         pixels = np.repeat(np.isin(np.array(lib.groups), classes), sim.copies)
         truth = np.repeat([classes.index(g) if g in classes else -1 for g in lib.groups], sim.copies)
@@ -132,13 +131,12 @@ def analyse(rt: Runtime, scene: Scene, sim: LibrarySimulation) -> dict[str, Any]
     columns a sweep row has."""
     r = pixel_results(rt, scene, sim)
     out: dict[str, Any] = {"kind": r.settings.kind, "bands": r.bands}
-    if r.settings.family.metric == "classification":
-        m = classification_metrics(r.index.astype(np.int64)[None], r.status[None], r.target, len(r.classes))
-        out.update(classes=r.classes, confusion=m.pop("confusion")[0].tolist())
-    else:
-        m = regression_metrics(r.index[None], r.status[None], r.bounds[None], r.target, regress=r.settings.regress,
-                               condition=None if r.condition is None else r.condition[None])
-        out["parameter"] = r.settings.parameter
+    metric = r.settings.family.metric
+    m = metric.metrics(r.index[None], r.status[None], r.bounds[None], r.target, regress=r.settings.regress,
+                       n_classes=len(r.classes or ()), condition=None if r.condition is None else r.condition[None])
+    out.update(metric.labels(r.settings.parameter, r.classes))
+    if "confusion" in m:  # a classification's confusion matrix: a list, not a per-configuration metric
+        out["confusion"] = m.pop("confusion")[0].tolist()
     out.update({k: np.asarray(v)[0].item() for k, v in m.items()})
     out["summary"] = r.settings.family.summary_line(out)
     return out

@@ -14,9 +14,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
 from s2cl.errors import InputError, token
+from s2cl.forward.simulate import scene_library
 from s2cl.forward.stages import caveats as stage_caveats
 from s2cl.io.budget import Budget
+from s2cl.io.inputs import input_file
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
@@ -24,7 +27,10 @@ from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.retrieve.family import registry
 from s2cl.scene.caveats import Caveat, grid_caveats, srf_caveats
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import SweepSpace
+from s2cl.sweep.addition import check_base
+from s2cl.sweep.tables import sweep_space
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,8 +53,6 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
     if scene.spec.analysis is not None:
-        from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
-
         bands = _known_bands(scene, analysis_bands(scene), "analysis.bands")
         analysis = _analysis(scene, bands, library)
         analysis_design(scene, bands, analysis)  # the design rule, as simulate's analysis applies it
@@ -71,7 +75,6 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
     _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
     analysis = _analysis(scene, space.bands, library)
     check_fittable(scene, space, analysis)
-    from s2cl.sweep.addition import check_base
 
     base = check_base(scene, space, library)  # an addition sweep: its base set scorable alone
     _atmosphere(scene)
@@ -91,8 +94,6 @@ def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) 
 
 def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
     if scene.spec.surface.library is None:
-        from s2cl.io.inputs import input_file
-
         cube = scene.spec.surface.cube
         assert cube is not None  # the scene has one of them (s2cl.scene.scene)
         if is_builtin_cube(cube):  # generated: its name was checked with the scene
@@ -100,7 +101,6 @@ def _surface(scene: Scene, budget: Budget | None) -> SpectralLibrary | None:
         if not scene.resolve(cube).is_dir():  # a folder is a product (EnMAP), checked by its reader
             input_file(scene.resolve(cube), what="image cube", source=scene.source, key="surface.cube")
         return None
-    from s2cl.forward.simulate import scene_library
 
     return scene_library(scene, budget=budget)
 
@@ -111,7 +111,6 @@ def _space(scene: Scene) -> SweepSpace | None:
     if scene.spec.surface.cube is not None:
         raise InputError("a [sweep] runs over a spectral library (surface.library), not an image cube: remove "
                          "[sweep] to simulate the cube, or sweep a library", source=scene.source, key="sweep")
-    from s2cl.sweep.tables import sweep_space
 
     return sweep_space(scene)
 
@@ -134,8 +133,6 @@ def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -
 
 def _atmosphere(scene: Scene) -> None:
     """Both atmosphere states inside the LUT's ranges (the terms are computed: cheap, and cached)."""
-    from s2cl.scene.terms import correction_terms, scene_terms
-
     if scene.effects.atmosphere or scene.spec.sweep is not None:
         scene_terms(scene)
     if scene.effects.correct or scene.spec.sweep is not None:

@@ -35,6 +35,8 @@ from s2cl.status import FITTED, Status
 STATUS_ATTRS = {"long_name": "retrieval status per pixel",
                 "flag_values": np.array([s.value for s in Status], np.uint8),
                 "flag_meanings": " ".join(s.name.lower() for s in Status)}
+#: the regression figures of the calibration on the pure pixels kept in the result (``calibration_<name>``)
+CALIBRATION_FIGURES = ("rms", "r2", "robust_rms", "rms_unbounded", "n_valid")
 GRID_RULE = "box average of each analysis band's reflectance to the coarsest analysis band's GSD"
 
 
@@ -189,7 +191,7 @@ def _against_truth(store: ImageStore, scene: Scene, cube: SceneCube, fit: tuple[
                                regress=(int(Status.OK),))  # x holds the pixels that enter the regression
     poly = poly2_fit(x, np.ones(n, bool), t_cal)
     out.update({f"calibration_{k}": np.asarray(v)[0].item() for k, v in stats.items()
-                if k in ("rms", "r2", "robust_rms", "rms_unbounded", "n_valid")})
+                if k in CALIBRATION_FIGURES})
     out["calibration"] = {"x0": poly.x0, "xs": poly.xs, "coef": list(poly.coef)}
     units = {"cab": "ug cm-2", "lai": "m2 m-2"}.get(name, "1")
     for var, long_name in ((f"{name}_map", f"{name} from the index, calibrated on the pure pixels"),

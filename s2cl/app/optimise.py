@@ -10,9 +10,36 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from s2cl.app.checks import check_sweep
+from s2cl.app.plan import count_table, plan_sweep, reference_pixels, reference_row, underdetermined_count
+from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
+from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, token
+from s2cl.io.budget import Budget
+from s2cl.io.outdir import check_output_dir, claim
+from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
+from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
+from s2cl.sweep.cluster import reach_scheduler
+from s2cl.sweep.digest import TOP
+from s2cl.sweep.engine import SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
+from s2cl.sweep.report import (
+    Digest,
+    bands_of,
+    check_band,
+    heatmap,
+    heatmap_vs_paper,
+    open_results,
+    paper_comparison,
+    paper_match,
+    read_summary,
+    reference_of,
+    summarise,
+    write_summary,
+)
+from s2cl.sweep.search import run_search
+from s2cl.sweep.within_noise import kept_within_noise, mark_top, within_column, within_noise, within_pairs
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -23,7 +50,6 @@ class OptimiseResult:
     """A finished sweep: ``summary`` is ``summary.json``'s content (ranking, reference row, fit accounting, the
     paper's values where the scene is one of its tables), ``folder`` the output folder, ``written`` the files
     written there (``results.parquet`` first)."""
-
     summary: dict[str, Any]
     folder: Path
     written: tuple[Path, ...] = field(default=())
@@ -59,8 +85,6 @@ class OptimiseResult:
         for the designs tested, :mod:`s2cl.sweep.within_noise`; missing for the others)."""
         import pandas as pd
 
-        from s2cl.sweep.within_noise import within_column
-
         df = pd.read_parquet(self.folder / "results.parquet")
         df["within_noise"] = within_column(self.summary, df["config"].to_numpy())
         return df
@@ -79,28 +103,53 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     same call resumes an interrupted sweep. ``progress(n)`` is called with configurations done, ``on_start(job,
     todo, done)`` once before the first chunk (``job``: the planned :class:`~s2cl.sweep.engine.SweepJob`).
     """
-    from s2cl.app.checks import check_sweep
-    from s2cl.app.plan import plan_sweep, reference_pixels, reference_row
-    from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.io.budget import Budget
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.scene.caveats import report
-    from s2cl.sweep.cluster import reach_scheduler
-    from s2cl.sweep.digest import TOP
-    from s2cl.sweep.engine import check_folder, kernel_evaluator, resumable_chunk, run_sweep
-    from s2cl.sweep.report import Digest, open_results, paper_match, summarise
-    from s2cl.sweep.search import run_search
-    from s2cl.sweep.within_noise import mark_top, within_noise
+    scheduler = check_options(workers, scheduler, chunk)
+    run = prepare(scene, out, workers=workers, scheduler=scheduler, overwrite=overwrite, chunk=chunk,
+                  device=device, max_memory=max_memory)
+    with claim(run.folder):
+        results, record = run_designs(run, progress=progress, on_start=on_start)
+        digest, summary = rank_against_reference(run, results)
+        summary["seconds"] = time.perf_counter() - run.t0
+        summary["warnings"] = run.warnings
+        if record is not None:
+            summary["search"] = record
+        written = write_report(digest, summary, run.folder, summary["bands"])
+    return OptimiseResult(summary, run.folder, (Path(results), *written))
 
+
+def check_options(workers: int | None, scheduler: str | None, chunk: int | None) -> str | None:
+    """The scheduler address (checked) after the options that do not need the scene are checked, each refusal one
+    line naming its option."""
     if workers and scheduler:
         raise InputError("give workers or a scheduler, not both", key="--scheduler")
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise InputError(f"must be 1 to {MAX_WORKERS}, got {workers}", key="--workers")
     if chunk is not None and chunk < 1:
         raise InputError(f"must be at least 1 configuration, got {chunk}", key="--chunk")
-    if scheduler:
-        scheduler = check_scheduler(scheduler)
+    return check_scheduler(scheduler) if scheduler else scheduler
+
+
+@dataclass(frozen=True)
+class PreparedSweep:
+    """A sweep checked and planned, nothing created yet: the scene, its output folder, the planned job, how it runs
+    (``workers``/``scheduler``/``device``, ``searching``: a search instead of the whole space), the caveats' warnings
+    and ``t0`` (:func:`time.perf_counter` seconds when planning began: the run time reported counts from there)."""
+    scene: Scene
+    folder: Path
+    job: SweepJob
+    searching: bool
+    warnings: list[str]
+    t0: float
+    workers: int | None
+    scheduler: str | None
+    overwrite: bool
+    device: str | None
+
+
+def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int | None, scheduler: str | None,
+            overwrite: bool, chunk: int | None, device: str | None, max_memory: str | None) -> PreparedSweep:
+    """Check everything (scene, output folder, memory, disk, device, scheduler) and plan the sweep, building its
+    tables and kernel: a run refused here creates nothing."""
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
@@ -121,34 +170,40 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     check_folder(job, folder, overwrite=overwrite)
     if not (workers or scheduler or searching):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
-    warnings = report(checked.caveats)
-    with claim(folder):
-        started = (lambda todo, done: on_start(job, todo, done)) if on_start else None
-        record = None
-        if searching:
-            results, record = run_search(job, folder, workers=workers, scheduler=scheduler, overwrite=overwrite,
-                                         device=device)
-        else:
-            results = run_sweep(job, folder, progress=progress, on_start=started, workers=workers,
-                                scheduler=scheduler, overwrite=overwrite, device=device, resources_checked=True)
-        path, meta = open_results(results)
-        reference = reference_row(sc, job, device)
-        candidates = sc.spec.sweep.within_noise_top
-        digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)),
-                                top_n=max(TOP, candidates))
-        summary = summarise(digest, meta, reference)
-        if candidates:
-            tested = within_noise(job, digest.top.head(candidates), digest.metric, device=device,
-                                  reference=reference_pixels(sc, job, device), ranked=digest.ranked)
-            if tested is not None:
-                summary["within_noise"] = tested
-            mark_top(summary)
-        summary["seconds"] = time.perf_counter() - t0
-        summary["warnings"] = warnings
-        if record is not None:
-            summary["search"] = record
-        written = write_report(digest, summary, folder, summary["bands"])
-    return OptimiseResult(summary, folder, (Path(results), *written))
+    return PreparedSweep(sc, folder, job, searching, report(checked.caveats), t0, workers, scheduler, overwrite,
+                         device)
+
+
+def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = None,
+                on_start: Callable[[Any, int, int], None] | None = None) -> tuple[Path, dict[str, Any] | None]:
+    """Evaluate the sweep's designs into its (claimed) folder: the whole space, or a search's rungs; the results'
+    path and the search's record (None for the whole space)."""
+    if run.searching:
+        return run_search(run.job, run.folder, workers=run.workers, scheduler=run.scheduler,
+                          overwrite=run.overwrite, device=run.device)
+    started = (lambda todo, done: on_start(run.job, todo, done)) if on_start else None
+    results = run_sweep(run.job, run.folder, progress=progress, on_start=started, workers=run.workers,
+                        scheduler=run.scheduler, overwrite=run.overwrite, device=run.device, resources_checked=True)
+    return results, None
+
+
+def rank_against_reference(run: PreparedSweep, results: Path) -> tuple[Digest, dict[str, Any]]:
+    """Rank the results against the sensor's own bands (the reference row), test the best designs for being told
+    apart within the noise (``within_noise_top``), and the digest and summary."""
+    sc, job = run.scene, run.job
+    path, meta = open_results(results)
+    reference = reference_row(sc, job, run.device)
+    candidates = sc.spec.sweep.within_noise_top
+    digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)),
+                            top_n=max(TOP, candidates))
+    summary = summarise(digest, meta, reference)
+    if candidates:
+        tested = within_noise(job, digest.top.head(candidates), digest.metric, device=run.device,
+                              reference=reference_pixels(sc, job, run.device), ranked=digest.ranked)
+        if tested is not None:
+            summary["within_noise"] = tested
+        mark_top(summary)
+    return digest, summary
 
 
 @dataclass(frozen=True)
@@ -156,7 +211,6 @@ class SweepCount:
     """What ``s2cl sweep count`` prints: the variants per band (:func:`s2cl.app.plan.count_table` rows), the
     configurations, the memory and chunk the sweep would take, and how many configurations the analysis cannot fit
     (None: too many variants to count)."""
-
     scene: str
     variants: list[dict[str, Any]]
     configurations: int
@@ -171,15 +225,6 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     """Check ``scene`` exactly as :func:`optimise` does (nothing is created) and count its sweep without
     enumerating it. ``on_counted(scene name, variants, configurations)`` is called as soon as they are counted,
     before the memory is sized (which may refuse a sweep too large to run: the count is still worth showing)."""
-    from s2cl.app.checks import check_sweep
-    from s2cl.app.plan import count_table, underdetermined_count
-    from s2cl.app.sweep_budget import sweep_resources
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.io.budget import Budget
-    from s2cl.io.outdir import check_output_dir
-    from s2cl.scene.caveats import report
-    from s2cl.sweep.engine import resumable_chunk
-
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     checked = check_sweep(sc, budget=budget)
@@ -231,10 +276,6 @@ def output_folder(sc: Scene, out: str | Path | None) -> tuple[Path, str]:
 def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
     """The paper's values (into ``summary``), ``summary.json`` and a heatmap per moving band of ``bands`` into
     ``folder`` from the results' :class:`~s2cl.sweep.digest.Digest`; the files written."""
-    from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
-    from s2cl.sweep.report import heatmap, heatmap_vs_paper, paper_comparison, write_summary
-    from s2cl.sweep.within_noise import within_pairs
-
     plots = []
     comparison = paper_comparison(digest, summary)
     if comparison is not None:
@@ -255,19 +296,6 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
 def report_results(results: str | Path, band: str | None = None) -> tuple[dict[str, Any], list[Path]]:
     """Rank a finished sweep again (a results folder or ``.parquet`` file) and rewrite its report; the summary and
     the files written. The reference row, run time and warnings come from the run's ``summary.json``."""
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.sweep.report import (
-        Digest,
-        bands_of,
-        check_band,
-        open_results,
-        paper_match,
-        read_summary,
-        reference_of,
-        summarise,
-    )
-    from s2cl.sweep.within_noise import kept_within_noise
-
     results = Path(results)
     path, meta = open_results(results)
     columns = Digest.of_columns(path)

@@ -20,6 +20,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from s2cl.app.analysis import analyse
+from s2cl.cl.runtime import get_runtime
+from s2cl.forward.sense import SenseResult
 from s2cl.version import __version__
 
 if TYPE_CHECKING:
@@ -134,8 +137,6 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
                        progress: Progress | None = None) -> StreamedSimulation:
     """Simulate the checked library scene into NetCDF file ``path`` (written atomically); return the
     per-band summary, the attributes and the analysis (when the scene has one)."""
-    from s2cl.cl.runtime import get_runtime
-
     scene, lib = checked.scene, checked.library
     assert lib is not None
     r = scene.run
@@ -185,8 +186,6 @@ def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed:
         expanded = np.repeat(band_radiance[:, lo:hi], copies, axis=1)
         out = sim.sense(expanded, seed=seed, frame=frame, pixel_offset=lo * copies)
         if out is None:  # no per-pixel stage: the images are the noise-free radiance
-            from s2cl.forward.sense import SenseResult
-
             out = SenseResult()
         yield lo, hi, out
 
@@ -279,8 +278,6 @@ class _AnalysisBands:
             self.data[:, first_pixel : first_pixel + reflectance.shape[1]] = reflectance[self.rows]
 
     def analyse(self, band_radiance: np.ndarray, rt: Runtime) -> dict[str, Any]:
-        from s2cl.app.analysis import analyse
-
         scene, lib = self.checked.scene, self.checked.library
         assert self.data is not None and lib is not None
         sensor = scene.sensor.select(list(self.checked.analysis_bands))

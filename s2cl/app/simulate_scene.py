@@ -10,6 +10,23 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from s2cl.app.checks import check_simulate
+from s2cl.app.image_analysis import analyse_image
+from s2cl.app.image_quicklook import write_quicklook
+from s2cl.app.optimise import output_folder
+from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
+from s2cl.cl.runtime import get_runtime
+from s2cl.errors import InputError
+from s2cl.forward.cube import NODATA_PASS_BYTES, load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
+from s2cl.forward.product_scene import resolve_product_scene
+from s2cl.forward.reach import band_groups, cube_halo
+from s2cl.io.budget import BASELINE_BYTES, Budget
+from s2cl.io.cog import write_cogs
+from s2cl.io.image_store import NetcdfStore
+from s2cl.io.outdir import check_output_dir, claim
+from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
+from s2cl.io.products.geotiff import rasterio_module
+from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 
 SIMULATION_JSON = "simulation.json"
@@ -52,23 +69,12 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     it into ``out`` (default: the scene's output folder). ``on_start(label, total)`` is called once before the
     pixels stream, ``progress(n)`` as they do. ``fmt``: ``netcdf`` or ``cog`` (also Cloud-Optimised GeoTIFFs of an
     image, :mod:`s2cl.io.cog`); default the scene's ``output.format``."""
-    from s2cl.app.checks import check_simulate
-    from s2cl.app.optimise import output_folder
-    from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.io.budget import Budget
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.io.output import write_json
-    from s2cl.scene.caveats import report
-
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
     cog = _cog_format(sc, fmt)
     product_caveats: tuple = ()
     if sc.spec.surface.cube is not None:  # what the cube file's metadata completes (GSD, grid), before the checks
-        from s2cl.forward.product_scene import resolve_product_scene
-
         sc, product_caveats = resolve_product_scene(sc)
     checked = check_simulate(sc, budget=budget)
     check_output_dir(folder, where=where)
@@ -97,8 +103,6 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
 
 def _cog_format(sc: Scene, fmt: str | None) -> bool:
     """Whether the run writes COGs (``fmt``, else ``output.format``), checked: an image scene, the geo extra."""
-    from s2cl.errors import InputError
-
     fmt = fmt or sc.spec.output.format
     if fmt not in ("netcdf", "cog"):
         raise InputError(f"must be 'netcdf' or 'cog', got {fmt!r}", key="--format")
@@ -107,7 +111,6 @@ def _cog_format(sc: Scene, fmt: str | None) -> bool:
     if sc.spec.surface.cube is None:
         raise InputError("'cog' writes GeoTIFFs of an image; a library scene has none (simulation.nc holds its "
                          "pixels)", source=sc.source, key="output.format")
-    from s2cl.io.products.geotiff import rasterio_module
 
     rasterio_module()  # the geo extra, before anything is created
     return True
@@ -124,9 +127,6 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
     and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra, read by rows and put on the grid on their
     way through the resampler."""
-    from s2cl.forward.reach import band_groups, cube_halo
-    from s2cl.io.budget import BASELINE_BYTES
-
     spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
     factors = [factor for factor, _ in band_groups(sc)]
@@ -145,8 +145,6 @@ def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
     """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel and the rows its
     NODATA pass reads at a time (:data:`s2cl.forward.cube.NODATA_PASS_BYTES`, as stored and as floating), or a
     generated cube's :data:`CUBE_BYTES_GENERATED`."""
-    from s2cl.forward.cube import NODATA_PASS_BYTES
-
     if not wavelengths:
         return pixels * CUBE_BYTES_GENERATED
     return pixels * CUBE_BYTES_FILE + 2 * NODATA_PASS_BYTES
@@ -159,16 +157,6 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
     (:mod:`s2cl.app.image_analysis`); with ``cog``, the GSD groups and the maps as COGs (:mod:`s2cl.io.cog`)."""
-    from s2cl.app.image_quicklook import write_quicklook
-    from s2cl.app.simulate import require_device_launches
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
-    from s2cl.io.budget import BASELINE_BYTES
-    from s2cl.io.image_store import NetcdfStore
-    from s2cl.io.outdir import claim
-    from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
-    from s2cl.scene.caveats import report
-
     sc = checked.scene
     pixels, wavelengths = scene_cube_size(sc)  # a cube's whole part must fit before its file is read
     budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
@@ -198,9 +186,6 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                     written.append(folder / "quicklook.png")
                     write_quicklook(store, written[-1], analysis["map"])
                 if cog:
-                    from s2cl.forward.reach import band_groups
-                    from s2cl.io.cog import write_cogs
-
                     written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
                 attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
             finally:
@@ -215,8 +200,6 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
 
 def _analyse_cube(rt: Any, checked: Any, store: Any, cube: Any, block_rows: int | None) -> dict[str, Any]:
     """The scene's [analysis] on the image in ``store``, by blocks of as many input rows as the simulation's."""
-    from s2cl.app.image_analysis import analyse_image
-
     sc, bands = checked.scene, list(checked.analysis_bands)
     factor = max(sc.sensor.band(b).gsd_m for b in bands) / (sc.spec.surface.gsd_m or 1.0)
     step = None if block_rows is None else max(1, int(block_rows // factor))

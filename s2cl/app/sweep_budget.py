@@ -164,13 +164,13 @@ def device_buffers(checked: Checked, *, device_metrics: bool) -> list[DeviceBuff
     metrics kernel's (:class:`s2cl.sweep.metrics_kernel.MetricsKernel`, on devices with float64)."""
     scene, space, library = checked.scene, checked.space, checked.library
     assert space is not None and library is not None and checked.analysis is not None
-    classify = checked.analysis.family.metric == "classification"
-    classes = len(set(library.groups)) if classify else 0
+    metric = checked.analysis.family.metric
+    classes = len(set(library.groups)) if metric.classifies else 0
     sizes = SweepSizes(variants=sum(space.counts), spectra=library.size, copies=scene.run.copies,
                        slots=len(space.ranges), classes=classes)
     real_bytes = 8 if scene.run.precision == "float64" else 4
     return sweep_device_buffers(chain(scene.effects), sizes, real_bytes=real_bytes, device_metrics=device_metrics,
-                                classify=classify)
+                                metric=metric)
 
 
 def _weights_bytes(r: BandRange | BandGrid, scene: Scene) -> float:

@@ -5,6 +5,7 @@ user cache folder (``failed-builds/`` of :func:`s2cl.io.cache.cache_dir`), never
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import sys
@@ -15,6 +16,9 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+from s2cl.errors import InputError, S2CLError
+from s2cl.io.cache import cache_dir
 
 #: ``S2CL_BUILD_WARNINGS=error`` turns a kernel build with compiler warnings into a :class:`BuildError`
 #: (the test suite sets it); otherwise build logs are DEBUG records and never reach the terminal.
@@ -29,8 +33,6 @@ def pyopencl() -> Any:
     """pyopencl, imported on first use, with PoCL's kernel cache in s2cl's user cache folder
     (:func:`pocl_cache_dir`): the second process that builds a kernel finds it there."""
     if POCL_CACHE_ENV not in os.environ:
-        from s2cl.errors import InputError
-
         try:
             os.environ[POCL_CACHE_ENV] = str(pocl_cache_dir())
         except InputError:  # s2cl's cache folder cannot be made: PoCL keeps its own (s2cl.cl.devices names why)
@@ -46,7 +48,6 @@ def pocl_cache_dir() -> Path:
     by device, source and build options."""
     if os.environ.get(POCL_CACHE_ENV):
         return Path(os.environ[POCL_CACHE_ENV])
-    from s2cl.io.cache import cache_dir
 
     return cache_dir("pocl")
 
@@ -110,8 +111,6 @@ def keep_context_until_exit(program: Any) -> None:
     warnings are kept too (one small context per warning build, once per process), as a build's log cannot
     tell which ones leak.
     """
-    import ctypes
-
     context = program.get_info(pyopencl().program_info.CONTEXT)
     if any(context == kept for kept in _KEPT):
         return
@@ -125,9 +124,6 @@ FAILED_BUILDS = "failed-builds"
 def save_source(source: str, template: str) -> Path | None:
     """Keep a rendered source that failed to build in the user cache folder (``failed-builds/``) and
     return its path; None when the cache cannot be written (the source is then in the DEBUG log)."""
-    from s2cl.errors import S2CLError
-    from s2cl.io.cache import cache_dir
-
     digest = hashlib.sha1(source.encode()).hexdigest()[:12]
     stem = Path(template).name.replace(".cl.mako", "").replace(".cl", "")
     try:

@@ -36,6 +36,9 @@ from typing import Any
 
 from s2cl.cl.builds import pyopencl, quiet_build
 from s2cl.cl.vectypes import VALID_LANES, VecTypes
+from s2cl.errors import InputError, S2CLError
+from s2cl.io.cache import cache_dir, digest
+from s2cl.io.output import write_json
 
 _log = logging.getLogger("s2cl.cl.runtime")
 
@@ -148,7 +151,6 @@ def reported_widths(device: Any) -> dict[str, int]:
     text = os.environ.get(REPORTED_ENV, "").strip()
     if not text:
         return reported
-    from s2cl.errors import InputError
 
     try:
         if "=" in text:
@@ -284,14 +286,10 @@ def _timeout() -> float:
 
 
 def _cache_path(key: dict[str, Any]) -> Any:
-    from s2cl.io.cache import cache_dir, digest
-
     return cache_dir("devices") / f"widths-{digest(key)[:24]}.json"
 
 
 def _read_cache(key: dict[str, Any]) -> Widths | None:
-    from s2cl.errors import S2CLError
-
     try:
         path = _cache_path(key)
         if path.is_file():
@@ -304,9 +302,6 @@ def _read_cache(key: dict[str, Any]) -> Widths | None:
 
 
 def _write_cache(key: dict[str, Any], widths: Widths) -> None:
-    from s2cl.errors import S2CLError
-    from s2cl.io.output import write_json
-
     try:
         write_json(_cache_path(key), {"key": key, "widths": widths.to_json()})
     except (OSError, S2CLError) as err:

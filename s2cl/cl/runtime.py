@@ -124,7 +124,7 @@ class Runtime:
         and ``$S2CL_BUILD_WARNINGS`` is ``error``.
         """
         cl = pyopencl()
-        from s2cl.cl.templates import include_options
+        from s2cl.cl.templates import include_options  # Mako: only when a kernel is built, not to pick a device
 
         opts = tuple(include_options()) + tuple(options)
         key = (source, opts)

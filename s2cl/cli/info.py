@@ -2,21 +2,30 @@
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 from typing import Any
 
 import click
 
+from s2cl.cl.devices import builds_at_all, device_of, list_devices, select, widths_of
+from s2cl.cl.probe import describe, target
+from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.cli.console import rich_console
 from s2cl.cli.options import quiet_option
+from s2cl.errors import DeviceError, token
+from s2cl.io.outdir import check_output_file
+from s2cl.libraries.registry import available_libraries
+from s2cl.logs import LOGGER
+from s2cl.scene.scene import builtin_scenes, read_toml
+from s2cl.sensor.sensor import Sensor
 
 
 @click.command()
 @quiet_option
 def scenes(quiet: bool) -> None:
     """List the built-in scenes (-q: names only)."""
-    from s2cl.scene.scene import builtin_scenes, read_toml
-
     for name, path in builtin_scenes().items():
         meta = {} if quiet else read_toml(path).get("scene", {})
         click.echo(name if quiet else f"{name:24s} {meta.get('description', '')}")
@@ -26,8 +35,6 @@ def scenes(quiet: bool) -> None:
 @quiet_option
 def libraries(quiet: bool) -> None:
     """List the built-in spectral libraries (use as surface.library = "builtin:NAME"; -q: names only)."""
-    from s2cl.libraries.registry import available_libraries
-
     for name, description in available_libraries().items():
         click.echo(f"builtin:{name}" if quiet else f"builtin:{name:18s} {description}")
     if not quiet:
@@ -47,13 +54,6 @@ def devices(quiet: bool, as_json: bool) -> None:
     Widths are decided by building (a reported width the compiler cannot build cleanly steps down); works
     whatever $PYOPENCL_CTX holds: a value that matches no device is reported, and the default without it is marked.
     """
-    import json
-
-    from s2cl.cl.devices import builds_at_all, device_of, list_devices, widths_of
-    from s2cl.cl.probe import describe, target
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.errors import DeviceError
-
     infos = list_devices()
     if not infos:
         get_runtime()  # raises the error with the install hint
@@ -96,19 +96,12 @@ def devices(quiet: bool, as_json: bool) -> None:
 
 def _default_runtime() -> Any:
     """The default device's runtime; when $PYOPENCL_CTX matches no device, a warning and the default without it."""
-    import os
-
-    from s2cl.cl.runtime import Runtime, get_runtime
-    from s2cl.errors import DeviceError, token
-    from s2cl.logs import LOGGER
-
     try:
         return get_runtime()
     except DeviceError:
         env = os.environ.get("PYOPENCL_CTX")
         if not env:
             raise
-        from s2cl.cl.devices import select
 
         try:
             select(env)
@@ -162,8 +155,6 @@ def sensor(sensor_file: Path | None, quiet: bool) -> None:
     """
     from rich.table import Table
 
-    from s2cl.sensor.sensor import Sensor
-
     s = Sensor.from_csv(sensor_file) if sensor_file else Sensor.sentinel2()
     if quiet:  # plain lines: band, centre nm, FWHM nm
         for b in s.bands:
@@ -194,8 +185,6 @@ def sensor(sensor_file: Path | None, quiet: bool) -> None:
 @quiet_option
 def srf(band: str, platform: str, plot_path: Path | None, quiet: bool) -> None:
     """Plot the model SRF (paper eq. 1) of BAND against the measured Sentinel-2 response (Fig. 2)."""
-    from s2cl.io.outdir import check_output_file
-    from s2cl.sensor.sensor import Sensor
     from s2cl.sensor.srf_plot import plot_srf
 
     band = Sensor.sentinel2().band(band).name  # an unknown band is refused before anything is written

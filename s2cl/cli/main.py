@@ -12,6 +12,7 @@ import signal
 import sys
 
 import click
+from click.utils import PacifyFlushWrapper
 
 from s2cl.cli.info import devices, libraries, residuals, scenes, sensor, srf
 from s2cl.cli.lut import lut
@@ -19,6 +20,7 @@ from s2cl.cli.simulate import simulate
 from s2cl.cli.study import study
 from s2cl.cli.sweep import optimise, sweep
 from s2cl.errors import S2CLError
+from s2cl.logs import LOGGER, configure
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -43,8 +45,6 @@ def cli(verbose: int) -> None:
 
     Put -v before the command (`s2cl -v simulate`) to see the DEBUG log.
     """
-    from s2cl.logs import configure
-
     configure(verbose)
 
 
@@ -131,8 +131,6 @@ def _invoke(args: list[str]) -> None:
     except (KeyboardInterrupt, EOFError):
         raise click.exceptions.Abort() from None
     except BrokenPipeError:  # `s2cl scenes | head -1`: the reader left; as click does, exit 1 quietly
-        from click.utils import PacifyFlushWrapper
-
         sys.stdout = PacifyFlushWrapper(sys.stdout)
         sys.stderr = PacifyFlushWrapper(sys.stderr)
         sys.exit(1)
@@ -156,8 +154,6 @@ def _tolerant_streams() -> None:
 
 def _fail(message: str) -> None:
     """Print ``error: MESSAGE`` as one line (further lines, e.g. a build log, go to the DEBUG log) and exit 2."""
-    from s2cl.logs import LOGGER
-
     first, _, rest = message.partition("\n")
     if rest:
         LOGGER.debug("%s", rest)

@@ -7,6 +7,7 @@ from typing import Any
 import click
 
 from s2cl.cli.console import rich_console
+from s2cl.retrieve.metric import metric_in
 
 
 def print_sweep(summary: dict[str, Any]) -> None:
@@ -77,11 +78,9 @@ def _print_sweep(summary: dict[str, Any]) -> None:
     table.add_column("")
     for b in bands:
         table.add_column(f"{b} λ/Δλ", justify="right")
-    for col in (metric, "robust_rms" if metric == "rms" else "overall_accuracy_pct", "failed_fraction"):
-        table.add_column(col, justify="right")
-    if metric == "rms":
-        table.add_column("bound_fraction", justify="right")
-        table.add_column("converged", justify="right")
+    table.add_column(metric, justify="right")
+    for _, heading, _ in metric_in([metric]).ranking_columns:
+        table.add_column(heading, justify="right")
     tested = "within_noise" in summary
     if tested:
         table.add_column("within noise of #1", justify="center")
@@ -109,13 +108,11 @@ def _print_within_noise(wn: dict[str, Any] | None) -> None:
 
 
 def _ranking_cells(e: dict[str, Any], bands: list[str], metric: str) -> list[str]:
-    """One ranking row: each band's centre/width, the metric, its robust twin and the failure fractions."""
+    """One ranking row: each band's centre/width, the metric, then what its :class:`~s2cl.retrieve.metric.Metric`
+    prints beside it (a robust twin, the failure fractions; empty where the row has no such column)."""
     cells = ["–" if e["bands"][b][0] is None else f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
-    cells += [f"{e[metric]:.3g}", f"{e.get('robust_rms', e.get('overall_accuracy_pct', float('nan'))):.3g}",
-              f"{e['failed_fraction']:.2%}"]
-    if metric == "rms":
-        cells.append(f"{e['bound_fraction']:.2%}")
-        cells.append(f"{e['converged_fraction']:.2%}" if "converged_fraction" in e else "")
+    cells.append(f"{e[metric]:.3g}")
+    cells += [format(e[column], spec) if column in e else "" for column, _, spec in metric_in([metric]).ranking_columns]
     return cells
 
 

@@ -8,10 +8,12 @@ from typing import Any
 
 import click
 
-from s2cl.app.optimise import MAX_WORKERS
+from s2cl.app.optimise import MAX_WORKERS, count_sweep, report_results
+from s2cl.app.optimise import optimise as optimise_scene  # the command below is `optimise`
 from s2cl.cli.console import progress_bar, rich_console
 from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, quiet_option
 from s2cl.cli.ranking import print_sweep
+from s2cl.io.budget import gb
 
 
 @click.group()
@@ -31,9 +33,6 @@ def sweep() -> None:
 def sweep_count(scene: str, max_memory: str | None, quiet: bool) -> None:
     """Print the variants of each band, the number of configurations of SCENE and the memory the sweep
     would take. Checks the scene exactly as `s2cl optimise` does (counts are computed, not enumerated)."""
-    from s2cl.app.optimise import count_sweep
-    from s2cl.io.budget import gb
-
     def print_counts(name: str, variants: list[dict[str, Any]], configurations: int) -> None:
         if quiet:
             click.echo(f"{configurations}")
@@ -79,8 +78,6 @@ def _sweep_options(f: Callable) -> Callable:
 def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: str | None, overwrite: bool,
                chunk: int | None, device: str | None, max_memory: str | None, quiet: bool) -> None:
     """Parse, call :func:`s2cl.app.optimise.optimise` (which checks everything before it creates anything), print."""
-    from s2cl.app.optimise import optimise
-
     if workers and scheduler:
         raise click.UsageError("give --workers or --scheduler, not both")
     with progress_bar(None, "sweep", not quiet, unit="configs") as advance:
@@ -92,8 +89,9 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
             if done:
                 click.echo(f"resuming: {done:,} configurations already done, {todo:,} to go")
 
-        result = optimise(scene, output, workers=workers, scheduler=scheduler, overwrite=overwrite, chunk=chunk,
-                          device=device, max_memory=max_memory, progress=advance, on_start=on_start)
+        result = optimise_scene(scene, output, workers=workers, scheduler=scheduler, overwrite=overwrite,
+                                chunk=chunk, device=device, max_memory=max_memory, progress=advance,
+                                on_start=on_start)
     print_sweep(result.summary)
     click.echo("wrote " + ", ".join(str(p) for p in result.written))
 
@@ -117,8 +115,6 @@ def sweep_run(**kwargs: Any) -> None:
 @click.option("--quiet", "-q", is_flag=True, help="no list of the files written (the ranking still prints)")
 def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
-    from s2cl.app.optimise import report_results
-
     summary, written = report_results(results, band)
     print_sweep(summary)
     if not quiet:

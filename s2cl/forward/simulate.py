@@ -18,10 +18,12 @@ from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
 from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, image_stage_names, senses
-from s2cl.io.budget import Budget
+from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.libraries.library import SpectralLibrary
+from s2cl.libraries.registry import load_library
 from s2cl.scene.effects import EffectSet
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import point_weights
 from s2cl.status import PixelFlag
@@ -81,7 +83,7 @@ class LibrarySimulation:
 
     def to_dataset(self, layout: str = "rows") -> Any:
         """xarray Dataset: per-band images in the scene's layout plus the spectrum table."""
-        from s2cl.forward.dataset import library_dataset
+        from s2cl.forward.dataset import library_dataset  # xarray (and pandas): only for the Dataset
 
         return library_dataset(self, layout)
 
@@ -171,8 +173,6 @@ class Simulator:
         ]
         correction = None
         if scene.effects.correct:
-            from s2cl.scene.terms import correction_terms
-
             correction = BandAtmosphere.of(correction_terms(scene), weights)
         return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
                    atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
@@ -259,8 +259,6 @@ IN_MEMORY_BYTES_PER_PIXEL_BAND = 48
 
 def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
     """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
-    from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
-
     copies, nb = scene.run.copies, scene.sensor.size
     per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
     budget = Budget.of()
@@ -272,8 +270,6 @@ def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
 
 def scene_library(scene: Scene, *, budget: Budget | None = None) -> SpectralLibrary:
     """The scene's spectral library on the scene's grid (a file sized against ``budget`` before it is read)."""
-    from s2cl.libraries.registry import load_library
-
     spec = scene.spec.surface.library
     assert spec is not None
     want = scene.spec.surface.quantity
@@ -303,6 +299,5 @@ def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
     """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
     if not scene.effects.atmosphere:
         return None
-    from s2cl.scene.terms import scene_terms
 
     return scene_terms(scene)

@@ -99,7 +99,7 @@ class Stage:
     attrs: Callable[[Radiometry, int], dict[str, Any]] | None = None
     #: it takes a standard normal deviate per band and pixel (the kernels' common random numbers)
     deviates: bool = False
-    #: it degrades the signal: an ideal instrument leaves it out (:mod:`s2cl.app.instrument_costs`)
+    #: it degrades the signal: an ideal instrument leaves it out (:mod:`s2cl.studies.instrument_costs`)
     degrades: bool = False
     #: warnings about a scene's bands with this stage on (scene, band names) -> caveats
     caveats: Callable[[Any, list[str]], list[Caveat]] | None = None

@@ -30,6 +30,7 @@ from s2cl.io.cube_reader import CubeReader, floating, real, wavelength_scale
 from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
 from s2cl.io.georef import envi_georef
 from s2cl.io.inputs import input_file, parse_number
+from s2cl.io.products import file_kind, open_product
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
 NODATA_MEANINGS = frozenset({"no_data", "nodata", "no_data_value", "missing", "missing_data", "missing_value",
@@ -63,8 +64,6 @@ def open_cube(path: str | Path, variable: str | None = None, *, geometry: str = 
     NetCDF cube, or a product as its mission ships it (:mod:`s2cl.io.products`: an EnMAP L2A folder, image or XML;
     EMIT L2A; PRISMA L2D; a GeoTIFF with GDAL wavelength metadata). ``geometry``: ``map`` (a product in sensor
     geometry with a lookup table is orthorectified onto its map grid) or ``sensor``."""
-    from s2cl.io.products import open_product
-
     p = Path(path)
     if not p.is_dir():
         p = input_file(p, what="cube file")
@@ -82,8 +81,6 @@ def open_cube(path: str | Path, variable: str | None = None, *, geometry: str = 
 def envi_header_of(data: Path) -> Path | None:
     """The ENVI header of a data file named as GDAL users name it: ``x.hdr`` beside ``x.bsq`` (or ``x.img`` …), or
     ``x.bsq.hdr``; None when there is none (or ``data`` is HDF5 or TIFF)."""
-    from s2cl.io.products import file_kind
-
     if file_kind(data) != "other":
         return None
     for hdr in (data.with_suffix(".hdr"), data.with_name(data.name + ".hdr"), data.with_suffix(".HDR"),
@@ -150,8 +147,6 @@ def cube_size(path: str | Path) -> tuple[int, int]:
 
     :raises InputError: ``path`` is not a regular file (or a product folder), or an ENVI header's layout is wrong or
         lies about its data file (:func:`s2cl.io.envi.envi_layout`), or a product's metadata is wrong."""
-    from s2cl.io.products import open_product
-
     p = Path(path)
     if not p.is_dir():
         p = input_file(p, what="cube file")

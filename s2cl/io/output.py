@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
+import shutil
 import tempfile
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -74,8 +76,6 @@ def write_json(path: str | Path, data: Any) -> Path:
 def json_safe(value: Any) -> Any:
     """``value`` with numpy scalars and arrays as Python numbers and lists, paths as strings, tuples as lists
     and every non-finite float (NaN, ±inf) as None."""
-    import math
-
     if isinstance(value, dict):
         return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
@@ -102,8 +102,6 @@ def write_netcdf(path: str | Path, dataset: Any) -> Path:
 
 def require_free(path: str | Path, nbytes: float) -> None:
     """:class:`OutputError` when the filesystem that will hold ``path`` has less than ``nbytes`` free."""
-    import shutil
-
     folder = Path(os.path.abspath(path)).parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent

@@ -12,7 +12,8 @@ import numpy as np
 from s2cl.errors import InputError, ResourceError, key_token, token
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
-from s2cl.io.inputs import parse_number
+from s2cl.io.envi import envi_layout, read_envi_header
+from s2cl.io.inputs import input_file, parse_number
 from s2cl.io.tables import CsvStream, open_csv
 from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
 from s2cl.libraries.params import CsvParameters, envi_parameters
@@ -284,8 +285,6 @@ def _open_envi(hdr: Path, data: Path, grid: SpectralGrid, budget: Budget | None
     from spectral.io import envi
     from spectral.utilities.errors import SpyException
 
-    from s2cl.io.envi import envi_layout, read_envi_header
-
     # lower-cased keys; SPy's lib.metadata drops 'data ignore value'
     meta = read_envi_header(hdr, "ENVI spectral library")
     if str(meta.get("file type", "")).strip().lower() != "envi spectral library":
@@ -359,8 +358,6 @@ def _header_float(meta: dict, key: str, default: float, hdr: Path) -> float:
 
 def _envi_paths(path: Path) -> tuple[Path, Path]:
     """(header, data) for a path naming either file of an ENVI library; both must be regular files."""
-    from s2cl.io.inputs import input_file
-
     if path.suffix.lower() == ".hdr":
         input_file(path, what="ENVI header")
         stem = path.with_suffix("")

@@ -22,6 +22,7 @@ Per-spectrum metadata: ``params["cab"]`` (µg/cm²), ``params["lai"]`` (m²/m²)
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.resources
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -220,8 +221,6 @@ def shipped_path(name: str) -> Path:
 
 def prosail_version() -> str:
     """Version of the installed prosail package; :class:`DependencyError` when absent."""
-    import importlib.metadata
-
     try:
         return importlib.metadata.version("prosail")
     except importlib.metadata.PackageNotFoundError as err:

@@ -22,7 +22,7 @@ __all__ = ["AnalysisSettings", "analysis_targets"]
 def analysis_targets(scene: Any, lib: SpectralLibrary, analysis: AnalysisSettings
                      ) -> tuple[SpectralLibrary, np.ndarray, tuple[str, ...]]:
     """The library (restricted to the SAM classes), the per-spectrum target and the class names."""
-    if analysis.family.metric == "classification":
+    if analysis.family.metric.classifies:
         wanted = scene.spec.analysis.classes or sorted(set(lib.groups))
         twice = sorted({c for c in wanted if wanted.count(c) > 1})
         if twice:

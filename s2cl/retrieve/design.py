@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.sensor.variants import SweepSpace
 
 if TYPE_CHECKING:
@@ -104,7 +105,5 @@ def _value_counts(variants: np.ndarray, with_width: bool) -> tuple[np.ndarray, n
 def _settings(settings: AnalysisSettings | str) -> AnalysisSettings:
     """``settings``, or a kind's default settings (an index on slots 0 and 1)."""
     if isinstance(settings, str):
-        from s2cl.retrieve.analysis import AnalysisSettings
-
         return AnalysisSettings(settings)
     return settings

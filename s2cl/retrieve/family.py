@@ -3,9 +3,10 @@
 A family holds everything the commands ask about a retrieval: its scene keys (:meth:`Family.settings`), its
 design rule (:meth:`Family.problem`, :meth:`Family.underdetermined`), its device code for the sweep kernel
 (:meth:`Family.sweep_code`), its standalone engine (:meth:`Family.run`), its float64 numpy twin (:attr:`Family.twin`,
-named, so that the product never imports the twins), its metric family and score column, and its one-line
-description. The sweep kernel, the design rule, ``simulate``, the metrics, band additions and the studies ask the
-family instead of branching on the kind.
+named, so that the product never imports the twins), its metric (:attr:`Family.metric`, a
+:class:`~s2cl.retrieve.metric.Metric`: what a design is scored by) and its one-line description. The sweep
+kernel, the design rule, ``simulate``, the metrics, band additions and the studies ask the family (and its
+metric) instead of branching on the kind.
 
 The families are the modules of :mod:`s2cl.retrieve.families`: each that defines ``FAMILY`` (or ``FAMILIES``) is
 registered when the registry is first asked; adding a family is adding a module there (and its kernel).
@@ -18,11 +19,12 @@ import pkgutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cache
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.retrieve.metric import REGRESSION, Metric
 from s2cl.status import Status
 
 if TYPE_CHECKING:
@@ -60,7 +62,8 @@ class Family:
     """The base of every analysis family; a family overrides what differs.
 
     :cvar kind: the ``[analysis] kind`` that selects it (:meth:`kinds`: every kind it answers).
-    :cvar metric: ``"regression"`` (the index is regressed on a library parameter) or ``"classification"``.
+    :cvar metric: what a design is scored by (:mod:`s2cl.retrieve.metric`): :data:`~s2cl.retrieve.metric.REGRESSION`
+        (the index is regressed on a library parameter) or :data:`~s2cl.retrieve.metric.CLASSIFICATION`.
     :cvar keys: the family's own ``[analysis]`` keys (besides kind, bands, parameter); any other family's key set
         in a scene is refused.
     :cvar uses_every_band: whether it reads every analysed band (a band addition can only score such families).
@@ -72,7 +75,7 @@ class Family:
     """
 
     kind: ClassVar[str]
-    metric: ClassVar[Literal["regression", "classification"]] = "regression"
+    metric: ClassVar[Metric] = REGRESSION
     keys: ClassVar[tuple[str, ...]] = ()
     uses_every_band: ClassVar[bool] = False
     has_condition: ClassVar[bool] = False
@@ -88,21 +91,15 @@ class Family:
     @property
     def score_column(self) -> str:
         """The results column a design is ranked (and a band addition's gain taken) on."""
-        return "rms" if self.metric == "regression" else "omission_error_pct"
+        return self.metric.score_column
 
     def score_label(self, settings: AnalysisSettings) -> str:
         """What the score is, in words (``RMS of cab``)."""
-        return f"RMS of {settings.parameter}" if self.metric == "regression" else "omission error"
+        return self.metric.score_label(settings.parameter)
 
     def summary_line(self, result: dict[str, Any]) -> str:
         """One line of a simulation's analysis result (the metrics of :func:`s2cl.app.analysis.analyse`)."""
-        r, bands = result, " ".join(result["bands"])
-        if self.metric == "classification":
-            return (f"{r['kind'].upper()} on {bands}: mean omission error {r['omission_error_pct']:.1f} %, overall "
-                    f"accuracy {r['overall_accuracy_pct']:.1f} %, unclassified {r['unclassified_fraction']:.1%}")
-        return (f"{r['kind'].upper()} on {bands} -> {r['parameter']}: RMS {r['rms']:.3g}, R² {r['r2']:.3f}, "
-                f"robust {r['robust_rms']:.3g}, without fits on a bound {r['rms_unbounded']:.3g}; "
-                f"failed {r['failed_fraction']:.2%}, on a bound {r['bound_fraction']:.2%}")
+        return self.metric.summary_line(result)
 
     def default_bands(self, spec: Any, band_names: Sequence[str]) -> list[str]:
         """The bands ``s2cl simulate`` analyses when the scene names none (``spec``: its [analysis] section)."""
@@ -172,7 +169,7 @@ class AnalysisSettings:
 
     @property
     def regression(self) -> bool:
-        return self.family.metric == "regression"
+        return self.family.metric.regressed
 
     @classmethod
     def from_scene(cls, scene: Any, bands: list[str]) -> AnalysisSettings:
@@ -190,7 +187,7 @@ class AnalysisSettings:
                                  key=f"analysis.{key}")
             return lower.index(name.lower())
 
-        if family.metric == "regression" and not a.parameter:
+        if family.metric.regressed and not a.parameter:
             raise InputError(f"{a.kind} needs the library parameter to regress (e.g. {family.example_parameter!r})",
                              source=scene.source, key="analysis.parameter")
         own = family.roles(a)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -178,8 +178,6 @@ def _sensor(spec: SceneSpec, base: Path, source: str) -> Sensor:
 
 
 def _with_srf(sensor: Sensor, srf: str, base: Path, source: str) -> Sensor:
-    from dataclasses import replace
-
     if srf == "model":
         return sensor
     if srf.startswith("measured-"):

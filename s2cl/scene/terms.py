@@ -7,7 +7,10 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from s2cl.atmos.atmosphere import AtmosphereLUT
+from s2cl.atmos.state import PAPER_VISIBILITY_KM, AtmosphereState, visibility_to_aot550
 from s2cl.errors import InputError
+from s2cl.io.inputs import input_file
 from s2cl.scene.scene import Scene
 
 STATE_KEYS = ("profile", "water_vapour", "aot550", "visibility_km", "ozone", "solar_zenith")
@@ -15,8 +18,6 @@ STATE_KEYS = ("profile", "water_vapour", "aot550", "visibility_km", "ozone", "so
 
 @cache
 def _lut(path: str | None) -> Any:
-    from s2cl.atmos.atmosphere import AtmosphereLUT
-
     return AtmosphereLUT.load(path)
 
 
@@ -25,15 +26,12 @@ def scene_lut(scene: Scene) -> Any:
     lut = scene.spec.atmosphere.lut
     if not lut:
         return _lut(None)
-    from s2cl.io.inputs import input_file
 
     path = input_file(scene.resolve(lut), what="atmosphere LUT", source=scene.source, key="atmosphere.lut")
     return _lut(str(path))
 
 
 def _state(scene: Scene, values: dict[str, Any], section: str) -> Any:
-    from s2cl.atmos.state import PAPER_VISIBILITY_KM, AtmosphereState, visibility_to_aot550
-
     v = dict(values)
     try:
         aot = v.pop("aot550")

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from s2cl.errors import InputError, token
+from s2cl.errors import DependencyError, InputError, token
 from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.inputs import parse_number
 from s2cl.io.tables import read_csv_table
@@ -228,8 +228,6 @@ def measured_sentinel2_srf(platform: str, band: str) -> TabulatedResponse:
     Py6S ships ESA's measured responses at 2.5 nm (``PredefinedWavelengths.S2A_MSI_01``…);
     install with ``pip install "s2cl[sixs]"``. ``platform`` is ``"S2A"`` or ``"S2B"``.
     """
-    from s2cl.errors import DependencyError
-
     platform = platform.upper()
     if platform not in ("S2A", "S2B"):
         raise InputError(f"platform must be 'S2A' or 'S2B', got {platform!r}", key="sensor.srf")

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from s2cl.errors import InputError
+from s2cl.io.outdir import check_output_dir, claim
 from s2cl.io.output import write_json
 from s2cl.scene.scene import Scene
 from s2cl.studies import (
@@ -33,6 +34,7 @@ from s2cl.studies import (
 )
 from s2cl.studies.common import StudyResult, StudySetup, load_study
 from s2cl.studies.plots import replot
+from s2cl.version import __version__
 
 _MODULES = {"cirrus": cirrus, "water-vapour": water_vapour, "water-vapour-1020": water_vapour_1020,
             "aerosol": aerosol, "ozone": ozone, "methane": methane,
@@ -75,9 +77,6 @@ def run_study(name: str, *, quick: bool = False, output: Path | None = None) -> 
     :param output: the folder (default: s2cl-out/study-NAME).
     :returns: the result and the JSON and PNG paths.
     """
-    from s2cl.io.outdir import check_output_dir, claim
-    from s2cl.version import __version__
-
     scene = study_scene(name)
     setup = load_study(scene, quick=quick)
     check_needs(setup)

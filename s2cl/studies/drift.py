@@ -30,9 +30,8 @@ from s2cl.errors import InputError, key_token
 from s2cl.forward.stages import stage
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.libraries.params import PARAMETER_UNITS
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
-from s2cl.retrieve.metrics import classification_metrics, regression_metrics
+from s2cl.retrieve.metrics import regression_metrics
 from s2cl.retrieve.quantify import fit_polynomial
 from s2cl.scene.scene import Scene, builtin_scenes
 from s2cl.scene.terms import correction_terms, scene_terms
@@ -63,9 +62,7 @@ class Application:
 
     @property
     def unit(self) -> str:
-        if self.analysis.family.metric == "classification":
-            return "%"
-        return PARAMETER_UNITS.get(str(self.analysis.parameter), "")
+        return self.analysis.family.metric.unit(self.analysis.parameter)
 
 
 def load_application(study: Scene, label: str, ref: str, copies: int) -> Application:
@@ -187,10 +184,10 @@ def drift_errors(app: Application, tables: SweepTables, evaluate: ChunkEvaluator
     fit = None
     for i, c in enumerate(configs):
         raw = evaluate(int(c), int(c) + 1)
-        if a.family.metric == "classification":
-            m = classification_metrics(raw.index.astype(np.int64), raw.status, target.astype(np.int64),
-                                       len(tables.class_names))
-            error[i] = recal[i] = m["omission_error_pct"][0]
+        if a.family.metric.classifies:  # no fit to hold fixed: the error is the metric's score
+            m = a.family.metric.metrics(raw.index, raw.status, raw.bounds, target, regress=a.regress,
+                                        n_classes=len(tables.class_names))
+            error[i] = recal[i] = m[a.family.metric.score_column][0]
             scored[i] = 1.0 - m["unclassified_fraction"][0]
             continue
         x = raw.index[0]

@@ -1,10 +1,10 @@
 """What each instrument effect costs on an image (``s2cl study instrument``): the ideal instrument and each
 [instrument] effect alone at the scene's magnitudes (by default those of
-:data:`s2cl.scene.instrument_schema.SOURCES`), through :func:`s2cl.app.instrument_costs.effect_costs`, on the
+:data:`s2cl.scene.instrument_schema.SOURCES`), through :func:`s2cl.studies.instrument_costs.effect_costs`, on the
 scene's own image cube — any cube scene with a [study] of kind ``instrument``; the built-in one is
 ``builtin:fields`` (PROSAIL parcels with known Cab and LAI, soil and mineral patches), whose side [study]
 ``image_px`` sets. With an [analysis], each row also carries the retrieval map's RMS, bias and R² against the
-cube's truth (:func:`s2cl.app.instrument_costs.analysis_score`).
+cube's truth (:func:`s2cl.studies.instrument_costs.analysis_score`).
 
 Also timed: the spatial step alone (every band's PSF and shift, :meth:`s2cl.forward.instrument.Instrument.spatial`)
 with ``psf`` and with ``coregistration`` on, against the whole run, which says whether that step is worth a
@@ -20,14 +20,15 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.app.instrument_costs import analysis_score, effect_costs, effect_settings, product_variable, with_effects
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube
 from s2cl.forward.instrument import Instrument
+from s2cl.forward.simulate import Simulator, scene_atmosphere
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.scene.scene import Scene
 from s2cl.studies.common import StudyResult, StudySetup
+from s2cl.studies.instrument_costs import analysis_score, effect_costs, effect_settings, product_variable, with_effects
 
 #: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
 NEEDS_BANDS, NEEDS_KEYS = (), ()
@@ -66,8 +67,6 @@ def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
 def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> float:
     """Seconds the resampling kernel would take over every pixel of the image, as for a cube read from a file
     (a generated cube resamples its distinct spectra only): timed on ``sample`` pixels' spectra, scaled."""
-    from s2cl.forward.simulate import Simulator, scene_atmosphere
-
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))

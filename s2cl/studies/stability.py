@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.cl.runtime import get_runtime
 from s2cl.io.budget import Budget, gb
 from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, equal_error
 from s2cl.studies.drift import (
@@ -31,6 +32,7 @@ from s2cl.studies.drift import (
     drift_tables,
     load_application,
 )
+from s2cl.sweep.kernel import SweepKernel
 
 #: what the study needs: bands in [sweep], non-empty [study] lists (checked by s2cl.studies.run_study)
 NEEDS_BANDS, NEEDS_KEYS = (), ("applications", "shifts_nm")
@@ -61,9 +63,6 @@ def both_sides(req: dict[str, float]) -> float:
 def evaluate(app: Application, drifts: Drifts, *, noise: bool) -> dict[str, Any]:
     """Errors of ``app`` for every band and drift: ``nominal``, and per kind ``error``, ``recalibrated``,
     ``scored_fraction`` as ``{band: [value per sampled drift]}``."""
-    from s2cl.cl.runtime import get_runtime
-    from s2cl.sweep.kernel import SweepKernel
-
     run = app.scene.run
     tables = drift_tables(app, drifts, noise=noise)
     kernel = SweepKernel(tables, app.analysis, get_runtime(run.device), precision=run.precision, lanes=run.lanes)

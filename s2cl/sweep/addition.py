@@ -22,13 +22,16 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.io.plots import pyplot, save_png
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.libraries.params import PARAMETER_UNITS
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design
 from s2cl.retrieve.family import family_of, registry
+from s2cl.retrieve.metric import metric_in
 from s2cl.scene.scene import Scene
+from s2cl.sensor.names import safe_file_part
 from s2cl.sensor.variants import SweepSpace
+from s2cl.sweep.report import draw_grid
 from s2cl.sweep.space import ADD_KEY
 
 #: results.parquet metadata key of an addition sweep (JSON: added band, its radiometry's band, base score)
@@ -146,14 +149,9 @@ def summarise_addition(digest: Any, summary: dict[str, Any], record: dict[str, A
 
 def gain_plots(digest: Any, record: dict[str, Any], folder: Path) -> list[Path]:
     """``gain_<band>.png``: gain against centre, one line per width; ``heatmap_gain_<band>.png``: centre × width."""
-    from s2cl.io.plots import pyplot, save_png
-    from s2cl.sensor.names import safe_file_part
-    from s2cl.sweep.report import draw_grid
-
     band, metric = record["band"], record["metric"]
     centres, widths, gain = gain_table(digest, record)
-    unit = (PARAMETER_UNITS.get(str(record.get("parameter")), "parameter units") if metric == "rms"
-            else "percentage points")
+    unit = metric_in([metric]).gain_unit(record.get("parameter"))
     base = f"base {'+'.join(record['base_bands'])} alone: {metric} {record['base_score']:.3g}"
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,8 +18,6 @@ def reach_scheduler(address: str, timeout: float = 10.0) -> None:
     """Reach the Dask scheduler at ``address`` (a TCP connection within ``timeout`` seconds, then closed): a
     one-line :class:`InputError` (key ``--scheduler``) before anything is created when the address is
     malformed or nothing listens there."""
-    import socket
-
     try:
         from distributed.comm.addressing import parse_address, parse_host_port
     except ImportError as err:

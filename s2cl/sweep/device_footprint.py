@@ -11,9 +11,9 @@ from s2cl.cl.device_memory import DeviceBuffer
 from s2cl.cl.kernel_args import buffers
 from s2cl.cl.vectypes import VALID_LANES
 from s2cl.forward.stages import Stage
+from s2cl.retrieve.metric import Metric
 from s2cl.sweep.kernel import kernel_args
 from s2cl.sweep.metrics_kernel import ARGS as METRICS_ARGS
-from s2cl.sweep.metrics_kernel import CLASSIFICATION, REGRESSION
 
 #: the unit a sweep's device memory grows with: the configurations of one launch (a chunk)
 UNIT = "configs"
@@ -42,18 +42,19 @@ class SweepSizes:
         lanes = self.lanes or max(VALID_LANES)
         return max(-(-self.pixels // lanes) * lanes, lanes)
 
-    def named(self, *, classify: bool) -> dict[str, int]:
+    def named(self, metric: Metric) -> dict[str, int]:
         """The sizes by the names the argument declarations use."""
         return {"pitch": self.pitch, "variants": self.variants, "spectra": self.spectra, "slots": self.slots,
                 "classes": self.classes, "pixels": self.pixels,
-                "columns": len(CLASSIFICATION if classify else REGRESSION), "scratch": 0 if classify else self.pixels}
+                "columns": len(metric.columns), "scratch": self.pixels if metric.pixel_scratch else 0}
 
 
 def sweep_device_buffers(stages: list[Stage], sizes: SweepSizes, *, real_bytes: int, device_metrics: bool,
-                         classify: bool) -> list[DeviceBuffer]:
+                         metric: Metric) -> list[DeviceBuffer]:
     """The device buffers of a sweep over ``sizes`` with the chain's ``stages`` in ``real_bytes`` floats, each as
-    fixed bytes plus bytes per configuration of a chunk; ``device_metrics``: the metrics kernel runs too."""
+    fixed bytes plus bytes per configuration of a chunk; ``device_metrics``: the metrics kernel runs too, with
+    ``metric``'s columns and scratch."""
     args = list(kernel_args(stages))
     if device_metrics:
         args += [a for a in METRICS_ARGS if a.name not in {b.name for b in args}]
-    return buffers(args, sizes.named(classify=classify), real_bytes, UNIT)
+    return buffers(args, sizes.named(metric), real_bytes, UNIT)

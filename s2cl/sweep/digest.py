@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.retrieve.family import registry
+from s2cl.retrieve.metric import metric_in
 
 BATCH_ROWS = 65_536
 TOP = 10
@@ -38,7 +39,7 @@ def metric_of(columns: list[str], meta: dict[str, str] | None = None) -> str:
     family = registry().get((meta or {}).get("analysis", ""))
     if family is not None and family.score_column in columns:
         return family.score_column
-    return "omission_error_pct" if "omission_error_pct" in columns else "rms"
+    return metric_in(columns).score_column
 
 
 def rankable_rows(df: Any, meta: dict[str, str]) -> Any:

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, ResourceError
 from s2cl.io.budget import available_memory, require_disk
 from s2cl.io.output import write_json
@@ -37,6 +38,7 @@ from s2cl.status import REGRESS_NAMES
 from s2cl.sweep.addition import META_KEY as ADDITION_META
 from s2cl.sweep.cluster import DASK_SCRATCH, dask_client
 from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, merge_chunks, write_chunk
+from s2cl.sweep.kernel import SweepKernel
 from s2cl.sweep.metrics_kernel import host_metrics
 from s2cl.sweep.raw import ChunkEvaluator, variant_indices
 from s2cl.sweep.tables import SweepTables
@@ -108,9 +110,6 @@ def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator
     key = (job.fingerprint(), device)
     ev = _EVALUATORS.get(key)
     if ev is None:
-        from s2cl.cl.runtime import get_runtime
-        from s2cl.sweep.kernel import SweepKernel
-
         ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision,
                          lanes=job.lanes)
         _EVALUATORS.clear()

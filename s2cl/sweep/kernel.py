@@ -16,6 +16,7 @@ from s2cl.forward.stages import Stage, Value, inputs, segments, stage
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.family import SweepContext
 from s2cl.status import MAX_ABS_REFLECTANCE
+from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
 
@@ -231,8 +232,6 @@ class SweepKernel:
     def metrics(self, start: int, stop: int) -> dict[str, np.ndarray]:
         """Per-configuration metrics of configurations ``start … stop-1`` (:mod:`s2cl.retrieve.metrics`):
         on the device when it has float64 (only the metric rows return), else in numpy on the host."""
-        from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics
-
         t = self.tables
         out = self._launch(start, stop)
         if not MetricsKernel.available(self.rt):

@@ -18,15 +18,9 @@ from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
 from s2cl.retrieve.analysis import AnalysisSettings
-from s2cl.retrieve.metrics import classification_metrics, regression_metrics
 from s2cl.sweep.raw import RawChunk
 
 TEMPLATE = "metrics.cl.mako"
-#: output columns of the regression kernel ("host": the row is recomputed on the host)
-REGRESSION = ("rms", "r2", "robust_rms", "n_valid", "constant_index", "rms_unbounded", "converged_fraction",
-              "stalled_fraction", "iteration_limit_fraction", "degenerate_fraction", "invalid_fraction",
-              "failed_fraction", "bound_fraction", "excluded_fraction", "log10_condition_median", "host")
-CLASSIFICATION = ("omission_error_pct", "overall_accuracy_pct", "unclassified_fraction", "failed_fraction", "host")
 #: (the sweep kernel's outputs it reads are that kernel's buffers: their sizes are declared there; ``scratch``: the
 #: regression's median copy, ``scratch`` pixels per configuration, none for a classification)
 ARGS = (Arg("out", "out", "double", ("configs", "columns")), Arg("scratch", "inout", "double", ("configs", "scratch")),
@@ -44,16 +38,16 @@ class MetricsKernel:
     def __init__(self, rt: Runtime, T: VecTypes, analysis: AnalysisSettings, target: np.ndarray, pitch: int,
                  n_classes: int = 0):
         self.rt, self.T, self.analysis, self.pitch = rt, T, analysis, pitch
-        self.classify = analysis.family.metric == "classification"
-        self.names = CLASSIFICATION if self.classify else REGRESSION
+        self.metric = analysis.family.metric  # its output columns: metric.columns ("host": recomputed on the host)
+        self.names = self.metric.columns
         self.condition = analysis.family.has_condition
         self.n_pixels = int(np.asarray(target).size)
         self.n_classes = n_classes
-        source = render(TEMPLATE, T=T, kind="classification" if self.classify else "regression", names=self.names,
+        source = render(TEMPLATE, T=T, kind=self.metric.name, names=self.names,
                         n_pixels=self.n_pixels, pitch=pitch, regress=tuple(int(r) for r in analysis.regress),
                         condition=self.condition, n_classes=n_classes, args=ARGS, signature=signature)
         program = rt.build(source, template=TEMPLATE)
-        self.kernel = rt.kernel(program, "classification_metrics" if self.classify else "regression_metrics")
+        self.kernel = rt.kernel(program, self.metric.kernel_name)
         self.target = np.ascontiguousarray(target, dtype=np.float64)
         self._target_d = rt.to_device(self.target)
 
@@ -68,7 +62,7 @@ class MetricsKernel:
         host's recomputation of marked ones."""
         rt, width = self.rt, len(self.names)
         values = {"out": rt.alloc(n_configs * width * 8), "target": self._target_d, "n_configs": n_configs,
-                  "scratch": rt.alloc(max(1, 0 if self.classify else n_configs * self.n_pixels) * 8),
+                  "scratch": rt.alloc(max(1, n_configs * self.n_pixels if self.metric.pixel_scratch else 0) * 8),
                   **{k: buffers[k] for k in ("index", "status", "bounds", "condition")}}
         # named work-groups: left to itself, PoCL makes one group of all the configurations, which one thread runs
         self.kernel(rt.queue, (n_configs,), rt.local_size(self.kernel, n_configs), *bind(ARGS, values, self.T))
@@ -95,10 +89,8 @@ class MetricsKernel:
 def host_metrics(analysis: AnalysisSettings, raw: RawChunk, target: np.ndarray, n_classes: int
                  ) -> dict[str, np.ndarray]:
     """Per-configuration metrics of ``raw`` in numpy (:mod:`s2cl.retrieve.metrics`)."""
-    if analysis.family.metric == "classification":
-        m = classification_metrics(raw.index.astype(np.int64), raw.status, np.asarray(target).astype(np.int64),
-                                   n_classes)
-        m.pop("confusion")
-        return m
-    return regression_metrics(raw.index, raw.status, raw.bounds, target, regress=analysis.regress,
-                              condition=raw.condition if analysis.family.has_condition else None)
+    m = analysis.family.metric.metrics(raw.index, raw.status, raw.bounds, target, regress=analysis.regress,
+                                       n_classes=n_classes,
+                                       condition=raw.condition if analysis.family.has_condition else None)
+    m.pop("confusion", None)  # a classification's confusion matrices: not a column
+    return m

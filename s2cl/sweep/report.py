@@ -8,6 +8,7 @@ the same way, as one batch)."""
 from __future__ import annotations
 
 import functools
+import importlib.resources
 import json
 from pathlib import Path
 from typing import Any
@@ -263,8 +264,6 @@ _GRIDS = {"table4-b4": ("table4", "B4", "rms"), "table5-b11": ("table5", "B11", 
 @functools.cache
 def paper_results() -> dict[str, Any]:
     """The paper's printed results (s2cl/data/segl2012_results.json), read once; do not modify."""
-    import importlib.resources
-
     return json.loads((importlib.resources.files("s2cl") / "data" / PAPER_FILE).read_text(encoding="utf-8"))
 
 

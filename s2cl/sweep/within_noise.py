@@ -6,8 +6,9 @@ less than that draw can move are not told apart by the simulation. The test, per
 sweep's best :data:`DEFAULT_TOP` designs, re-evaluated with per-pixel results):
 
 1. per library spectrum ``s``, sufficient statistics of the score over the spectrum's pixels (its noisy copies),
-   for every candidate: the moments of the quadratic regression (:func:`regression_stats`), or the correct and
-   total pixel counts per class (:func:`classification_stats`);
+   for every candidate, as the ranking's :class:`~s2cl.retrieve.metric.Metric` sums them
+   (:mod:`s2cl.retrieve.spectrum_stats`: the moments of the quadratic regression, or the correct and total pixel
+   counts per class);
 2. :data:`REPLICATES` bootstrap replicates resample the spectra with replacement (within each class for SAM),
    the same draw for every design, so all copies of a spectrum move together and the designs stay paired; a
    replicate's score is the score of the weighted statistics (the regression is refitted on each replicate);
@@ -22,12 +23,15 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from s2cl.status import Status
+from s2cl.retrieve.metric import Metric, metric_scored_by
+from s2cl.sweep.design_tables import config_tables
+from s2cl.sweep.engine import kernel_evaluator
+from s2cl.sweep.kernel import KERNEL_CONFIGS
 from s2cl.sweep.raw import ChunkEvaluator
 
 LEVEL = 0.95
@@ -41,117 +45,12 @@ DESIGN_BLOCK = 64
 
 # -- per-spectrum statistics --------------------------------------------------------------------------
 
-def _per_spectrum(values: np.ndarray, copies: int) -> np.ndarray:
-    """``(n_designs, n_pixels, m)`` summed over each spectrum's ``copies`` consecutive pixels."""
-    d, p, m = values.shape
-    return values.reshape(d, p // copies, copies, m).sum(axis=2)
-
-
-def regression_stats(index: np.ndarray, status: np.ndarray, target: np.ndarray, copies: int,
-                     regress: tuple[int, ...]) -> np.ndarray:
-    """Per design and spectrum, the sums the RMS of the quadratic regression of ``target`` on ``index`` needs:
-    ``n, Σu, Σu², Σu³, Σu⁴, Σy, Σuy, Σu²y, Σy²`` over the pixels that enter it (status in ``regress``, finite
-    index). ``u``: the index centred and scaled over all of the design's regression pixels (a constant index: 0);
-    ``y``: the target minus its mean. Pixel ``p`` is a copy of spectrum ``p // copies``.
-
-    :param index: ``(n_designs, n_pixels)``, any unit; :param target: ``(n_pixels,)``.
-    :returns: ``(n_designs, n_spectra, 9)`` float64.
-    """
-    x = np.atleast_2d(np.asarray(index, dtype=np.float64))
-    status = np.atleast_2d(status)
-    valid = np.isin(status, np.asarray(regress, dtype=status.dtype)) & np.isfinite(x)
-    n = valid.sum(axis=1)
-    safe = np.maximum(n, 1)
-    x0 = np.where(valid, x, 0.0).sum(axis=1) / safe
-    u = np.where(valid, x - x0[:, None], 0.0)
-    scale = np.sqrt((u * u).sum(axis=1) / safe)
-    constant = scale <= 1e-12 * np.maximum(np.abs(x0), 1.0)
-    u = u / np.where(constant, 1.0, scale)[:, None]
-    u[constant] = 0.0
-    y = np.asarray(target, dtype=np.float64)
-    y = np.broadcast_to(y - y.mean(), x.shape)
-    w = valid.astype(np.float64)
-    u2 = u * u
-    terms = np.stack([w, u, u2, u2 * u, u2 * u2, w * y, u * y, u2 * y, w * y * y], axis=-1)
-    return _per_spectrum(terms, copies)
-
-
-def regression_score(sums: np.ndarray) -> np.ndarray:
-    """RMS of the least-squares quadratic from :func:`regression_stats` sums ``(..., 9)`` (target units; NaN
-    without a pixel). A singular fit (fewer than three distinct index values, a constant index) takes the
-    minimum-norm solution, as :func:`s2cl.retrieve.metrics.regression_metrics` does."""
-    s = np.asarray(sums, dtype=np.float64)
-    n, su, su2, su3, su4, sy, suy, su2y, syy = np.moveaxis(s, -1, 0)
-    m = np.stack([np.stack([n, su, su2], -1), np.stack([su, su2, su3], -1), np.stack([su2, su3, su4], -1)], -2)
-    b = np.stack([sy, suy, su2y], -1)
-    coef = _solve3(m.reshape(-1, 3, 3), b.reshape(-1, 3)).reshape(b.shape)
-    ss_res = np.maximum(syy - (coef * b).sum(-1), 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(n > 0, np.sqrt(ss_res / np.where(n > 0, n, 1.0)), np.nan)
-
-
-def _solve3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Batched 3 × 3 solves; rows whose matrix is singular (relative to its scale) by the pseudo-inverse."""
-    out = np.empty_like(b)
-    scale = np.maximum(np.abs(m).max(axis=(1, 2)), 1e-300)
-    det = np.linalg.det(m / scale[:, None, None])
-    good = np.abs(det) > 1e-12
-    if good.any():
-        out[good] = np.linalg.solve(m[good], b[good][..., None])[..., 0]
-    if (~good).any():
-        out[~good] = np.einsum("rij,rj->ri", np.linalg.pinv(m[~good]), b[~good])
-    return out
-
-
-def classification_stats(index: np.ndarray, status: np.ndarray, target: np.ndarray, copies: int,
-                         n_classes: int) -> np.ndarray:
-    """Per design and spectrum, the correctly classified pixels and all pixels, each in the column of the
-    spectrum's class: ``(n_designs, n_spectra, 2 n_classes)`` (correct counts, then pixel counts). A pixel is
-    correct when its status is OK and its class index equals the truth ``target`` (class index per pixel)."""
-    pred = np.atleast_2d(np.asarray(index))
-    status = np.atleast_2d(status)
-    truth = np.asarray(target).astype(np.int64)
-    correct = (status == Status.OK) & (np.rint(pred).astype(np.int64) == truth[None, :])
-    onehot = np.eye(n_classes)[truth]  # (n_pixels, n_classes)
-    terms = np.concatenate([correct[..., None] * onehot[None], np.broadcast_to(onehot, (*correct.shape,
-                                                                                       n_classes))], axis=-1)
-    return _per_spectrum(terms.astype(np.float64), copies)
-
-
-def classification_score(sums: np.ndarray) -> np.ndarray:
-    """Mean omission error over the classes present (%), from :func:`classification_stats` sums ``(..., 2C)``."""
-    s = np.asarray(sums, dtype=np.float64)
-    c = s.shape[-1] // 2
-    correct, total = s[..., :c], s[..., c:]
-    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # no class present: NaN
-        omission = np.where(total > 0, 1.0 - correct / np.where(total > 0, total, 1.0), np.nan)
-        return 100.0 * np.nanmean(omission, axis=-1)
-
-
-@dataclass(frozen=True)
-class Family:
-    """How one ranking metric is bootstrapped: its per-spectrum statistics of a :class:`~s2cl.sweep.raw.RawChunk`
-    (given the job), the score of summed statistics, and whether spectra are resampled within their class."""
-
-    stats: Callable[[Any, Any], np.ndarray]
-    score: Callable[[np.ndarray], np.ndarray]
-    stratified: bool
-
-
-def _regression(raw: Any, job: Any) -> np.ndarray:
+def spectrum_stats(metric: Metric, raw: Any, job: Any) -> np.ndarray:
+    """Per design and library spectrum, the statistics ``metric`` scores (:meth:`~s2cl.retrieve.metric.Metric.
+    spectrum_stats`) of the per-pixel results ``raw`` (a :class:`~s2cl.sweep.raw.RawChunk`) of ``job``'s sweep."""
     t = job.tables
-    return regression_stats(raw.index, raw.status, t.target, t.copies, tuple(int(r) for r in job.analysis.regress))
-
-
-def _classification(raw: Any, job: Any) -> np.ndarray:
-    t = job.tables
-    return classification_stats(raw.index, raw.status, t.target, t.copies, len(t.class_names))
-
-
-#: ranking metric (:func:`s2cl.sweep.digest.metric_of`) → how it is bootstrapped
-FAMILIES = {"rms": Family(_regression, regression_score, stratified=False),
-            "omission_error_pct": Family(_classification, classification_score, stratified=True)}
+    return metric.spectrum_stats(raw.index, raw.status, t.target, t.copies, regress=job.analysis.regress,
+                                 n_classes=len(t.class_names))
 
 
 # -- the bootstrap ----------------------------------------------------------------------------------------
@@ -229,11 +128,11 @@ def paired_bootstrap(stats: np.ndarray, score: Callable[[np.ndarray], np.ndarray
 
 # -- a sweep's candidates ----------------------------------------------------------------------------------
 
-def design_stats(job: Any, configs: np.ndarray, family: Family, evaluator: ChunkEvaluator) -> np.ndarray:
+def design_stats(job: Any, configs: np.ndarray, metric: Metric, evaluator: ChunkEvaluator) -> np.ndarray:
     """Per-spectrum statistics ``(len(configs), n_spectra, m)`` of the configurations ``configs`` of ``job``, each
     evaluated alone with per-pixel results (``evaluator(c, c + 1)``: the sweep's own kernel gives each design
     the same pixels as in the sweep)."""
-    return np.concatenate([family.stats(evaluator(int(c), int(c) + 1), job) for c in configs])
+    return np.concatenate([spectrum_stats(metric, evaluator(int(c), int(c) + 1), job) for c in configs])
 
 
 def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator | None = None,
@@ -241,37 +140,31 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
                  replicates: int = REPLICATES, seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
     """The designs of ``top`` (the sweep's best rows, best first: ``config``, band centres and widths,
     ``metric``) within noise of the first, as ``summary.json``'s ``within_noise``; None when fewer than two
-    designs were ranked or ``metric`` has no bootstrap (:data:`FAMILIES`).
+    designs were ranked or ``metric`` is no :class:`~s2cl.retrieve.metric.Metric`'s score column.
 
     :param evaluator: per-pixel results of configurations (default: the sweep kernel of ``job`` on ``device``).
     :param reference: per-pixel results (a :class:`~s2cl.sweep.raw.RawChunk` of one design on the same pixels)
         of the sensor's own bands, tested against #1 too (``within_noise["reference"]``), or None.
     :param ranked: how many designs the sweep ranked (all of them tested: the set is complete).
     """
-    family = FAMILIES.get(metric)
-    if family is None or top is None or len(top) < 2:
+    scored = metric_scored_by(metric)
+    if scored is None or top is None or len(top) < 2:
         return None
     t0 = time.perf_counter()
     t = job.tables
     configs = top["config"].to_numpy(np.int64)
     rows = configs
     if evaluator is None:
-        from dataclasses import replace
-
-        from s2cl.sweep.design_tables import config_tables
-        from s2cl.sweep.engine import kernel_evaluator
-        from s2cl.sweep.kernel import KERNEL_CONFIGS
-
         if configs.max() < KERNEL_CONFIGS:
             evaluator = kernel_evaluator(job, device)
         else:  # numbers beyond the kernel's reach: the designs' own tables, row i for configs[i]
             evaluator = kernel_evaluator(replace(job, tables=config_tables(t, configs), chunk=1), device)
             rows = np.arange(len(configs))
-    stats = design_stats(job, rows, family, evaluator)
+    stats = design_stats(job, rows, scored, evaluator)
     if reference is not None:
-        stats = np.concatenate([stats, family.stats(reference, job)])
-    strata = np.asarray(t.target)[:: t.copies] if family.stratified else None
-    boot = paired_bootstrap(stats, family.score, 0, replicates=replicates, seed=seed, level=level, strata=strata)
+        stats = np.concatenate([stats, spectrum_stats(scored, reference, job)])
+    strata = np.asarray(t.target)[:: t.copies] if scored.stratified else None
+    boot = paired_bootstrap(stats, scored.score, 0, replicates=replicates, seed=seed, level=level, strata=strata)
     n = len(configs)
     bands = list(t.bands)
     designs = []
@@ -283,7 +176,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
             "interval": [_finite(boot.low[i]), _finite(boot.high[i])], "as_good": float(boot.as_good[i]),
             "within": bool(boot.within[i])})
     out = {"metric": metric, "level": level, "replicates": replicates, "seed": seed,
-           "resampled": "library spectra" + (" within each class" if family.stratified else ""),
+           "resampled": "library spectra" + (" within each class" if scored.stratified else ""),
            "spectra": t.n_spectra, "copies": t.copies, "candidates": n, "count": int(boot.within[:n].sum()),
            # False: the last candidate is still within noise, so designs ranked below it may be too
            "complete": not bool(boot.within[n - 1]) or n == ranked,

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.io.cube_reader import CubeReader, real, wavelength_scale
 from s2cl.io.georef import GeoRef, crs_wkt
 from s2cl.io.products.bands import BandSelection, scaled
 
@@ -59,8 +60,6 @@ def _attr_text(value: Any) -> str:
 
 def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> Any:
     """The EMIT L2A file ``p`` opened for reading by rows, on its map grid or in sensor geometry."""
-    from s2cl.io.cube_reader import CubeReader, real, wavelength_scale
-
     name = variable or "reflectance"
     with _h5(p) as f:
         v = f[name]

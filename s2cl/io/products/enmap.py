@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import InputError, token
-from s2cl.io.georef import GeoRef, crs_wkt
+from s2cl.io.cube_reader import CubeReader
+from s2cl.io.georef import GeoRef, crs_wkt, pyproj_crs
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.io.products.bands import BandSelection
 from s2cl.io.products.geotiff import check_real, open_dataset, row_reader, tiff_georef
@@ -170,8 +171,6 @@ def _check_grid(root: ET.Element, xml: Path, rows: int, cols: int, georef: GeoRe
     if georef.crs is None and crs is not None:
         return GeoRef(georef.transform, crs, f"{georef.origin}, CRS from {xml.name}")
     if crs is not None and georef.crs is not None:
-        from s2cl.io.georef import pyproj_crs
-
         CRS = pyproj_crs()
         if not CRS.from_wkt(crs).equals(CRS.from_wkt(georef.crs), ignore_axis_order=True):
             raise InputError(f"{token(name or '')} is not the image's CRS ({CRS.from_wkt(georef.crs).name})",
@@ -181,8 +180,6 @@ def _check_grid(root: ET.Element, xml: Path, rows: int, cols: int, georef: GeoRe
 
 def open_enmap(p: Path) -> Any:
     """The EnMAP L2A product named by ``p`` (its folder, image or XML) opened for reading by rows."""
-    from s2cl.io.cube_reader import CubeReader
-
     image, xml = _files(p)
     root = _xml(xml)
     level = (root.findtext("base/level") or "").strip()

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import DependencyError, InputError, token
+from s2cl.io.cube_reader import CubeReader, wavelength_scale
 from s2cl.io.georef import GEO_EXTRA, GeoRef, crs_wkt
 from s2cl.io.inputs import parse_number
 from s2cl.io.products.bands import BandSelection, scaled
@@ -82,8 +83,6 @@ def row_reader(p: Path, index: np.ndarray, nodata: np.ndarray, gain: np.ndarray,
 
 def open_geotiff(p: Path) -> Any:
     """A generic GeoTIFF cube (see the module docstring for the metadata it needs)."""
-    from s2cl.io.cube_reader import CubeReader
-
     with open_dataset(p) as src:
         check_real(src, p)
         wl, fwhm = _band_wavelengths(src, p)
@@ -110,8 +109,6 @@ def _number(text: Any, p: Path, key: str) -> float:
 def _band_wavelengths(src: Any, p: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Each band's wavelength and FWHM (nm) from its GDAL metadata; an :class:`InputError` naming the first band
     without one."""
-    from s2cl.io.cube_reader import wavelength_scale
-
     wl, fwhm = [], []
     units_all = src.tags().get("wavelength_units")
     for b in range(1, src.count + 1):

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import InputError
+from s2cl.io.cube_reader import CubeReader
 from s2cl.io.georef import GeoRef, crs_wkt
 from s2cl.io.products.bands import BandSelection
 
@@ -69,8 +70,6 @@ def _scalar(f: Any, name: str, p: Path) -> float:
 
 def open_prisma(p: Path) -> Any:
     """The PRISMA L2D file ``p`` opened for reading by rows."""
-    from s2cl.io.cube_reader import CubeReader
-
     det: dict[str, dict[str, Any]] = {}
     with _h5(p) as f:
         shape = None

@@ -18,11 +18,15 @@ import numpy as np
 
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render_def
+from s2cl.cl.vecmath import EXP_DEGREE, exp_template_vars
 from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError, key_token
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import SAME_CENTRE_NM
 from s2cl.retrieve.family import Family, Outcome, SweepContext
+from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
+from s2cl.retrieve.metrics import condition_code
 from s2cl.status import REGRESS_NAMES
 
 TEMPLATE = "common/analysis_igrm.mako"
@@ -64,9 +68,6 @@ class IgrmFamily(Family):
         return 1 + np.count_nonzero(np.diff(s, axis=1) > SAME_CENTRE_NM, axis=1) < IGRM_PARAMETERS
 
     def sweep_code(self, settings: AnalysisSettings, T: VecTypes, ctx: SweepContext) -> tuple[str, str]:
-        from s2cl.cl.vecmath import EXP_DEGREE, exp_template_vars
-        from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
-
         precision = "float64" if T.double else "float32"
         c = kernel_config(IgrmSettings.from_mapping(dict(settings.igrm)), len(ctx.counts), precision, "poly")
         exp = exp_template_vars(precision, EXP_DEGREE[precision])
@@ -75,9 +76,6 @@ class IgrmFamily(Family):
 
     def run(self, rt: Runtime, settings: AnalysisSettings, bands: Sequence[str], refl: np.ndarray,
             centres: np.ndarray, *, real_t: str, lanes: int | None, references: np.ndarray | None = None) -> Outcome:
-        from s2cl.retrieve.igrm import IgrmFitter, IgrmSettings
-        from s2cl.retrieve.metrics import condition_code
-
         order = np.argsort(centres, kind="stable")
         fit = IgrmFitter(rt, len(bands), IgrmSettings.from_mapping(dict(settings.igrm)), real_t=real_t, lanes=lanes)
         r = fit.fit(refl[order], np.asarray(centres)[order])
@@ -86,8 +84,6 @@ class IgrmFamily(Family):
 
 def fit_settings(values: dict[str, Any], source: str | None) -> Any:
     """The scene's ``analysis.igrm`` table as IGRM fit settings; errors name ``analysis.igrm.KEY``."""
-    from s2cl.retrieve.igrm import IgrmSettings
-
     known = [f.name for f in dataclasses.fields(IgrmSettings)]
     unknown = sorted(set(values) - set(known))
     if unknown:

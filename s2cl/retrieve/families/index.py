@@ -15,6 +15,7 @@ from s2cl.cl.vectypes import VecTypes
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import same_band
 from s2cl.retrieve.family import Family, Outcome, SweepContext
+from s2cl.retrieve.index_kernel import IndexKernel
 from s2cl.retrieve.indices import INDICES, NormalisedDifference
 
 
@@ -59,8 +60,6 @@ class IndexFamily(Family):
 
     def run(self, rt: Runtime, settings: AnalysisSettings, bands: Sequence[str], refl: np.ndarray,
             centres: np.ndarray, *, real_t: str, lanes: int | None, references: np.ndarray | None = None) -> Outcome:
-        from s2cl.retrieve.index_kernel import IndexKernel
-
         g = IndexKernel(rt, self.kind, real_t=real_t, lanes=lanes)(refl, *settings.slots)
         return Outcome(g.index, g.status, np.zeros_like(g.status))
 

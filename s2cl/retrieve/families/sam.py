@@ -15,13 +15,15 @@ from s2cl.cl.vectypes import VecTypes
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import same_band
 from s2cl.retrieve.family import Family, Outcome, SweepContext
+from s2cl.retrieve.metric import CLASSIFICATION
+from s2cl.retrieve.sam import SamClassifier
 
 TEMPLATE = "common/analysis_sam.mako"
 
 
 class SamFamily(Family):
     kind = "sam"
-    metric = "classification"
+    metric = CLASSIFICATION
     keys = ("classes", "angle_threshold_deg")
     uses_every_band = True
     twin = "s2cl.reference.families:sam"
@@ -44,8 +46,6 @@ class SamFamily(Family):
 
     def run(self, rt: Runtime, settings: AnalysisSettings, bands: Sequence[str], refl: np.ndarray,
             centres: np.ndarray, *, real_t: str, lanes: int | None, references: np.ndarray | None = None) -> Outcome:
-        from s2cl.retrieve.sam import SamClassifier
-
         assert references is not None
         theta = settings.angle_threshold_deg
         r = SamClassifier(rt, references, real_t=real_t, lanes=lanes,

@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from s2cl.app.checks import check_simulate
+from s2cl.app.image_analysis import analyse_image
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
 from s2cl.forward.stages import STAGES, outputs
@@ -110,9 +112,6 @@ def _timed(rt: Runtime, scene: Scene, cube: SceneCube, repeats: int) -> tuple[Me
 def analysis_score(rt: Runtime) -> Score:
     """The scene's [analysis] on the product (:func:`s2cl.app.image_analysis.analyse_image`): the parameter map's
     RMS, bias and R² against the cube's truth, where the cube knows it (else the fitted fraction alone)."""
-    from s2cl.app.checks import check_simulate
-    from s2cl.app.image_analysis import analyse_image
-
     def score(scene: Scene, store: MemoryStore, cube: SceneCube) -> dict[str, float]:
         checked = check_simulate(scene)
         if checked.analysis is None:
