@@ -71,6 +71,17 @@ def test_the_formula_family_touches_four_files() -> None:
     assert touching == FORMULA_FILES, sorted(touching ^ FORMULA_FILES)
 
 
+
+def _compared(node: ast.Compare) -> tuple[set, set]:
+    """The names (attributes or variables) and the string literals (alone or in a literal tuple, list or set) on
+    the sides of a comparison."""
+    sides = [node.left, *node.comparators]
+    names = {s.attr if isinstance(s, ast.Attribute) else getattr(s, "id", None) for s in sides}
+    literal = {s.value for s in sides if isinstance(s, ast.Constant) and isinstance(s.value, str)}
+    literal |= {e.value for s in sides if isinstance(s, (ast.Tuple, ast.List, ast.Set)) for e in s.elts
+                if isinstance(e, ast.Constant)}
+    return names, literal
+
 def _kind_branches(path: Path) -> list[str]:
     """``x.kind == "sam"``-style comparisons and ``kind in INDICES`` tests in a Python file."""
     kinds = set(registry())
@@ -78,11 +89,7 @@ def _kind_branches(path: Path) -> list[str]:
     for node in ast.walk(ast.parse(path.read_text())):
         if not isinstance(node, ast.Compare):
             continue
-        sides = [node.left, *node.comparators]
-        names = {s.attr if isinstance(s, ast.Attribute) else getattr(s, "id", None) for s in sides}
-        literal = {s.value for s in sides if isinstance(s, ast.Constant) and isinstance(s.value, str)}
-        literal |= {e.value for s in sides if isinstance(s, (ast.Tuple, ast.List, ast.Set)) for e in s.elts
-                    if isinstance(e, ast.Constant)}
+        names, literal = _compared(node)
         if ("kind" in names and literal & kinds) or "INDICES" in names:
             found.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     return found
@@ -143,11 +150,7 @@ def _metric_branches(source: str, label: str) -> list[str]:
                           for op, c in zip(node.ops, node.comparators, strict=True))
         if not (literal_set or any(isinstance(op, choosing) for op in node.ops)):
             continue
-        sides = [node.left, *node.comparators]
-        names = {s.attr if isinstance(s, ast.Attribute) else getattr(s, "id", None) for s in sides}
-        literal = {s.value for s in sides if isinstance(s, ast.Constant) and isinstance(s.value, str)}
-        literal |= {e.value for s in sides if isinstance(s, (ast.Tuple, ast.List, ast.Set)) for e in s.elts
-                    if isinstance(e, ast.Constant)}
+        names, literal = _compared(node)
         if "metric" in names or literal & _METRIC_WORDS:
             found.append(f"{label}:{node.lineno}")
     return found
