@@ -89,6 +89,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     from s2cl.sweep.cluster import reach_scheduler
     from s2cl.sweep.digest import TOP
     from s2cl.sweep.engine import check_folder, kernel_evaluator, resumable_chunk, run_sweep
+    from s2cl.sweep.metrics_kernel import metrics_on_device
     from s2cl.sweep.report import Digest, open_results, paper_match, summarise
     from s2cl.sweep.search import run_search
     from s2cl.sweep.within_noise import mark_top, within_noise
@@ -107,8 +108,7 @@ def optimise(scene: str | Path | Scene = "default", out: str | Path | None = Non
     checked = check_sweep(sc, budget=budget)
     check_output_dir(folder, where=where)
     rt = get_runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
-    # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
-    host_metrics = bool(workers or scheduler) or not rt.has_fp64
+    host_metrics = not metrics_on_device(rt, distributed=bool(workers or scheduler))
     plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(folder, overwrite),
                            host_metrics=host_metrics)
     searching = sc.spec.sweep is not None and sc.spec.sweep.search != "exhaustive"
@@ -179,6 +179,7 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     from s2cl.io.outdir import check_output_dir
     from s2cl.scene.caveats import report
     from s2cl.sweep.engine import resumable_chunk
+    from s2cl.sweep.metrics_kernel import metrics_on_device
 
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
@@ -191,7 +192,7 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     if on_counted:
         on_counted(sc.name, variants, checked.space.size)
     plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder),
-                           host_metrics=not get_runtime(sc.run.device).has_fp64)
+                           host_metrics=not metrics_on_device(get_runtime(sc.run.device)))
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)
