@@ -236,8 +236,9 @@ def test_optimise_searches_a_scene_end_to_end(tmp_path) -> None:
 
 
 def test_designs_beyond_the_kernels_numbers_score_through_their_own_tables(tmp_path, monkeypatch) -> None:
-    """The reference row and the within-noise set of a design numbered beyond the kernel's 32-bit configuration
-    numbers come from that design's own tables (config_tables), with the same scores as through the sweep's."""
+    """The reference row and the within-noise set come from the designs' own tables (config_tables, by which a
+    design numbered beyond the kernel's 32-bit configuration numbers is scored: tests/test_designs.py), batched or
+    one by one, with the same scores as through the sweep's."""
     from sweep_fixtures import SMALL_SWEEP_TOML
 
     from s2cl.app.optimise import optimise
@@ -247,8 +248,7 @@ def test_designs_beyond_the_kernels_numbers_score_through_their_own_tables(tmp_p
     (tmp_path / "sweep.toml").write_text(SMALL_SWEEP_TOML.format(copies=4))
     scene = Scene.load(str(tmp_path / "sweep.toml"))
     plain = optimise(scene, tmp_path / "a").summary
-    monkeypatch.setattr("s2cl.app.plan.KERNEL_CONFIGS", 0)
-    monkeypatch.setattr("s2cl.sweep.kernel.KERNEL_CONFIGS", 0)
+    monkeypatch.setattr("s2cl.sweep.designs.DESIGN_BATCH", 1)  # every design in a batch of its own
     beyond = optimise(scene, tmp_path / "b", overwrite=True).summary
     assert beyond["reference"] == plain["reference"]
 

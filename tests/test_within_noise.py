@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from sweep_fixtures import SMALL_SWEEP_TOML
+from sweep_fixtures import SMALL_SWEEP_TOML, numpy_evaluator
 
 from s2cl.reference.sweep import NumpyEvaluator
 from s2cl.retrieve.metric import metric_scored_by
@@ -213,7 +213,7 @@ def test_every_family_known_answers(kind: str) -> None:
     rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=ev))
     metric = metric_of(list(rows.columns))
     top = rows.sort_values([metric, "config"]).reset_index(drop=True)
-    out = within_noise(job, top, metric, evaluator=ev, replicates=500)
+    out = within_noise(job, top, metric, evaluator_of=numpy_evaluator, replicates=500)
     assert out is not None and out["designs"][0]["within"] and out["candidates"] == job.n_configs
     np.testing.assert_allclose([d["difference"] for d in out["designs"]], top[metric] - top[metric][0],
                                rtol=1e-9, atol=1e-9)
@@ -353,7 +353,8 @@ def test_within_noise_resamples_the_sweeps_library_spectra(kind: str, monkeypatc
     completes = set()
     for n in range(2, len(order) + 1):
         for r, reference in enumerate(references, start=len(order)):
-            out = within_noise(job, top.head(n), metric, evaluator=ev, reference=ev(reference, reference + 1),
+            out = within_noise(job, top.head(n), metric, evaluator_of=numpy_evaluator,
+                               reference=ev(reference, reference + 1),
                                ranked=len(order), replicates=replicates, seed=seed, level=level)
             assert out is not None and out["candidates"] == n
             assert (out["spectra"], out["copies"], out["seed"], out["replicates"], out["level"]) == (
@@ -465,13 +466,11 @@ def test_optimise_tests_the_scenes_within_noise_top(tmp_path: Path, monkeypatch:
     assert [e["within_noise"] for e in result.summary["top"]][3:] == [None, None, None]
 
 
-def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_tables(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """On the device, configuration numbers the sweep kernel cannot reach (KERNEL_CONFIGS and above) are re-scored
-    through the designs' own tables (config_tables), smaller ones through the sweep's: with the limit at the largest
-    candidate it takes their own tables, one above it the sweep's, with the same result."""
-    from s2cl.sweep import design_tables, kernel
-    from s2cl.sweep import within_noise as module
+def test_the_candidates_are_scored_in_batches_of_their_own_tables(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The candidates go to the design evaluator (s2cl.sweep.designs) as one list, scored in batches of their own
+    tables (config_tables; every candidate once, in ranking order), one launch per batch: batches of two give the
+    result of one batch of all, and the twin's per-design scores (the sweep's own tables, one design at a time)."""
+    from s2cl.sweep import design_tables, designs
     from s2cl.sweep.engine import evaluate_chunk
     from s2cl.sweep.report import metric_of
 
@@ -479,22 +478,24 @@ def test_configurations_from_the_kernels_limit_on_are_scored_through_their_own_t
     rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=NumpyEvaluator(job.tables, job.analysis)))
     metric = metric_of(list(rows.columns))
     top = rows.sort_values([metric, "config"]).reset_index(drop=True)
-    own: list[list[int]] = []
+    batches: list[list[int]] = []
     real = design_tables.config_tables
 
-    def spy(tables: Any, configs: np.ndarray) -> Any:
-        own.append(np.asarray(configs).tolist())
-        return real(tables, configs)
+    def spy(tables: Any, configs: np.ndarray, rows: int | None = None) -> Any:
+        batches.append(np.asarray(configs).tolist())
+        return real(tables, configs, rows)
 
-    monkeypatch.setattr(module, "config_tables", spy)  # where within_noise() looks them up
-    limit = int(top["config"].max())
+    monkeypatch.setattr(designs, "config_tables", spy)
     out = {}
-    for k in (limit + 1, limit):
-        monkeypatch.setattr(kernel, "KERNEL_CONFIGS", k)
-        monkeypatch.setattr(module, "KERNEL_CONFIGS", k)
-        out[k] = {key: v for key, v in within_noise(job, top, metric, replicates=200).items() if key != "seconds"}
-    assert own == [top["config"].tolist()]  # at the limit only, every candidate
-    assert out[limit] == out[limit + 1]
+    for size in (2, 128):
+        monkeypatch.setattr(designs, "DESIGN_BATCH", size)
+        out[size] = {key: v for key, v in within_noise(job, top, metric, evaluator_of=numpy_evaluator,
+                                                       replicates=200).items() if key != "seconds"}
+    order = top["config"].tolist()
+    assert batches == [order[i:i + 2] for i in range(0, len(order), 2)] + [order]
+    assert out[2] == out[128]
+    np.testing.assert_allclose([d["difference"] for d in out[2]["designs"]], top[metric] - top[metric][0],
+                               rtol=1e-9, atol=1e-9)
 
 
 def test_the_printed_note_says_when_more_designs_may_be_within_noise(capsys: pytest.CaptureFixture[str]) -> None:

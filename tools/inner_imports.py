@@ -10,6 +10,7 @@ whatever it names. ``if TYPE_CHECKING:`` blocks at module level do not count (th
 from __future__ import annotations
 
 import ast
+import signal
 import sys
 from pathlib import Path
 
@@ -56,4 +57,5 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # piped into head: stop quietly
     sys.exit(main(sys.argv[1:]))

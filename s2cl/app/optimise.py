@@ -24,6 +24,7 @@ from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
 from s2cl.sweep.cluster import reach_scheduler
 from s2cl.sweep.digest import TOP
 from s2cl.sweep.engine import SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
+from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import (
     Digest,
     bands_of,
@@ -156,8 +157,7 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
     checked = check_sweep(sc, budget=budget)
     check_output_dir(folder, where=where)
     rt = get_runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
-    # the metrics run on this device when it has float64 and no Dask worker (another device) evaluates
-    host_metrics = bool(workers or scheduler) or not rt.has_fp64
+    host_metrics = not metrics_on_device(rt, distributed=bool(workers or scheduler))
     plan = sweep_resources(checked, chunk=chunk, budget=budget, resumed=resumable_chunk(folder, overwrite),
                            host_metrics=host_metrics, rt=rt)
     searching = sc.spec.sweep is not None and sc.spec.sweep.search != "exhaustive"
@@ -236,8 +236,8 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     if on_counted:
         on_counted(sc.name, variants, checked.space.size)
     rt = get_runtime(sc.run.device)
-    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder), host_metrics=not rt.has_fp64,
-                           rt=rt)
+    plan = sweep_resources(checked, budget=budget, resumed=resumable_chunk(folder),
+                           host_metrics=not metrics_on_device(rt), rt=rt)
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)

@@ -18,9 +18,8 @@ from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
-from s2cl.sweep.design_tables import config_tables
-from s2cl.sweep.engine import SweepJob, evaluate_chunk, kernel_evaluator
-from s2cl.sweep.kernel import KERNEL_CONFIGS
+from s2cl.sweep.designs import design_pixels, score_designs
+from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.search import SearchSettings
 from s2cl.sweep.space import addition_scene
@@ -76,11 +75,14 @@ def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dic
         return base_reference(job.base_row, job.addition["band"])
     shapes = _own_shapes(scene, job)
     config = configuration_of(job.tables, shapes)
-    if config is not None:  # the sensor's own design is one of the sweep's: its tables and kernel serve
-        one, at = _design_job(job, config)
-        rows = {**evaluate_chunk(one, at, at + 1, device), "config": np.array([config], dtype=np.int64)}
-        return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    if config is not None:  # the sensor's own design is one of the sweep's: its tables serve
+        return _first(score_designs(job, np.array([config]), device=device))
     return fixed_row(scene, job, _own_bands(scene, job), job.analysis, device=device)
+
+
+def _first(rows: dict[str, Any]) -> dict[str, Any]:
+    """The first row of ``rows`` (column → array) as plain values."""
+    return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
 
 
 def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> int | None:
@@ -103,19 +105,8 @@ def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None) -> 
         return None
     config = configuration_of(job.tables, _own_shapes(scene, job))
     if config is not None:
-        one, at = _design_job(job, config)
-        return kernel_evaluator(one, device)(at, at + 1)
-    one = _one_job(scene, job, _own_bands(scene, job), job.analysis)
-    return kernel_evaluator(one, device)(0, 1)
-
-
-def _design_job(job: SweepJob, config: int) -> tuple[SweepJob, int]:
-    """The job and configuration number that evaluate design ``config`` of ``job``: the sweep's own tables where the
-    kernel's 32-bit configuration numbers reach it, else that one design's tables (:func:`config_tables`: the same
-    rows, noise deviates and kernel, so the same score)."""
-    if config < KERNEL_CONFIGS:
-        return job, config
-    return replace(job, tables=config_tables(job.tables, np.array([config])), chunk=1), 0
+        return design_pixels(job, np.array([config]), device=device)
+    return design_pixels(_one_job(scene, job, _own_bands(scene, job), job.analysis), np.array([0]), device=device)
 
 
 def _own_shapes(scene: Scene, job: SweepJob) -> list[tuple[float, float]]:
@@ -140,8 +131,7 @@ def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: Analysis
               library: SpectralLibrary | None = None, device: str | None = None) -> dict[str, Any]:
     """Metrics of the one configuration of ``space`` (fixed bands) scored by ``analysis``, with ``job``'s library,
     atmosphere, noise deviates (keyed by each band's index in ``scene``'s sensor), precision and device."""
-    rows = evaluate_chunk(_one_job(scene, job, space, analysis, library), 0, 1, device)
-    return {k: (v[0].item() if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    return _first(score_designs(_one_job(scene, job, space, analysis, library), np.array([0]), device=device))
 
 
 def count_table(scene: Scene) -> list[dict[str, Any]]:

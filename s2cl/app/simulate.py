@@ -2,10 +2,11 @@
 written straight into the NetCDF file, so memory does not grow with ``surface.copies``.
 
 The file equals :meth:`LibrarySimulation.to_dataset` written with xarray (same variables, dimensions,
-attributes and values; tested). The small part (band and spectrum tables, noise-free band radiance,
-attributes) is written with xarray first; the per-pixel images ``(band, y, x)`` are then created with
-h5netcdf and filled chunk by chunk (``rows``: one image row per spectrum; ``blocks``: one square
-tile per spectrum). Clipping counts are written last. The analysis keeps only the band reflectances
+attributes and values; tested), written by the one writer of ``simulation.nc`` (:mod:`s2cl.io.simulation_file`,
+the image cube's too): the small part (band and spectrum tables, noise-free band radiance) first; the per-pixel
+images ``(band, y, x)`` are then created in the open file and filled chunk by chunk (``rows``: one image row per
+spectrum; ``blocks``: one square tile per spectrum); clipping counts and the global attributes (the run's,
+:func:`s2cl.forward.run_attrs.run_attrs`) last. The analysis keeps only the band reflectances
 it needs (float32, ``n_analysis_bands × pixels``); its memory is part of :func:`simulate_memory`.
 """
 
@@ -23,7 +24,6 @@ import numpy as np
 from s2cl.app.analysis import analyse
 from s2cl.cl.runtime import get_runtime
 from s2cl.forward.sense import SenseResult
-from s2cl.version import __version__
 
 if TYPE_CHECKING:
     from s2cl.cl.runtime import Runtime
@@ -31,9 +31,10 @@ if TYPE_CHECKING:
 from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.resample import resample_buffers
+from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import sense_buffers
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
-from s2cl.forward.stages import chain, image_stage_names, outputs
+from s2cl.forward.stages import chain, outputs
 from s2cl.io.budget import (
     ANALYSIS_BYTES_PER_PIXEL,
     ANALYSIS_BYTES_PER_PIXEL_BAND,
@@ -44,7 +45,7 @@ from s2cl.io.budget import (
     largest_fitting,
     require_disk,
 )
-from s2cl.io.output import atomic_path, hdf5_errors
+from s2cl.io.simulation_file import simulation_file
 
 Progress = Callable[[int], None]
 
@@ -145,21 +146,18 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     t0 = time.perf_counter()
     band_radiance = sim.band_radiance(lib.spectra)
     seconds = {"resample": time.perf_counter() - t0}
-    attrs = dict(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__, device=rt.name,
-                 precision=r.precision, effects=scene.effects.describe(image_stage_names()), seed=r.seed,
-                 layout=r.layout)
+    attrs = run_attrs(scene, rt.name, image=False)
     writer = _ImageWriter(scene, lib.size, r.copies)
     stats = BandSummary(scene.sensor, band_radiance, r.copies)
     picked = _AnalysisBands(checked, lib.size * r.copies)
     if progress:
         progress(0)
-    with atomic_path(path) as tmp, hdf5_errors(path):
-        flagged = "flags" in {o.name for o in outputs(scene.effects)}
-        clipped = np.zeros((2, scene.sensor.size), np.int64) if flagged else None
-        header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs,
-                       clipped, sim.stage_values()).to_netcdf(tmp, engine="h5netcdf")
+    flagged = "flags" in {o.name for o in outputs(scene.effects)}
+    clipped = np.zeros((2, scene.sensor.size), np.int64) if flagged else None
+    header = header_dataset(scene.sensor, lib, band_radiance, r.copies, r.layout, attrs, clipped, sim.stage_values())
+    with simulation_file(path, header) as store:
         t1 = time.perf_counter()
-        with writer.open(tmp) as images:
+        with writer.open(store.file) as images:
             for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):
                 c = r.copies
                 parts = {name: None if getattr(out, name) is None else
@@ -200,19 +198,17 @@ class _ImageWriter:
         self.effects = scene.effects
         self.dtype = np.dtype(scene.run.precision)
 
-    def open(self, path: Path) -> _OpenImages:
-        return _OpenImages(self, path)
+    def open(self, file: Any) -> _OpenImages:
+        """The images created in ``file``, an open h5netcdf file (:func:`s2cl.io.simulation_file.simulation_file`)."""
+        return _OpenImages(self, file)
 
 
 class _OpenImages:
-    def __init__(self, spec: _ImageWriter, path: Path):
-        self.spec, self.path = spec, path
+    def __init__(self, spec: _ImageWriter, file: Any):
+        self.spec, self.file = spec, file
 
     def __enter__(self) -> _OpenImages:
-        import h5netcdf
-
         sp = self.spec
-        self.file = h5netcdf.File(self.path, "a")
         self.file.dimensions["y"] = sp.rows
         self.file.dimensions["x"] = sp.cols
         v = self.file.create_variable("pixel_spectrum", ("y", "x"), np.int64)
@@ -232,7 +228,7 @@ class _OpenImages:
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        self.file.close()
+        """The file stays open: its writer closes it."""
 
     def write(self, lo: int, hi: int, parts: dict[str, np.ndarray | None]) -> None:
         """Spectra ``lo … hi-1``: each array ``(n_bands, hi - lo, copies)``."""

@@ -22,10 +22,10 @@ from s2cl.forward.product_scene import resolve_product_scene
 from s2cl.forward.reach import band_groups, cube_halo
 from s2cl.io.budget import BASELINE_BYTES, Budget
 from s2cl.io.cog import write_cogs
-from s2cl.io.image_store import NetcdfStore
 from s2cl.io.outdir import check_output_dir, claim
-from s2cl.io.output import atomic_path, hdf5_errors, require_free, write_json
+from s2cl.io.output import require_free, write_json
 from s2cl.io.products.geotiff import rasterio_module
+from s2cl.io.simulation_file import simulation_file
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 
@@ -176,20 +176,16 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     with claim(folder):
         if on_start:
             on_start(f"{sc.name}: cube", cube.rows * cube.cols)
-        with atomic_path(nc) as tmp, hdf5_errors(nc):
-            store = NetcdfStore(tmp)
-            try:
-                simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
-                analysis = None
-                if checked.analysis is not None:
-                    analysis = _analyse_cube(rt, checked, store, cube, block_rows)
-                    written.append(folder / "quicklook.png")
-                    write_quicklook(store, written[-1], analysis["map"])
-                if cog:
-                    written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
-                attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
-            finally:
-                store.close()
+        with simulation_file(nc) as store:
+            simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
+            analysis = None
+            if checked.analysis is not None:
+                analysis = _analyse_cube(rt, checked, store, cube, block_rows)
+                written.append(folder / "quicklook.png")
+                write_quicklook(store, written[-1], analysis["map"])
+            if cog:
+                written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
+            attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
         seconds = time.perf_counter() - t0
         write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": cube.rows * cube.cols,
                                               "block_rows": block_rows, "seconds": seconds, "analysis": analysis,

@@ -43,6 +43,7 @@ from s2cl.forward.product_scene import resolve_product_scene, scene_reader
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
+from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import Sensing
 from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
 from s2cl.forward.stages import band_attrs as stage_attrs
@@ -55,7 +56,6 @@ from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
 from s2cl.status import PixelFlag
-from s2cl.version import __version__
 
 #: bytes of a cube file's values read at a time (as stored, and as floating) by the NODATA pass over its rows
 NODATA_PASS_BYTES = 8_000_000
@@ -283,8 +283,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.smile_spec is not None else None
     band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     out = store if store is not None else MemoryStore()
-    out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,
-                      "effects": scene.effects.describe(), "seed": scene.run.seed, "input_gsd_m": gsd_in,
+    out.attrs.update({**CONVENTIONS, **run_attrs(scene, sim.rt.name, image=True), "input_gsd_m": gsd_in,
                       "psf": "none" if instrument.psf is None else "gaussian",
                       "nodata_input_pixels": int(prepared.nodata_image.sum()), "instrument": instrument.describe()})
     out.attrs.update(georef_attrs(prepared.georef, prepared.product))

@@ -16,8 +16,9 @@ from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import InputError, token
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
+from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
-from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, image_stage_names, senses
+from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
 from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.libraries.registry import load_library
@@ -27,7 +28,6 @@ from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import point_weights
 from s2cl.status import PixelFlag
-from s2cl.version import __version__
 
 Progress = Callable[[int], None]
 OUTPUT_NAMES = tuple(dict.fromkeys(o.name for o in ALL_OUTPUTS))
@@ -246,9 +246,7 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     r = scene.run
     result = sim.run_library(lib, copies=r.copies, seed=r.seed, frame=r.frame, scene=scene.name, progress=progress)
-    result.attrs.update(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
-                        device=rt.name, precision=r.precision, effects=scene.effects.describe(image_stage_names()),
-                        seed=r.seed, layout=r.layout)
+    result.attrs.update(run_attrs(scene, rt.name, image=False))
     return result
 
 

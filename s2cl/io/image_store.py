@@ -72,12 +72,13 @@ class MemoryStore:
 
 
 class NetcdfStore:
-    """The same calls on an h5netcdf file open for writing at ``path``; global attributes are written on close."""
+    """The same calls on an h5netcdf file open for writing at ``path`` (``mode`` "w": created; "a": one already
+    begun, added to); global attributes are written on close."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, mode: str = "w") -> None:
         import h5netcdf
 
-        self.file = h5netcdf.File(path, "w")
+        self.file = h5netcdf.File(path, mode)
         self.attrs: dict[str, Any] = {}
         self.grid_mappings: dict[str, str] = {}
 

@@ -49,11 +49,12 @@ def design_tables(t: SweepTables, designs: np.ndarray, copies: int, rows: int | 
                    z=np.ascontiguousarray(t.z[:, pix]), target=np.ascontiguousarray(t.target[pix]), diagonal=True)
 
 
-def config_tables(t: SweepTables, configs: np.ndarray) -> SweepTables:
+def config_tables(t: SweepTables, configs: np.ndarray, rows: int | None = None) -> SweepTables:
     """Tables of configurations ``configs`` of ``t`` on every copy (row ``i``: configuration ``configs[i]``, the
-    same score): how a design numbered beyond the kernel's 32-bit configuration numbers is evaluated."""
+    same score; ``rows``: as :func:`design_tables`): how given designs are scored (:mod:`s2cl.sweep.designs`),
+    whatever their numbers, those beyond the kernel's 32-bit configuration numbers included."""
     flat = np.asarray(configs, dtype=np.int64).ravel()
     designs = np.empty((flat.size, t.n_slots), dtype=np.int64)
     for k in range(t.n_slots - 1, -1, -1):
         flat, designs[:, k] = np.divmod(flat, t.counts[k])
-    return design_tables(t, designs, t.copies)
+    return design_tables(t, designs, t.copies, rows)

@@ -16,7 +16,7 @@ from s2cl.forward.stages import Stage, Value, inputs, segments, stage
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.family import SweepContext
 from s2cl.status import MAX_ABS_REFLECTANCE
-from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics
+from s2cl.sweep.metrics_kernel import MetricsKernel, host_metrics, metrics_on_device
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.tables import SweepTables
 
@@ -119,7 +119,7 @@ class SweepAcross:
 
 
 #: configuration numbers the kernel addresses (``config_start`` and ``n_configs`` are 32-bit): a design numbered
-#: beyond is evaluated through its own tables (:func:`s2cl.sweep.design_tables.design_tables`)
+#: beyond is scored through tables of its own (:mod:`s2cl.sweep.designs`), as every given design is
 KERNEL_CONFIGS = 2**32 - 1
 
 #: work-items per group at most: PoCL's own choice for few pixels and many configurations (e.g. 8 × 512 items for
@@ -231,10 +231,11 @@ class SweepKernel:
 
     def metrics(self, start: int, stop: int) -> dict[str, np.ndarray]:
         """Per-configuration metrics of configurations ``start … stop-1`` (:mod:`s2cl.retrieve.metrics`):
-        on the device when it has float64 (only the metric rows return), else in numpy on the host."""
+        where :func:`s2cl.sweep.metrics_kernel.metrics_on_device` says: on the device (only the metric rows
+        return), else in numpy on the host."""
         t = self.tables
         out = self._launch(start, stop)
-        if not MetricsKernel.available(self.rt):
+        if not metrics_on_device(self.rt):
             return host_metrics(self.analysis, self._fetch(out, start, stop), t.target, len(t.class_names))
         if self._metrics is None:
             self._metrics = MetricsKernel(self.rt, self.T, self.analysis, t.target, self.pitch, len(t.class_names))

@@ -53,7 +53,7 @@ class MetricsKernel:
 
     @staticmethod
     def available(rt: Runtime) -> bool:
-        """Whether ``rt``'s device can run it (float64)."""
+        """Whether ``rt``'s device can run it (float64); whether a sweep's metrics do: :func:`metrics_on_device`."""
         return bool(rt.has_fp64)
 
     def __call__(self, buffers: dict[str, Any], n_configs: int, fetch_rows: Any) -> dict[str, np.ndarray]:
@@ -84,6 +84,15 @@ class MetricsKernel:
     def host_metrics(self, raw: RawChunk) -> dict[str, np.ndarray]:
         """The numpy twin's metrics of ``raw`` (the same columns)."""
         return host_metrics(self.analysis, raw, self.target, self.n_classes)
+
+
+def metrics_on_device(rt: Runtime, *, distributed: bool = False) -> bool:
+    """Where a sweep's per-configuration metrics run, decided here only: on ``rt``'s device (this kernel, only the
+    metric rows come back) when it has float64 (:meth:`MetricsKernel.available`) and the chunks are evaluated in this
+    process; else in numpy on the host (``distributed``: Dask workers evaluate them, on devices this process does
+    not see, so the host's memory is planned for). The engine (:meth:`s2cl.sweep.kernel.SweepKernel.metrics`) and the
+    memory plan (:func:`s2cl.app.sweep_budget.sweep_resources`' ``host_metrics``) both ask it."""
+    return MetricsKernel.available(rt) and not distributed
 
 
 def host_metrics(analysis: AnalysisSettings, raw: RawChunk, target: np.ndarray, n_classes: int

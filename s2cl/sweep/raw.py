@@ -30,6 +30,12 @@ class RawChunk:
     bounds: np.ndarray
     condition: np.ndarray | None = None
 
+    def row(self, i: int) -> RawChunk:
+        """Configuration ``start + i`` alone (arrays ``(1, n_pixels)``, views)."""
+        cut = slice(i, i + 1)
+        return RawChunk(self.start + i, self.start + i + 1, self.index[cut], self.status[cut], self.bounds[cut],
+                        None if self.condition is None else self.condition[cut])
+
 
 #: evaluates configurations ``start … stop-1`` of one sweep: the fused kernel, or a float64 numpy twin
 ChunkEvaluator = Callable[[int, int], RawChunk]

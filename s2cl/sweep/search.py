@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +38,7 @@ import numpy as np
 from s2cl.errors import InputError
 from s2cl.io.output import atomic_path, write_json
 from s2cl.sweep.cluster import DASK_SCRATCH, dask_client
-from s2cl.sweep.design_tables import design_tables
+from s2cl.sweep.designs import DesignKernels, batch_job
 from s2cl.sweep.digest import metric_of
 from s2cl.sweep.engine import (
     MANIFEST,
@@ -47,7 +47,6 @@ from s2cl.sweep.engine import (
     _remove_sweep_files,
     check_folder,
     evaluate_chunk,
-    kernel_evaluator,
     results_meta,
 )
 from s2cl.sweep.folder import CHUNKS, RESULTS, chunk_done, chunk_path, write_chunk
@@ -143,7 +142,7 @@ class Scorer:
             if not self._resumed(start, part, copies):
                 jobs.append((start, part))
         pending = {start: part for start, part in jobs}
-        subjobs = (replace(self.job, tables=design_tables(self.job.tables, part, copies, rows), chunk=rows)
+        subjobs = (batch_job(self.job, part, copies, rows)
                    for _, part in jobs)  # gathered one at a time where they run one at a time
         for i, raw in self.evaluate(subjobs):
             start = jobs[i][0]
@@ -258,21 +257,13 @@ def prepare_search_folder(job: SweepJob, out: Path, *, overwrite: bool = False) 
 
 
 def _local(device: str | None, evaluator_of: Callable[[SweepJob], ChunkEvaluator] | None) -> Evaluate:
-    """Batches in this process: one sweep kernel per fidelity, loaded with each batch's tables in turn."""
-    kernels: dict[tuple[int, int], Any] = {}
+    """Batches in this process (:class:`s2cl.sweep.designs.DesignKernels`: one sweep kernel per fidelity, loaded
+    with each batch's tables in turn), one launch each."""
+    kernels = DesignKernels(device, evaluator_of)
 
     def evaluate(jobs: Iterable[SweepJob]) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         for i, j in enumerate(jobs):
-            if evaluator_of is not None:
-                yield i, evaluate_chunk(j, 0, j.n_configs, evaluator=evaluator_of(j))
-                continue
-            key = (j.tables.copies, j.n_configs)
-            kernel = kernels.get(key)
-            if kernel is None:
-                kernel = kernels[key] = kernel_evaluator(j, device)
-            else:
-                kernel.load(j.tables)
-            yield i, evaluate_chunk(j, 0, j.n_configs, evaluator=kernel)
+            yield i, kernels.rows(j)
     return evaluate
 
 

@@ -23,15 +23,13 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from s2cl.retrieve.metric import Metric, metric_scored_by
-from s2cl.sweep.design_tables import config_tables
-from s2cl.sweep.engine import kernel_evaluator
-from s2cl.sweep.kernel import KERNEL_CONFIGS
+from s2cl.sweep.designs import design_pixels
 from s2cl.sweep.raw import ChunkEvaluator
 
 LEVEL = 0.95
@@ -128,21 +126,24 @@ def paired_bootstrap(stats: np.ndarray, score: Callable[[np.ndarray], np.ndarray
 
 # -- a sweep's candidates ----------------------------------------------------------------------------------
 
-def design_stats(job: Any, configs: np.ndarray, metric: Metric, evaluator: ChunkEvaluator) -> np.ndarray:
-    """Per-spectrum statistics ``(len(configs), n_spectra, m)`` of the configurations ``configs`` of ``job``, each
-    evaluated alone with per-pixel results (``evaluator(c, c + 1)``: the sweep's own kernel gives each design
-    the same pixels as in the sweep)."""
-    return np.concatenate([spectrum_stats(metric, evaluator(int(c), int(c) + 1), job) for c in configs])
+def design_stats(job: Any, configs: np.ndarray, metric: Metric, *, device: str | None = None,
+                 evaluator_of: Callable[[Any], ChunkEvaluator] | None = None) -> np.ndarray:
+    """Per-spectrum statistics ``(len(configs), n_spectra, m)`` of the configurations ``configs`` of ``job``, with
+    per-pixel results on the sweep's pixels and noise deviates, so each design's as in the sweep
+    (:func:`s2cl.sweep.designs.design_pixels`: batched, one kernel launch per batch)."""
+    raw = design_pixels(job, configs, device=device, evaluator_of=evaluator_of)
+    return np.concatenate([spectrum_stats(metric, raw.row(i), job) for i in range(len(configs))])
 
 
-def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator | None = None,
+def within_noise(job: Any, top: Any, metric: str, *, evaluator_of: Callable[[Any], ChunkEvaluator] | None = None,
                  device: str | None = None, reference: Any = None, ranked: int | None = None,
                  replicates: int = REPLICATES, seed: int = SEED, level: float = LEVEL) -> dict[str, Any] | None:
     """The designs of ``top`` (the sweep's best rows, best first: ``config``, band centres and widths,
     ``metric``) within noise of the first, as ``summary.json``'s ``within_noise``; None when fewer than two
     designs were ranked or ``metric`` is no :class:`~s2cl.retrieve.metric.Metric`'s score column.
 
-    :param evaluator: per-pixel results of configurations (default: the sweep kernel of ``job`` on ``device``).
+    :param evaluator_of: the per-pixel evaluator of a batch of designs (default: the sweep kernel on ``device``;
+        tests: the numpy twin).
     :param reference: per-pixel results (a :class:`~s2cl.sweep.raw.RawChunk` of one design on the same pixels)
         of the sensor's own bands, tested against #1 too (``within_noise["reference"]``), or None.
     :param ranked: how many designs the sweep ranked (all of them tested: the set is complete).
@@ -153,14 +154,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator: ChunkEvaluator |
     t0 = time.perf_counter()
     t = job.tables
     configs = top["config"].to_numpy(np.int64)
-    rows = configs
-    if evaluator is None:
-        if configs.max() < KERNEL_CONFIGS:
-            evaluator = kernel_evaluator(job, device)
-        else:  # numbers beyond the kernel's reach: the designs' own tables, row i for configs[i]
-            evaluator = kernel_evaluator(replace(job, tables=config_tables(t, configs), chunk=1), device)
-            rows = np.arange(len(configs))
-    stats = design_stats(job, rows, scored, evaluator)
+    stats = design_stats(job, configs, scored, device=device, evaluator_of=evaluator_of)
     if reference is not None:
         stats = np.concatenate([stats, spectrum_stats(scored, reference, job)])
     strata = np.asarray(t.target)[:: t.copies] if scored.stratified else None
