@@ -355,6 +355,23 @@ def test_sigterm_removes_the_temporary_file_and_exits_143(tmp_path) -> None:
     assert not (tmp_path / "out").exists()  # no temporary file, and the folder it had created is gone
 
 
+def test_a_failed_run_removes_a_temporary_file_its_writer_had_not_guarded_yet(tmp_path) -> None:
+    """A signal handled between an atomic write's creating its temporary file and guarding it (seen once in 20
+    SIGTERMs on a loaded machine) left the file, and so the folder: the claim removes its run's temporaries on any
+    failure, and the folder where it holds no result (a result stays)."""
+    from s2cl.io.outdir import claim
+
+    with pytest.raises(KeyboardInterrupt), claim(tmp_path / "out") as out:
+        (out / ".simulation.nc.k3x9q2ab.tmp").write_bytes(b"partial")
+        raise KeyboardInterrupt
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(KeyboardInterrupt), claim(tmp_path / "kept") as out:
+        (out / "simulation.nc").write_bytes(b"finished")
+        (out / ".simulation.json.k3x9q2ab.tmp").write_bytes(b"partial")
+        raise KeyboardInterrupt
+    assert sorted(p.name for p in (tmp_path / "kept").iterdir()) == ["simulation.nc"]
+
+
 def test_overwrite_removes_the_previous_sweeps_derived_files(tmp_path) -> None:
     from s2cl.sweep.engine import run_sweep
 

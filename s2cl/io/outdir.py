@@ -126,7 +126,8 @@ def check_output_file(path: str | Path, *, where: str = "") -> Path:
 def claim(path: str | Path) -> Iterator[Path]:
     """Create folder ``path`` and hold its advisory lock for the duration; remove stale temporary
     files found there. A second claim on the same folder (another process) fails at once. When the
-    body fails and the folder was created here and holds no result yet, the folder is removed.
+    body fails, its temporary files are removed, and when the folder was created here and holds no result yet,
+    the folder is removed.
 
     :raises OutputError: the folder cannot be created, or another run holds it.
     """
@@ -145,6 +146,9 @@ def claim(path: str | Path) -> Iterator[Path]:
         remove_stale_temps(out)
         yield out
     except BaseException:
+        # an atomic write interrupted between creating its temporary file and guarding it (a signal handled
+        # there: SIGTERM on a loaded machine) leaves the file; under the lock, every temporary here is this run's
+        remove_stale_temps(out)
         if created and _holds_no_result(out):
             _remove_unfinished(out)
         release()
