@@ -123,3 +123,15 @@ def test_failed_simulation_leaves_no_output(tmp_path) -> None:
     out = run("simulate", "s.toml", "-o", "out", cwd=tmp_path)
     assert out.returncode == 2 and "lib.csv" in out.stderr and "2500" in out.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_reader_that_leaves_before_the_output_gets_no_traceback(tmp_path) -> None:
+    """`s2cl scenes | head -1` where the reader has gone before the first line: status 1, nothing on stderr (no
+    BrokenPipeError from the write, none from the interpreter's flush at exit)."""
+    proc = subprocess.Popen([sys.executable, "-m", "s2cl", "scenes"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            cwd=tmp_path)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    err = proc.stderr.read()
+    proc.wait(timeout=300)
+    assert proc.returncode == 1 and err == b"", err[-1500:]

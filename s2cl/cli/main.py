@@ -12,7 +12,6 @@ import signal
 import sys
 
 import click
-from click.utils import PacifyFlushWrapper
 
 from s2cl.cli.info import devices, libraries, residuals, scenes, sensor, srf
 from s2cl.cli.lut import lut
@@ -131,8 +130,10 @@ def _invoke(args: list[str]) -> None:
     except (KeyboardInterrupt, EOFError):
         raise click.exceptions.Abort() from None
     except BrokenPipeError:  # `s2cl scenes | head -1`: the reader left; as click does, exit 1 quietly
-        sys.stdout = PacifyFlushWrapper(sys.stdout)
-        sys.stderr = PacifyFlushWrapper(sys.stderr)
+        # what is still buffered goes nowhere, so the interpreter's own flush at exit cannot fail again (the
+        # recipe of Python's signal module documentation, "Note on SIGPIPE"; click's own wrapper is deprecated)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
         sys.exit(1)
 
 
