@@ -37,6 +37,7 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument, SmileResampler, spatial_response
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
 from s2cl.forward.product_scene import resolve_product_scene, scene_reader
@@ -85,7 +86,7 @@ def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralG
         if w.size != nw:
             raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
     nodata, flat = _zero_nodata(flat, owned)
-    if w.size == grid.size and np.allclose(w, grid.wavelengths, atol=1e-6):
+    if on_grid(w, grid):
         return flat, nodata
     return resample_to_grid(w, flat, grid, source=source), nodata
 
@@ -119,8 +120,9 @@ class SceneCube:
     distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming each pixel's spectrum;
     ``truth_params``: the parameters of each distinct spectrum where the cube knows them, and ``parcels``
     ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file). A cube
-    file streams: ``spectra`` is None and ``read_rows`` gives a band of rows' spectra on the grid, read from the file
-    when asked (:meth:`block`)."""
+    file streams: ``spectra`` is None and ``read_rows`` gives a band of rows' spectra, read from the file when asked
+    (:meth:`block`): on the grid, or (``interpolation`` given: a file whose wavelengths are not the grid's) at the
+    file's own wavelengths, which the resampling kernel puts on the grid."""
 
     spectra: np.ndarray | None
     rows: int
@@ -134,10 +136,13 @@ class SceneCube:
     #: the cube's grid on the map (None: it has none) and what its reader says about it (:func:`product_attrs`)
     georef: GeoRef | None = None
     product: dict[str, Any] = field(default_factory=dict)
+    #: :meth:`block`'s spectra are at the file's wavelengths, and this table puts them on the grid (None: on the grid)
+    interpolation: GridInterpolation | None = None
 
     def block(self, start: int, stop: int) -> np.ndarray:
-        """Spectra on the grid ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now;
-        zero at NODATA pixels)."""
+        """Spectra ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now; zero at NODATA
+        pixels), or ``((stop-start)·cols, interpolation.n_native)`` at the file's wavelengths (:attr:`interpolation`:
+        for the resampling kernel, which interpolates them)."""
         if self.read_rows is not None:
             return self.read_rows(start, stop)
         assert self.spectra is not None and self.labels is None
@@ -235,8 +240,11 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                          truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
     nodata = nodata if nodata is not None and nodata.any() else None
     if reader is not None:
-        return SceneCube(None, rows, cols, source, nodata, read_rows=_file_rows(reader, scene.grid, source),
-                         georef=reader.georef, product=product_attrs(reader))
+        interpolation = None if on_grid(reader.wavelengths_nm, scene.grid) else GridInterpolation.covering(
+            reader.wavelengths_nm, scene.grid, source)
+        return SceneCube(None, rows, cols, source, nodata, georef=reader.georef, product=product_attrs(reader),
+                         read_rows=_file_rows(reader, scene.grid, source, nodata, interpolation),
+                         interpolation=interpolation)
     return SceneCube(spectra, rows, cols, source, nodata)
 
 
@@ -255,11 +263,28 @@ def _file_nodata(reader: CubeReader, grid: SpectralGrid, source: str) -> np.ndar
     return mask
 
 
-def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str) -> Callable[[int, int], np.ndarray]:
-    """Rows ``start … stop-1`` of a cube file read and put on the grid (:func:`to_grid`, zero at NODATA pixels)."""
+def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str, nodata: np.ndarray | None,
+               interpolation: GridInterpolation | None) -> Callable[[int, int], np.ndarray]:
+    """Rows ``start … stop-1`` of a cube file read, zero at NODATA pixels: put on the grid (:func:`to_grid`), or
+    (``interpolation`` given) at the file's wavelengths ``(pixels, bands)``, the NODATA pixels those of the
+    file's mask ``nodata`` (from the NODATA pass: the same rows, read by the same reader)."""
     def read_rows(start: int, stop: int) -> np.ndarray:
-        return to_grid(reader.read(start, stop), reader.wavelengths_nm, grid, source, owned=True)[0]
+        values = reader.read(start, stop)
+        if interpolation is None:
+            return to_grid(values, reader.wavelengths_nm, grid, source, owned=True)[0]
+        flat = values.reshape(-1, values.shape[-1])
+        if nodata is not None:
+            hit = nodata[start * reader.cols : stop * reader.cols]
+            if hit.any():
+                flat[hit] = 0
+        return flat
     return read_rows
+
+
+def on_grid(wavelengths_nm: np.ndarray, grid: SpectralGrid) -> bool:
+    """Whether a cube's wavelengths (nm) are the grid's (within 1e-6 nm): its spectra then go in as they are."""
+    w = np.asarray(wavelengths_nm, dtype=np.float64)
+    return w.size == grid.size and bool(np.allclose(w, grid.wavelengths, atol=1e-6))
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
@@ -278,9 +303,10 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     atmosphere = scene_atmosphere(scene)
-    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
+    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere, interpolation=prepared.interpolation)
     instrument = Instrument.of(scene)
-    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.smile_spec is not None else None
+    smile = (SmileResampler(sim.rt, scene, cols, atmosphere, prepared.interpolation)
+             if instrument.smile_spec is not None else None)
     band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     out = store if store is not None else MemoryStore()
     out.attrs.update({**CONVENTIONS, "scene": scene.name, "s2cl_version": __version__, "device": sim.rt.name,

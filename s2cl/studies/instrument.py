@@ -68,7 +68,7 @@ def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> fl
     (a generated cube resamples its distinct spectra only): timed on ``sample`` pixels' spectra, scaled."""
     from s2cl.forward.simulate import Simulator, scene_atmosphere
 
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene), interpolation=cube.interpolation)
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))
     spectra = (cube.spectra[cube.labels[take]] if cube.labels is not None
