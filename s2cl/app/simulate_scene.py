@@ -19,8 +19,8 @@ SIMULATION_JSON = "simulation.json"
 CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
 #: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
 CUBE_BYTES_GENERATED = 16
-#: bytes per input pixel of a cube file held whole: its NODATA mask and the bands' footprint masks, and the map's
-#: index, status and bounds
+#: bytes per input pixel of a cube file held whole: the map's index, status and bounds (its NODATA mask and the
+#: bands' footprint masks, once held whole, are now found block by block as its rows are read)
 CUBE_BYTES_FILE = 16
 #: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
 #: float32, DN, flags)
@@ -118,12 +118,14 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
     ``surface.cube`` when not even one block of rows fits.
 
-    What does not stream (:func:`cube_whole_bytes`): a cube file's NODATA mask, a generated cube's labels and parcel
-    ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of the rows it
-    is read with on each side (the halo of its spatial filters, [spatial] PSF and [instrument] MTF and shift:
-    :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
-    and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra, read by rows and put on the grid on their
-    way through the resampler."""
+    What does not stream (:func:`cube_whole_bytes`): a generated cube's labels and parcel ids, and the map's index,
+    status and bounds (a cube file's NODATA mask streams: each block's own, found as it is read). What does: per
+    band and input pixel of a block and of the rows it is read with on each side (the halo of its spatial filters,
+    [spatial] PSF and [instrument] MTF and shift: :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the
+    band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's
+    spectra, read by rows (:data:`CUBE_BYTES_PER_INPUT`) and on the grid (:data:`CUBE_BYTES_PER_GRID`: counted for
+    every file, an upper bound where the resampling kernel interpolates the file's own bands) on their way through
+    the resampler."""
     from s2cl.forward.reach import band_groups, cube_halo
     from s2cl.io.budget import BASELINE_BYTES
 
@@ -142,14 +144,9 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
 
 
 def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
-    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel and the rows its
-    NODATA pass reads at a time (:data:`s2cl.forward.cube.NODATA_PASS_BYTES`, as stored and as floating), or a
-    generated cube's :data:`CUBE_BYTES_GENERATED`."""
-    from s2cl.forward.cube import NODATA_PASS_BYTES
-
-    if not wavelengths:
-        return pixels * CUBE_BYTES_GENERATED
-    return pixels * CUBE_BYTES_FILE + 2 * NODATA_PASS_BYTES
+    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel, or a generated
+    cube's :data:`CUBE_BYTES_GENERATED`."""
+    return pixels * (CUBE_BYTES_FILE if wavelengths else CUBE_BYTES_GENERATED)
 
 
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,

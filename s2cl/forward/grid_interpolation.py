@@ -58,3 +58,10 @@ class GridInterpolation:
     @property
     def n_grid(self) -> int:
         return int(self.fraction.size)
+
+
+def on_grid(wavelengths_nm: np.ndarray, grid: SpectralGrid) -> bool:
+    """Whether a cube's wavelengths (nm) are the grid's (within 1e-6 nm): its spectra then go in as they are, with
+    no table."""
+    w = np.asarray(wavelengths_nm, dtype=np.float64)
+    return w.size == grid.size and bool(np.allclose(w, grid.wavelengths, atol=1e-6))

@@ -230,15 +230,13 @@ class SmileResampler:
     band's node values, :meth:`combine` interpolates each column's bands from them."""
 
     def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None,
-                 interpolation: GridInterpolation | None = None):
+                 table: GridInterpolation | None = None):
         self.smile = Smile.of(Instrument.of(scene).smile_spec, cols)
         self.n_bands, self.cols = scene.sensor.size, cols
-        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere=atmosphere,
-                                   interpolation=interpolation)
+        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere, interpolation=table)
 
     def nodes(self, spectra: np.ndarray) -> np.ndarray:
-        """Node band values ``(n_bands · n_nodes, n)`` of ``spectra`` ``(n, n_wavelengths)`` (``(n, n_native)`` with
-        an ``interpolation``)."""
+        """Node band values ``(n_bands · n_nodes, n)`` of spectra on the grid (at the native wavelengths: ``table``)."""
         return self.resampler(spectra)
 
     def combine(self, nodes: np.ndarray) -> np.ndarray:

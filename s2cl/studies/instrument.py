@@ -72,7 +72,7 @@ def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> fl
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))
     spectra = (cube.spectra[cube.labels[take]] if cube.labels is not None
-               else cube.block(0, -(-take.size // cube.cols))[: take.size])
+               else cube.block(0, -(-take.size // cube.cols))[0][: take.size])
     spectra = np.ascontiguousarray(spectra, dtype=np.float32 if scene.run.precision == "float32" else np.float64)
     sim.band_radiance(spectra)  # warm-up
     t0 = time.perf_counter()
