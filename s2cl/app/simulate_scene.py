@@ -113,23 +113,25 @@ def _cog_format(sc: Scene, fmt: str | None) -> bool:
     return True
 
 
-def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0) -> int | None:
+def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0,
+                    interpolated: bool = False) -> int | None:
     """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
-    ``surface.cube`` when not even one block of rows fits.
+    ``surface.cube`` when not even one block of rows fits. ``interpolated``: the resampling kernel puts the file's
+    own bands on the grid (:func:`s2cl.forward.product_scene.interpolates_cube`), so no spectra on the grid are held.
 
     What does not stream (:func:`cube_whole_bytes`): a generated cube's labels and parcel ids, and the map's index,
     status and bounds (a cube file's NODATA mask streams: each block's own, found as it is read). What does: per
     band and input pixel of a block and of the rows it is read with on each side (the halo of its spatial filters,
     [spatial] PSF and [instrument] MTF and shift: :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the
     band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's
-    spectra, read by rows (:data:`CUBE_BYTES_PER_INPUT`) and on the grid (:data:`CUBE_BYTES_PER_GRID`: counted for
-    every file, an upper bound where the resampling kernel interpolates the file's own bands) on their way through
-    the resampler."""
+    spectra, read by rows (:data:`CUBE_BYTES_PER_INPUT`) and, unless ``interpolated``, put on the grid
+    (:data:`CUBE_BYTES_PER_GRID`) on their way through the resampler."""
     from s2cl.forward.reach import band_groups, cube_halo
     from s2cl.io.budget import BASELINE_BYTES
 
-    spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0
+    grid = 0 if interpolated else CUBE_BYTES_PER_GRID * sc.grid.size
+    spectra = CUBE_BYTES_PER_INPUT * wavelengths + grid if wavelengths else 0
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
     factors = [factor for factor, _ in band_groups(sc)]
     halo = cube_halo(sc)
@@ -160,6 +162,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     from s2cl.app.simulate import require_device_launches
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
+    from s2cl.forward.product_scene import interpolates_cube
     from s2cl.io.budget import BASELINE_BYTES
     from s2cl.io.image_store import NetcdfStore
     from s2cl.io.outdir import claim
@@ -172,7 +175,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                    f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")
     rows, cols, wavelengths = scene_cube_shape(sc)  # and one block of rows must fit before it is read
-    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths)
+    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths, interpolates_cube(sc))
     rt = get_runtime(device or sc.run.device)
     require_device_launches(rt, sc)
     cube = load_scene_cube(sc)
