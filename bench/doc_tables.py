@@ -714,7 +714,7 @@ def product_throughput() -> str:
                      + [("the rest (scene, checks, kernel builds, JSON)", r["other_s"],
                          f"{100 * r['other_s'] / total:.0f} %")])
     loads = (m["load_average"][0], r["load_average_after"][0])
-    busy = max(loads) > 1.25 * m["cores"]
+    busy = loads[0] > 0.5 * m["cores"]  # before the runs (after them, the load is mostly the benchmark's own)
     return (md_table(("run", "s", "pixels/s", "share of end to end"), rows)
             + f"\n\nEnd to end is **{r['ratio_to_read_plus_kernel']:.1f}×** (a) + (b) (the goal was within 2×). "
             f"Peak memory (max RSS of the run's process): **{r['max_rss_bytes'] / 1e9:.2f} GB** under "
