@@ -213,7 +213,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                                     gap_weights(weights, scene.grid, reader.wavelengths_nm, reader.bad_nm),
                                     s.surface.quantity, source)
             rows, cols = reader.rows, reader.cols
-            to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, scene.grid, source)  # the file reads
+            to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, scene.grid, source)  # it reads, before any output
     if generated is not None:
         spectra = generated.library.spectra
     elif reader is None:
@@ -252,7 +252,6 @@ def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str,
         nodata, flat = _zero_nodata(values.reshape(-1, values.shape[-1]), owned=True)
         return flat, nodata
     return read_rows
-
 
 
 def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
