@@ -124,6 +124,13 @@ def test_a_grid_wavelength_on_a_node_never_reads_the_next_one(rt, real_t: str) -
         _check(out, _oracle(samples[:, :3], native[:3], grid, plan, None), real_t)
 
 
+def test_wavelengths_out_of_order_are_refused_in_one_line() -> None:
+    """The table needs increasing wavelengths: the readers sort a product's bands (PRISMA's come in decreasing
+    wavelength, below); a cube given out of order is refused naming the position."""
+    with pytest.raises(InputError, match=r"cube\.nc: wavelength: must be strictly increasing; position 1"):
+        GridInterpolation.covering(NATIVE[::-1], GRID, source="cube.nc")
+
+
 def test_spectra_of_the_wrong_width_are_refused(rt) -> None:
     r = Resampler(rt, _plan(GRID), interpolation=GridInterpolation.covering(NATIVE, GRID))
     with pytest.raises(InputError, match=f"reads {NATIVE.size} values per spectrum"):
