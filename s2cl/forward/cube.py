@@ -301,6 +301,7 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
             radiance = smile.combine(radiance)
         for g in groups:
             g.add(block, radiance, nodata)
+        spectra = radiance = None  # this block's arrays go before the next block is read
         if progress:
             progress((block.stop - block.start) * cols)
     for g in groups:
