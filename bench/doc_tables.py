@@ -705,15 +705,16 @@ def product_throughput() -> str:
             ("(a) reading the product alone", r["read_alone_s"], r["pixels_per_s"]["read_alone"],
              f"{r['read_alone_s'] / total:.2f}"),
             ("(b) resampling kernel alone", r["kernel_alone_s"], r["pixels_per_s"]["kernel_alone"],
-             f"{r['kernel_alone_s'] / total:.2f}"),
-            ("putting the pixels on the grid alone", r["gridding_alone_s"], r["pixels"] / r["gridding_alone_s"],
-             f"{r['gridding_alone_s'] / total:.2f}")]
+             f"{r['kernel_alone_s'] / total:.2f}")]
+    if "gridding_alone_s" in r:  # a result of the path that put pixels on the grid on the host
+        rows.append(("putting the pixels on the grid alone", r["gridding_alone_s"], r["pixels"] / r["gridding_alone_s"],
+                     f"{r['gridding_alone_s'] / total:.2f}"))
     where = md_table(("step of the end-to-end run (self time)", "s", "share"),
                      [(name, sec, f"{100 * sec / total:.0f} %") for name, sec in steps]
-                     + [("the rest (scene, checks, NODATA pass's own work, kernel builds, JSON)", r["other_s"],
+                     + [("the rest (scene, checks, kernel builds, JSON)", r["other_s"],
                          f"{100 * r['other_s'] / total:.0f} %")])
     loads = (m["load_average"][0], r["load_average_after"][0])
-    busy = max(loads) > 1.25 * m["cores"]
+    busy = loads[0] > 0.5 * m["cores"]  # before the runs (after them, the load is mostly the benchmark's own)
     return (md_table(("run", "s", "pixels/s", "share of end to end"), rows)
             + f"\n\nEnd to end is **{r['ratio_to_read_plus_kernel']:.1f}×** (a) + (b) (the goal was within 2×). "
             f"Peak memory (max RSS of the run's process): **{r['max_rss_bytes'] / 1e9:.2f} GB** under "

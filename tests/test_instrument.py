@@ -561,8 +561,9 @@ def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path
     of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand): the memory rule picks blocks of
     6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured on the
     reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves
-    (18.8 of 80.5 MB when written: the bytes per row are an upper bound, some 4× what is traced). Left out of the
-    estimate, the halo would let blocks of 36 rows read up to 68, 131 MB by the estimate's own bytes per row."""
+    (14.3 of 18.4 MB when written: the resampling kernel reads the file's 10 nm bands as they are, and the bytes
+    per row are an upper bound). Left out of the estimate, the halo would let blocks of 36 rows read up to 68, 33 MB
+    by the estimate's own bytes per row."""
     import tracemalloc
 
     from s2cl.app.simulate_scene import (
@@ -580,13 +581,17 @@ def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path
     toml = _memory_scene(tmp_path, "big", MEM_ROWS, MEM_COLS)
     small = _memory_scene(tmp_path, "small", 30, 30)
     sc = Scene.load(str(toml))
-    per_row = MEM_COLS * (CUBE_BYTES_PER_BAND * sc.sensor.size + CUBE_BYTES_PER_INPUT * MEM_WL.size
-                          + CUBE_BYTES_PER_GRID * sc.grid.size)
+    # the cube's 10 nm bands go into the resampling kernel as they are (it interpolates them onto the 5 nm grid):
+    # no spectra on the grid are held
+    per_row = MEM_COLS * (CUBE_BYTES_PER_BAND * sc.sensor.size + CUBE_BYTES_PER_INPUT * MEM_WL.size)
     fixed = BASELINE_BYTES + cube_whole_bytes(sc, MEM_ROWS * MEM_COLS, MEM_WL.size)
     limit = math.ceil(fixed + (6 + 2 * MEM_HALO) * per_row)
-    assert cube_block_rows(sc, Budget.of(str(limit)), MEM_ROWS, MEM_COLS, MEM_WL.size) == 6
+    assert cube_block_rows(sc, Budget.of(str(limit)), MEM_ROWS, MEM_COLS, MEM_WL.size, True) == 6
     with pytest.raises(ResourceError, match=r"surface\.cube"):
-        cube_block_rows(sc, Budget.of(str(limit - per_row)), MEM_ROWS, MEM_COLS, MEM_WL.size)
+        cube_block_rows(sc, Budget.of(str(limit - per_row)), MEM_ROWS, MEM_COLS, MEM_WL.size, True)
+    with_grid = per_row + MEM_COLS * CUBE_BYTES_PER_GRID * sc.grid.size  # a cube put on the grid on the host
+    assert cube_block_rows(sc, Budget.of(str(math.ceil(fixed + (6 + 2 * MEM_HALO) * with_grid))), MEM_ROWS,
+                           MEM_COLS, MEM_WL.size) == 6
 
     held: list[int] = []
     block = SceneCube.block

@@ -265,15 +265,18 @@ def test_a_cube_too_large_for_memory_is_refused_before_loading(tmp_path) -> None
     import h5netcdf
     import numpy as np
 
-    with h5netcdf.File(tmp_path / "big.nc", "w") as f:  # declared 4000 × 4000 × 211, stored as fill values
-        f.dimensions = {"y": 4000, "x": 4000, "wavelength": 211}
+    # declared 100 × 50,000 × 211, stored as fill values: the kernel reads its 211 bands as they are (4,000 bytes a
+    # pixel of a block by the memory rule), so one block of 6 rows takes 1.2 GB
+    with h5netcdf.File(tmp_path / "big.nc", "w") as f:
+        f.dimensions = {"y": 100, "x": 50000, "wavelength": 211}
         f.create_variable("wavelength", ("wavelength",), float, data=np.linspace(400, 2500, 211))
         f.create_variable("reflectance", ("y", "x", "wavelength"), np.float32, chunks=(100, 100, 211))
     text = ('[scene]\nname = "cube"\n[surface]\ncube = "big.nc"\ngsd_m = 10\nquantity = "reflectance"\n'
             "[effects]\natmosphere = true\n")
     out, mb = peak_rss_mb("simulate", "-q", str(scene(tmp_path, text)), "-o", "out", "--max-memory", "1G",
                           cwd=tmp_path)  # a file streams by rows: refused when not even one block of rows fits
-    one_line_error(out, "s.toml: surface.cube:", "16,000,000 pixels × 211 wavelengths", "crop the cube")
+    one_line_error(out, "s.toml: surface.cube:", "5,000,000 pixels × 211 wavelengths in blocks of 6 rows",
+                   "crop the cube")
     assert mb < 1000 and not (tmp_path / "out").exists()
 
 

@@ -17,8 +17,8 @@ from s2cl.app.optimise import output_folder
 from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
-from s2cl.forward.cube import NODATA_PASS_BYTES, load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
-from s2cl.forward.product_scene import resolve_product_scene
+from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
+from s2cl.forward.product_scene import interpolates_cube, resolve_product_scene
 from s2cl.forward.reach import band_groups, cube_halo
 from s2cl.io.budget import BASELINE_BYTES, Budget
 from s2cl.io.cog import write_cogs
@@ -36,8 +36,8 @@ SIMULATION_JSON = "simulation.json"
 CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
 #: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
 CUBE_BYTES_GENERATED = 16
-#: bytes per input pixel of a cube file held whole: its NODATA mask and the bands' footprint masks, and the map's
-#: index, status and bounds
+#: bytes per input pixel of a cube file held whole: the map's index, status and bounds (its NODATA mask and the
+#: bands' footprint masks, once held whole, are now found block by block as its rows are read)
 CUBE_BYTES_FILE = 16
 #: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
 #: float32, DN, flags)
@@ -116,18 +116,22 @@ def _cog_format(sc: Scene, fmt: str | None) -> bool:
     return True
 
 
-def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0) -> int | None:
+def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0,
+                    interpolated: bool = False) -> int | None:
     """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
-    ``surface.cube`` when not even one block of rows fits.
+    ``surface.cube`` when not even one block of rows fits. ``interpolated``: the resampling kernel puts the file's
+    own bands on the grid (:func:`s2cl.forward.product_scene.interpolates_cube`), so no spectra on the grid are held.
 
-    What does not stream (:func:`cube_whole_bytes`): a cube file's NODATA mask, a generated cube's labels and parcel
-    ids, and the map's index, status and bounds. What does: per band and input pixel of a block and of the rows it
-    is read with on each side (the halo of its spatial filters, [spatial] PSF and [instrument] MTF and shift:
-    :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the band images, the radiometric stage's outputs
-    and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's spectra, read by rows and put on the grid on their
-    way through the resampler."""
-    spectra = CUBE_BYTES_PER_INPUT * wavelengths + CUBE_BYTES_PER_GRID * sc.grid.size if wavelengths else 0
+    What does not stream (:func:`cube_whole_bytes`): a generated cube's labels and parcel ids, and the map's index,
+    status and bounds (a cube file's NODATA mask streams: each block's own, found as it is read). What does: per
+    band and input pixel of a block and of the rows it is read with on each side (the halo of its spatial filters,
+    [spatial] PSF and [instrument] MTF and shift: :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the
+    band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's
+    spectra, read by rows (:data:`CUBE_BYTES_PER_INPUT`) and, unless ``interpolated``, put on the grid
+    (:data:`CUBE_BYTES_PER_GRID`) on their way through the resampler."""
+    grid = 0 if interpolated else CUBE_BYTES_PER_GRID * sc.grid.size
+    spectra = CUBE_BYTES_PER_INPUT * wavelengths + grid if wavelengths else 0
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
     factors = [factor for factor, _ in band_groups(sc)]
     halo = cube_halo(sc)
@@ -142,12 +146,9 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
 
 
 def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
-    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel and the rows its
-    NODATA pass reads at a time (:data:`s2cl.forward.cube.NODATA_PASS_BYTES`, as stored and as floating), or a
-    generated cube's :data:`CUBE_BYTES_GENERATED`."""
-    if not wavelengths:
-        return pixels * CUBE_BYTES_GENERATED
-    return pixels * CUBE_BYTES_FILE + 2 * NODATA_PASS_BYTES
+    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel, or a generated
+    cube's :data:`CUBE_BYTES_GENERATED`."""
+    return pixels * (CUBE_BYTES_FILE if wavelengths else CUBE_BYTES_GENERATED)
 
 
 def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
@@ -163,7 +164,7 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                    f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")
     rows, cols, wavelengths = scene_cube_shape(sc)  # and one block of rows must fit before it is read
-    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths)
+    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths, interpolates_cube(sc))
     rt = get_runtime(device or sc.run.device)
     require_device_launches(rt, sc)
     cube = load_scene_cube(sc)

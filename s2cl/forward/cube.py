@@ -10,8 +10,9 @@ band's grid.
 
 No-data (NaN or file-marked values, bad bands: :mod:`s2cl.io.cubes`) never refuses a cube: a pixel with
 any no-data sample is NODATA and an output pixel whose footprint touches one is NODATA too
-(:mod:`s2cl.forward.nodata` says why), flagged in every band's ``flags_<band>`` variable
-(:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
+(:mod:`s2cl.forward.nodata` says why; a cube file's NODATA pixels are found block by block, as its rows are read
+once for the simulation: the halo a block is read with holds every footprint of its output rows), flagged in every
+band's ``flags_<band>`` variable (:attr:`s2cl.status.PixelFlag.NODATA`) with NaN radiance and reflectance.
 
 The image may be simulated in blocks of rows (:mod:`s2cl.forward.row_blocks`, read with the halo of the spatial
 filters, :func:`s2cl.forward.reach.cube_halo`) into a store (:mod:`s2cl.io.image_store`): the result is the
@@ -37,6 +38,7 @@ from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, band_attrs, pixel_attrs
+from s2cl.forward.grid_interpolation import GridInterpolation, on_grid
 from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument, SmileResampler, spatial_response
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
 from s2cl.forward.product_scene import resolve_product_scene, scene_reader
@@ -57,8 +59,6 @@ from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
 from s2cl.status import PixelFlag
 
-#: bytes of a cube file's values read at a time (as stored, and as floating) by the NODATA pass over its rows
-NODATA_PASS_BYTES = 8_000_000
 __all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube",
            "to_grid"]
 
@@ -85,7 +85,7 @@ def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralG
         if w.size != nw:
             raise InputError(f"{w.size} wavelengths for a cube with {nw} spectral samples", source=source)
     nodata, flat = _zero_nodata(flat, owned)
-    if w.size == grid.size and np.allclose(w, grid.wavelengths, atol=1e-6):
+    if on_grid(w, grid):
         return flat, nodata
     return resample_to_grid(w, flat, grid, source=source), nodata
 
@@ -119,8 +119,9 @@ class SceneCube:
     distinct spectra ``(n, grid.size)`` with ``labels`` ``(rows·cols,)`` naming each pixel's spectrum;
     ``truth_params``: the parameters of each distinct spectrum where the cube knows them, and ``parcels``
     ``(rows, cols)``, the id of the uniform parcel each pixel lies in (None for a cube read from a file). A cube
-    file streams: ``spectra`` is None and ``read_rows`` gives a band of rows' spectra on the grid, read from the file
-    when asked (:meth:`block`)."""
+    file streams: ``spectra`` and ``nodata`` are None and ``read_rows`` gives a band of rows' spectra and NODATA mask,
+    read from the file when asked (:meth:`block`): on the grid, or (``interpolation`` given: a file whose wavelengths
+    are not the grid's) at the file's own wavelengths, which the resampling kernel puts on the grid."""
 
     spectra: np.ndarray | None
     rows: int
@@ -130,25 +131,23 @@ class SceneCube:
     labels: np.ndarray | None = None
     truth_params: dict[str, np.ndarray] = field(default_factory=dict)
     parcels: np.ndarray | None = None
-    read_rows: Callable[[int, int], np.ndarray] | None = None
+    read_rows: Callable[[int, int], tuple[np.ndarray, np.ndarray]] | None = None
     #: the cube's grid on the map (None: it has none) and what its reader says about it (:func:`product_attrs`)
     georef: GeoRef | None = None
     product: dict[str, Any] = field(default_factory=dict)
+    #: :meth:`block`'s spectra are at the file's wavelengths, and this table puts them on the grid (None: on the grid)
+    interpolation: GridInterpolation | None = None
 
-    def block(self, start: int, stop: int) -> np.ndarray:
-        """Spectra on the grid ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now;
-        zero at NODATA pixels)."""
+    def block(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Spectra ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now; zero at NODATA
+        pixels), or ``((stop-start)·cols, interpolation.n_native)`` at the file's wavelengths (:attr:`interpolation`:
+        for the resampling kernel, which interpolates them); and their NODATA mask ``((stop-start)·cols,)``."""
         if self.read_rows is not None:
             return self.read_rows(start, stop)
         assert self.spectra is not None and self.labels is None
-        return self.spectra[start * self.cols : stop * self.cols]
-
-    @property
-    def nodata_image(self) -> np.ndarray:
-        """NODATA mask ``(rows, cols)`` (all False when the cube has none)."""
-        if self.nodata is None:
-            return np.zeros((self.rows, self.cols), bool)
-        return self.nodata.reshape(self.rows, self.cols)
+        rows = slice(start * self.cols, stop * self.cols)
+        nodata = np.zeros(rows.stop - rows.start, bool) if self.nodata is None else self.nodata[rows]
+        return self.spectra[rows], nodata
 
     def knows(self, name: str) -> bool:
         """Whether the cube knows the true ``name`` of its pixels."""
@@ -214,7 +213,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                                     gap_weights(weights, scene.grid, reader.wavelengths_nm, reader.bad_nm),
                                     s.surface.quantity, source)
             rows, cols = reader.rows, reader.cols
-            nodata = _file_nodata(reader, scene.grid, source)
+            to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, scene.grid, source)  # it reads, before any output
     if generated is not None:
         spectra = generated.library.spectra
     elif reader is None:
@@ -235,30 +234,23 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                          truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
     nodata = nodata if nodata is not None and nodata.any() else None
     if reader is not None:
-        return SceneCube(None, rows, cols, source, nodata, read_rows=_file_rows(reader, scene.grid, source),
-                         georef=reader.georef, product=product_attrs(reader))
+        interpolation = None if on_grid(reader.wavelengths_nm, scene.grid) else GridInterpolation.covering(
+            reader.wavelengths_nm, scene.grid, source)
+        return SceneCube(None, rows, cols, source, georef=reader.georef, product=product_attrs(reader),
+                         read_rows=_file_rows(reader, scene.grid, source, interpolation), interpolation=interpolation)
     return SceneCube(spectra, rows, cols, source, nodata)
 
 
-def _file_nodata(reader: CubeReader, grid: SpectralGrid, source: str) -> np.ndarray:
-    """The NODATA mask ``(rows·cols,)`` of a cube file, from a pass over its rows (:data:`NODATA_PASS_BYTES` at a
-    time); the first rows also go onto the grid, so that every check of :func:`to_grid` is done up front."""
-    mask = np.zeros(reader.rows * reader.cols, bool)
-    step = max(1, NODATA_PASS_BYTES // (8 * reader.cols * reader.wavelengths_nm.size))
-    cols = reader.cols
-    for start in range(0, reader.rows, step):
-        stop = min(reader.rows, start + step)
+def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str,
+               interpolation: GridInterpolation | None) -> Callable[[int, int], tuple[np.ndarray, np.ndarray]]:
+    """Rows ``start … stop-1`` of a cube file read, zero at NODATA pixels: put on the grid (:func:`to_grid`), or
+    (``interpolation`` given) at the file's wavelengths ``(pixels, bands)``; and their NODATA mask ``(pixels,)``."""
+    def read_rows(start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         values = reader.read(start, stop)
-        if start == 0:
-            to_grid(values[:1], reader.wavelengths_nm, grid, source)
-        mask[start * cols : stop * cols] = nodata_rows(values.reshape(-1, values.shape[-1]))
-    return mask
-
-
-def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str) -> Callable[[int, int], np.ndarray]:
-    """Rows ``start … stop-1`` of a cube file read and put on the grid (:func:`to_grid`, zero at NODATA pixels)."""
-    def read_rows(start: int, stop: int) -> np.ndarray:
-        return to_grid(reader.read(start, stop), reader.wavelengths_nm, grid, source, owned=True)[0]
+        if interpolation is None:
+            return to_grid(values, reader.wavelengths_nm, grid, source, owned=True)
+        nodata, flat = _zero_nodata(values.reshape(-1, values.shape[-1]), owned=True)
+        return flat, nodata
     return read_rows
 
 
@@ -278,18 +270,19 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
     gsd_in = s.surface.gsd_m
     assert gsd_in is not None
     atmosphere = scene_atmosphere(scene)
-    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere)
+    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere, interpolation=prepared.interpolation)
     instrument = Instrument.of(scene)
-    smile = SmileResampler(sim.rt, scene, cols, atmosphere) if instrument.smile_spec is not None else None
+    smile = (SmileResampler(sim.rt, scene, cols, atmosphere, prepared.interpolation)
+             if instrument.smile_spec is not None else None)
     band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     out = store if store is not None else MemoryStore()
     out.attrs.update({**CONVENTIONS, **run_attrs(scene, sim.rt.name, image=True), "input_gsd_m": gsd_in,
                       "psf": "none" if instrument.psf is None else "gaussian",
-                      "nodata_input_pixels": int(prepared.nodata_image.sum()), "instrument": instrument.describe()})
+                      "nodata_input_pixels": 0, "instrument": instrument.describe()})  # counted as read
     out.attrs.update(georef_attrs(prepared.georef, prepared.product))
-    nodata = prepared.nodata_image
-    groups = [_Group(scene, sim, factor, ids, rows, cols, out, nodata, instrument, prepared.georef)
+    groups = [_Group(scene, sim, factor, ids, rows, cols, out, instrument, prepared.georef)
               for factor, ids in band_groups(scene)]
+    nodata_pixels = 0
     halo = cube_halo(scene)
     distinct = band_values(prepared.spectra) if prepared.labels is not None else None
     labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
@@ -297,16 +290,22 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
         lo, hi = block.read_start, block.read_stop
         if labels is not None:  # a generated cube: each pixel takes its spectrum's band radiance
             radiance = distinct[:, labels[lo:hi]]
+            nodata = np.zeros((hi - lo, cols), bool)
         else:
-            radiance = band_values(prepared.block(lo, hi)).reshape(-1, hi - lo, cols)
+            spectra, mask = prepared.block(lo, hi)  # a file's rows: read once, NODATA found as they are
+            radiance = band_values(spectra).reshape(-1, hi - lo, cols)
+            nodata = mask.reshape(hi - lo, cols)
+        nodata_pixels += int(nodata[block.start - lo : block.stop - lo].sum())
         if smile is not None:  # each column's bands from the smile's node bands
             radiance = smile.combine(radiance)
         for g in groups:
-            g.add(block, radiance)
+            g.add(block, radiance, nodata)
+        spectra = radiance = None  # this block's arrays go before the next block is read
         if progress:
             progress((block.stop - block.start) * cols)
     for g in groups:
         g.finish()
+    out.attrs["nodata_input_pixels"] = nodata_pixels
     return out.dataset() if store is None else None
 
 
@@ -314,8 +313,7 @@ class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
     def __init__(self, scene: Scene, sim: Simulator, factor: int, ids: list[int], rows: int, cols: int,
-                 store: MemoryStore | NetcdfStore, nodata: np.ndarray, instrument: Instrument,
-                 georef: GeoRef | None = None):
+                 store: MemoryStore | NetcdfStore, instrument: Instrument, georef: GeoRef | None = None):
         bands = scene.sensor.bands
         gsd = bands[ids[0]].gsd_m
         self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
@@ -336,15 +334,16 @@ class _Group:
         #: what the per-pixel stages did to each band (attributes of its variables)
         self.stage_attrs = [stage_attrs(self.sensing.stages, self.sensing.radiometry, j) if self.sensing else {}
                             for j in range(len(ids))]
-        #: output pixels whose footprint (box and the spatial filters' support,
-        #: :func:`s2cl.forward.reach.spatial_reach`) holds a NODATA input pixel
-        #: (:func:`s2cl.forward.nodata.footprint_nodata`)
-        self.nodata = footprint_nodata(nodata, self.factor, spatial_reach(scene, self.ids, self.factor))[:, :nx]
+        #: input pixels on each side that the spatial filters reach (:func:`s2cl.forward.reach.spatial_reach`)
+        self.reach = spatial_reach(scene, self.ids, self.factor)
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
 
-    def add(self, block: RowBlock, radiance: np.ndarray) -> None:
-        """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)``."""
+    def add(self, block: RowBlock, radiance: np.ndarray, nodata: np.ndarray) -> None:
+        """Sense this group's output rows of ``block`` from ``radiance`` ``(n_bands, read rows, cols)`` and the
+        NODATA mask ``(read rows, cols)`` of the input pixels: an output pixel whose footprint (box and the spatial
+        filters' support) holds one is NODATA (:func:`s2cl.forward.nodata.footprint_nodata`; the block's halo holds
+        every such footprint)."""
         f, out_rows = self.factor, block.output_rows(self.factor)
         ny = out_rows.stop - out_rows.start
         if ny <= 0:
@@ -353,7 +352,7 @@ class _Group:
         spatial = self.instrument.spatial
         images = np.stack([box_mean(spatial(radiance[k], k, f)[top : top + ny * f], f) for k in self.ids])
         images = self.instrument.columns(images[:, :, : self.nx], self.ids)
-        nodata = self.nodata[out_rows]
+        nodata = footprint_nodata(nodata, f, self.reach, top, ny)[:, : self.nx]
         images[:, nodata] = np.nan
         result = None
         if self.sensing is not None:

@@ -36,6 +36,7 @@ from scipy import fft as sfft
 from scipy.ndimage import correlate1d
 
 from s2cl.cl.runtime import Runtime
+from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.grid import SpectralGrid
 from s2cl.scene.instrument_schema import (
@@ -228,13 +229,14 @@ class SmileResampler:
     """The smile's node bands compiled once for an image ``cols`` wide: :meth:`nodes` resamples spectra to every
     band's node values, :meth:`combine` interpolates each column's bands from them."""
 
-    def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None):
+    def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None,
+                 table: GridInterpolation | None = None):
         self.smile = Smile.of(Instrument.of(scene).smile_spec, cols)
         self.n_bands, self.cols = scene.sensor.size, cols
-        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere=atmosphere)
+        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere, interpolation=table)
 
     def nodes(self, spectra: np.ndarray) -> np.ndarray:
-        """Node band values ``(n_bands · n_nodes, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        """Node band values ``(n_bands · n_nodes, n)`` of spectra on the grid (at the native wavelengths: ``table``)."""
         return self.resampler(spectra)
 
     def combine(self, nodes: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from dataclasses import replace
 from functools import lru_cache
 
 from s2cl.errors import InputError
+from s2cl.forward.grid_interpolation import on_grid
 from s2cl.grid import SpectralGrid
 from s2cl.io.cubes import CubeReader, open_cube
 from s2cl.io.inputs import input_file
@@ -41,6 +42,13 @@ def scene_reader(scene: Scene) -> CubeReader | None:
     if not path.is_dir():  # a folder is a product (EnMAP), checked by its reader
         input_file(path, what="image cube", source=scene.source, key="surface.cube")
     return open_cube(path, s.variable, geometry=s.geometry)
+
+
+def interpolates_cube(scene: Scene) -> bool:
+    """Whether the resampling kernel puts the scene's cube file on the grid itself (the file's wavelengths are not
+    the grid's: its own bands stream in, no spectra on the grid are held), from the file's metadata only."""
+    reader = scene_reader(scene)
+    return reader is not None and not on_grid(reader.wavelengths_nm, resolve_product_scene(scene)[0].grid)
 
 
 @lru_cache(maxsize=8)

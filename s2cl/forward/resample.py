@@ -13,6 +13,7 @@ from s2cl.cl.kernel_args import Arg, bind, buffers, signature
 from s2cl.cl.runtime import Runtime
 from s2cl.cl.templates import render
 from s2cl.errors import InputError
+from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.sensor.srf import BandWeights
 
 if TYPE_CHECKING:
@@ -82,21 +83,27 @@ class ResamplePlan:
         return m
 
 
-def _args(atmosphere: bool) -> list[Arg]:
-    args = [Arg("out", "out", "real", ("bands", "pixels")), Arg("spectra", "in", "real", ("pixels", "wavelengths")),
+def _args(atmosphere: bool, interpolated: bool = False) -> list[Arg]:
+    samples = "samples" if interpolated else "wavelengths"
+    args = [Arg("out", "out", "real", ("bands", "pixels")), Arg("spectra", "in", "real", ("pixels", samples)),
             Arg("weights", "in", "real", ("weights",))]
+    if interpolated:
+        args += [Arg("lower", "in", "int", ("wavelengths",)), Arg("upper", "in", "int", ("wavelengths",)),
+                 Arg("fraction", "in", "real", ("wavelengths",))]
     if atmosphere:
         args += [Arg(n, "in", "real", ("wavelengths",)) for n in ("path_radiance", "ground_term", "spherical_albedo")]
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
 def resample_buffers(n_bands: int, n_wavelengths: int, real_bytes: int, *, atmosphere: bool,
-                     n_weights: int | None = None) -> list[DeviceBuffer]:
+                     n_weights: int | None = None, n_samples: int | None = None) -> list[DeviceBuffer]:
     """The resampling kernel's device buffers, from its argument declarations: fixed bytes and bytes per spectrum of
-    a launch; ``n_weights``: the packed SRF weights (None: every band over the whole grid, an upper bound)."""
-    sizes = {"bands": n_bands, "wavelengths": n_wavelengths,
+    a launch; ``n_weights``: the packed SRF weights (None: every band over the whole grid, an upper bound);
+    ``n_samples``: native samples per spectrum that the kernel interpolates onto the grid (None: spectra on the
+    grid, :class:`~s2cl.forward.grid_interpolation.GridInterpolation`)."""
+    sizes = {"bands": n_bands, "wavelengths": n_wavelengths, "samples": n_samples or 0,
              "weights": n_bands * n_wavelengths if n_weights is None else n_weights}
-    return buffers(_args(atmosphere), sizes, real_bytes, "pixels")
+    return buffers(_args(atmosphere, n_samples is not None), sizes, real_bytes, "pixels")
 
 
 class Resampler:
@@ -109,15 +116,24 @@ class Resampler:
         :func:`s2cl.cl.devices.choose_lanes`).
     :param rows_per_item: spectra per work-item, 1, 2, 4, 8 or 16 (default :data:`DEFAULT_ROWS_PER_ITEM`
         on CPUs, 1 on other devices).
+    :param interpolation: spectra come at a cube's native wavelengths, ``(n_pixels, interpolation.n_native)``, and
+        the kernel puts them on the grid linearly, per grid wavelength, before the atmosphere
+        (:class:`~s2cl.forward.grid_interpolation.GridInterpolation`); None: spectra on the grid.
     """
 
     def __init__(self, rt: Runtime, plan: ResamplePlan, real_t: str = "float32",
                  atmosphere: AtmosphereArrays | None = None, vector_width: int | None = None,
-                 rows_per_item: int | None = None):
+                 rows_per_item: int | None = None, interpolation: GridInterpolation | None = None):
         self.T = rt.types(real_t, vector=False)
         self.rt, self.plan, self.real_t = rt, plan, real_t
         self.dtype = self.T.dtype.type
-        self.args = _args(atmosphere is not None)
+        if interpolation is not None and interpolation.n_grid != plan.n_wavelengths:
+            raise InputError(f"interpolates onto {interpolation.n_grid} wavelengths but the plan's grid has "
+                             f"{plan.n_wavelengths}", key="interpolation")
+        self.interpolation = interpolation
+        #: values per spectrum the kernel reads (native samples, or the grid's wavelengths)
+        self.n_samples = interpolation.n_native if interpolation is not None else plan.n_wavelengths
+        self.args = _args(atmosphere is not None, interpolation is not None)
         if vector_width not in (None, 4, 8, 16):
             raise InputError(f"must be 4, 8 or 16, got {vector_width!r}", key="vector_width")
         if vector_width is None:
@@ -128,13 +144,18 @@ class Resampler:
             raise InputError(f"must be 1, 2, 4, 8 or 16, got {rows_per_item!r}", key="rows_per_item")
         self.rows = rows_per_item or (DEFAULT_ROWS_PER_ITEM if "CPU" in rt.info.kind else 1)
         self.source = render(TEMPLATE, args=self.args, signature=signature, T=self.T, bands=bands,
-                             n_wavelengths=plan.n_wavelengths, vw=self.vw, rows=self.rows,
-                             atmosphere=atmosphere is not None)
+                             n_wavelengths=plan.n_wavelengths, stride=self.n_samples, vw=self.vw, rows=self.rows,
+                             atmosphere=atmosphere is not None, interpolated=interpolation is not None)
         program = rt.build(self.source, template=TEMPLATE)
         self.kernel = rt.kernel(program, "resample_bands")
         self.local_size = rt.work_group(self.kernel)
         self.n_weights = int(weights.size)
         self.weights_dev = rt.to_device(weights.astype(self.dtype))
+        self.table_dev = {}
+        if interpolation is not None:
+            self.table_dev = {"lower": rt.to_device(interpolation.lower.astype(np.int32)),
+                              "upper": rt.to_device(interpolation.upper.astype(np.int32)),
+                              "fraction": rt.to_device(interpolation.fraction.astype(self.dtype))}
         self.atmosphere_dev = None
         if atmosphere is not None:
             self.atmosphere_dev = {
@@ -144,7 +165,8 @@ class Resampler:
 
     def enqueue(self, out_dev, spectra_dev, n_pixels: int, local_size: int | None = None) -> None:
         """Resample ``n_pixels`` rows already on the device into ``out_dev`` (bands × n_pixels)."""
-        values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels}
+        values = {"out": out_dev, "spectra": spectra_dev, "weights": self.weights_dev, "n_pixels": n_pixels,
+                  **self.table_dev}
         if self.atmosphere_dev:
             values.update(self.atmosphere_dev)
         local = local_size or self.local_size
@@ -153,8 +175,12 @@ class Resampler:
 
     def __call__(self, spectra: np.ndarray, *, chunk_pixels: int | None = None,
                  local_size: int | None = None) -> np.ndarray:
-        """Band radiance ``(n_bands, n_pixels)`` of ``spectra`` ``(n_pixels, n_wavelengths)``."""
+        """Band radiance ``(n_bands, n_pixels)`` of ``spectra`` ``(n_pixels, n_wavelengths)`` (``(n_pixels,
+        n_native)`` with an :attr:`interpolation`)."""
         spectra = np.asarray(spectra)
+        if spectra.ndim != 2 or spectra.shape[1] != self.n_samples:
+            raise InputError(f"spectra of shape {spectra.shape}; this resampler reads {self.n_samples} values per "
+                             "spectrum", key="spectra")
         n = spectra.shape[0]
         chunk = chunk_pixels or self.default_chunk()
         if 0 < n <= chunk:  # one launch: its result is the answer, no copy
@@ -175,14 +201,15 @@ class Resampler:
     def device_buffers(self) -> list[DeviceBuffer]:
         """The kernel's buffers (:func:`resample_buffers`): fixed bytes and bytes per spectrum of a launch."""
         return resample_buffers(self.plan.n_bands, self.plan.n_wavelengths, self.T.dtype.itemsize,
-                                atmosphere=self.atmosphere_dev is not None, n_weights=self.n_weights)
+                                atmosphere=self.atmosphere_dev is not None, n_weights=self.n_weights,
+                                n_samples=self.n_samples if self.interpolation is not None else None)
 
     def default_chunk(self) -> int:
         """Pixels per chunk: input at most 256 MiB where it is copied to the device (1 GiB where the device reads
         host memory in place: no copy, and fewer, larger launches run faster on PoCL), and no more than the
         device's memory holds (:meth:`device_buffers`, :meth:`s2cl.cl.device_memory.DeviceMemory.units_fitting`);
         a one-line :class:`~s2cl.errors.ResourceError` when not even one spectrum fits."""
-        row = self.plan.n_wavelengths * self.dtype().itemsize
+        row = self.n_samples * self.dtype().itemsize
         cap = 2**30 if self.rt.host_memory else 256 * 2**20
         device, own = self.rt.memory, self.device_buffers()
         fit = device.units_fitting(own, max(1, cap // row))

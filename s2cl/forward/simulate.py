@@ -14,6 +14,7 @@ import numpy as np
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.errors import InputError, token
+from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
 from s2cl.forward.run_attrs import run_attrs
@@ -155,17 +156,21 @@ class Simulator:
 
     def __init__(self, rt: Runtime, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
                  precision: str = "float32", atmosphere: AtmosphereArrays | None = None,
-                 correction: BandAtmosphere | None = None, settings: Any = None, seed: int = 0):
+                 correction: BandAtmosphere | None = None, settings: Any = None, seed: int = 0,
+                 interpolation: GridInterpolation | None = None):
         self.rt = rt
         self.sensor, self.effects, self.precision = sensor, effects, precision
         self.correction = correction
         self.plan = ResamplePlan(tuple(sensor.band_names), tuple(weights), grid_size)
-        self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere)
+        self.resampler = Resampler(self.rt, self.plan, precision, atmosphere=atmosphere, interpolation=interpolation)
         radiometry = Radiometry.of(sensor.bands, sensor.bits, correction=correction, settings=settings, seed=seed)
         self.sensing = Sensing(self.rt, radiometry, effects, precision) if senses(effects) else None
 
     @classmethod
-    def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None) -> Simulator:
+    def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None,
+                  interpolation: GridInterpolation | None = None) -> Simulator:
+        """The scene's chain; ``interpolation``: spectra come at a cube's native wavelengths and the resampling kernel
+        puts them on the scene's grid (:class:`~s2cl.forward.grid_interpolation.GridInterpolation`)."""
         weights = [
             b.weights(scene.grid, scene.run.support, scene.source)
             if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
@@ -175,7 +180,8 @@ class Simulator:
         if scene.effects.correct:
             correction = BandAtmosphere.of(correction_terms(scene), weights)
         return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
-                   atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
+                   atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed,
+                   interpolation=interpolation)
 
     def stage_values(self) -> dict[str, list[Any]]:
         """What the per-pixel stages do to each band (:func:`s2cl.forward.stages.band_attrs`): per attribute, a value
@@ -186,7 +192,8 @@ class Simulator:
         return {key: [a[key] for a in per_band] for key in per_band[0]} if per_band else {}
 
     def band_radiance(self, spectra: np.ndarray) -> np.ndarray:
-        """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)``."""
+        """Noise-free band values ``(n_bands, n)`` of ``spectra`` ``(n, n_wavelengths)`` (or ``(n, n_native)``: the
+        native samples of the resampler's :attr:`~s2cl.forward.resample.Resampler.interpolation`)."""
         return self.resampler(spectra)
 
     def sense(self, radiance: np.ndarray, *, seed: int, frame: int = 0, pixel_offset: int = 0) -> SenseResult | None:

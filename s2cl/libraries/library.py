@@ -133,13 +133,9 @@ def check_finite(spectra: np.ndarray, *, names: list[str] | None = None, source:
         )
 
 
-def resample_to_grid(
-    wavelengths_nm: np.ndarray, spectra: np.ndarray, grid: SpectralGrid, *, source: str | None = None
-) -> np.ndarray:
-    """Linear interpolation of ``spectra`` (n, len(wavelengths)) onto ``grid``; float64.
-
-    Raises :class:`InputError` when the input does not cover the grid: s2cl never extrapolates.
-    """
+def check_coverage(wavelengths_nm: np.ndarray, grid: SpectralGrid, *, source: str | None = None) -> None:
+    """Raise :class:`InputError` when increasing ``wavelengths_nm`` do not cover ``grid`` (1e-9 nm of slack at its
+    ends): s2cl interpolates inside the data and never extrapolates."""
     w = np.asarray(wavelengths_nm, dtype=np.float64)
     lo, hi = grid.wavelengths[0], grid.wavelengths[-1]
     if w[0] > lo + 1e-9 or w[-1] < hi - 1e-9:
@@ -148,6 +144,17 @@ def resample_to_grid(
             "choose a grid inside the data (scene key grid.start_nm / grid.stop_nm) or supply wider spectra",
             source=source,
         )
+
+
+def resample_to_grid(
+    wavelengths_nm: np.ndarray, spectra: np.ndarray, grid: SpectralGrid, *, source: str | None = None
+) -> np.ndarray:
+    """Linear interpolation of ``spectra`` (n, len(wavelengths)) onto ``grid``; float64.
+
+    Raises :class:`InputError` when the input does not cover the grid: s2cl never extrapolates.
+    """
+    w = np.asarray(wavelengths_nm, dtype=np.float64)
+    check_coverage(w, grid, source=source)
     s = np.asarray(spectra, dtype=np.float64)
     out = np.empty((s.shape[0], grid.size))
     for i, row in enumerate(s):

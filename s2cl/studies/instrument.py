@@ -67,11 +67,11 @@ def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
 def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> float:
     """Seconds the resampling kernel would take over every pixel of the image, as for a cube read from a file
     (a generated cube resamples its distinct spectra only): timed on ``sample`` pixels' spectra, scaled."""
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene), interpolation=cube.interpolation)
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))
     spectra = (cube.spectra[cube.labels[take]] if cube.labels is not None
-               else cube.block(0, -(-take.size // cube.cols))[: take.size])
+               else cube.block(0, -(-take.size // cube.cols))[0][: take.size])
     spectra = np.ascontiguousarray(spectra, dtype=np.float32 if scene.run.precision == "float32" else np.float64)
     sim.band_radiance(spectra)  # warm-up
     t0 = time.perf_counter()
