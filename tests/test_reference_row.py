@@ -48,3 +48,58 @@ def test_a_design_off_the_grid_gets_its_own_tables(tmp_path: Path) -> None:
     assert configuration_of(job.tables, shapes) is None
     row, separate = reference_row(scene, job), _fixed(scene, job)
     assert row == separate and row["B4_centre_nm"] == 665.0
+
+
+def test_a_design_off_the_grid_is_built_from_the_library_given_without_reading_it_again(tmp_path: Path,
+                                                                                         monkeypatch) -> None:
+    """With the sweep's library given (as ``optimise`` gives the one its checks loaded), the reference row and its
+    pixels build their own tables from it and never load the library again; the row equals the one built from a
+    fresh load."""
+    import s2cl.app.plan as plan
+    from s2cl.app.checks import check_sweep
+
+    text = SMALL_SWEEP_TOML.format(copies=4).replace("centres = [665, 675, 685]", "centres = [670, 680]")
+    scene = _scene(tmp_path, text)
+    checked = check_sweep(scene)
+    job = plan_sweep(scene, checked=checked)
+    fresh = reference_row(scene, job)
+
+    def no_reload(*args, **kwargs):
+        raise AssertionError("the library was loaded again")
+
+    monkeypatch.setattr(plan, "scene_library", no_reload)
+    row = reference_row(scene, job, library=checked.library)
+    pixels = plan.reference_pixels(scene, job, library=checked.library)
+    assert row == fresh and row["B4_centre_nm"] == 665.0
+    assert pixels is not None and pixels.index.shape[0] == 1
+
+
+def test_optimise_gives_the_reference_the_library_its_checks_loaded(tmp_path: Path, monkeypatch) -> None:
+    """``optimise`` passes the library object the checks loaded to both the reference row and its pixels (one load
+    of the library file per run)."""
+    import s2cl.app.checks as checks
+    import s2cl.app.optimise as optimise_module
+
+    text = SMALL_SWEEP_TOML.format(copies=4).replace("centres = [665, 675, 685]", "centres = [670, 680]")
+    scene = _scene(tmp_path, text)  # the sensor's B4 (665 nm) off the sweep's grid: the reference needs the library
+    loaded, seen = [], []
+    real_check = checks.check_sweep
+
+    def spy_check(*args, **kwargs):
+        out = real_check(*args, **kwargs)
+        loaded.append(out.library)
+        return out
+
+    def spy(real):
+        def call(scene, job, device=None, library=None):
+            seen.append((real.__name__, library))
+            return real(scene, job, device, library)
+        return call
+
+    monkeypatch.setattr(optimise_module, "check_sweep", spy_check)
+    monkeypatch.setattr(optimise_module, "reference_row", spy(optimise_module.reference_row))
+    monkeypatch.setattr(optimise_module, "reference_pixels", spy(optimise_module.reference_pixels))
+    optimise_module.optimise(scene, tmp_path / "out")
+    assert len(loaded) == 1 and loaded[0] is not None
+    assert [name for name, _ in seen] == ["reference_row", "reference_pixels"]
+    assert all(library is loaded[0] for _, library in seen)

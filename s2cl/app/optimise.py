@@ -17,6 +17,7 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
 from s2cl.io.outdir import check_output_dir, claim
+from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
@@ -145,6 +146,8 @@ class PreparedSweep:
     scheduler: str | None
     overwrite: bool
     device: str | None
+    #: the library the checks loaded (the reference row's own tables are built from it, not from the file again)
+    library: SpectralLibrary | None = None
 
 
 def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int | None, scheduler: str | None,
@@ -171,7 +174,7 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
     if not (workers or scheduler or searching):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
     return PreparedSweep(sc, folder, job, searching, report(checked.caveats), t0, workers, scheduler, overwrite,
-                         device)
+                         device, checked.library)
 
 
 def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = None,
@@ -192,14 +195,14 @@ def rank_against_reference(run: PreparedSweep, results: Path) -> tuple[Digest, d
     apart within the noise (``within_noise_top``), and the digest and summary."""
     sc, job = run.scene, run.job
     path, meta = open_results(results)
-    reference = reference_row(sc, job, run.device)
+    reference = reference_row(sc, job, run.device, run.library)
     candidates = sc.spec.sweep.within_noise_top
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)),
                             top_n=max(TOP, candidates))
     summary = summarise(digest, meta, reference)
     if candidates:
         tested = within_noise(job, digest.top.head(candidates), digest.metric, device=run.device,
-                              reference=reference_pixels(sc, job, run.device), ranked=digest.ranked)
+                              reference=reference_pixels(sc, job, run.device, run.library), ranked=digest.ranked)
         if tested is not None:
             summary["within_noise"] = tested
         mark_top(summary)

@@ -68,16 +68,18 @@ def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int 
     return count_underdetermined(analysis, space)
 
 
-def reference_row(scene: Scene, job: SweepJob, device: str | None = None) -> dict[str, Any]:
+def reference_row(scene: Scene, job: SweepJob, device: str | None = None,
+                  library: SpectralLibrary | None = None) -> dict[str, Any]:
     """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise; for a
-    band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`)."""
+    band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`). ``library``: the sweep's,
+    as the checks loaded it (default: loaded again from the scene) where the design needs tables of its own."""
     if job.base_row is not None:
         return base_reference(job.base_row, job.addition["band"])
     shapes = _own_shapes(scene, job)
     config = configuration_of(job.tables, shapes)
     if config is not None:  # the sensor's own design is one of the sweep's: its tables serve
         return _first(score_designs(job, np.array([config]), device=device))
-    return fixed_row(scene, job, _own_bands(scene, job), job.analysis, device=device)
+    return fixed_row(scene, job, _own_bands(scene, job), job.analysis, library, device)
 
 
 def _first(rows: dict[str, Any]) -> dict[str, Any]:
@@ -97,16 +99,18 @@ def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> 
     return config
 
 
-def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None) -> RawChunk | None:
+def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None,
+                     library: SpectralLibrary | None = None) -> RawChunk | None:
     """Per-pixel results of the sensor's own band set (:func:`reference_row`'s design) on the sweep's pixels and
     noise deviates, by the sweep kernel on ``device``; None for a band-addition sweep (its base set is another
-    analysis)."""
+    analysis). ``library``: as for :func:`reference_row`."""
     if job.base_row is not None:
         return None
     config = configuration_of(job.tables, _own_shapes(scene, job))
     if config is not None:
         return design_pixels(job, np.array([config]), device=device)
-    return design_pixels(_one_job(scene, job, _own_bands(scene, job), job.analysis), np.array([0]), device=device)
+    return design_pixels(_one_job(scene, job, _own_bands(scene, job), job.analysis, library), np.array([0]),
+                         device=device)
 
 
 def _own_shapes(scene: Scene, job: SweepJob) -> list[tuple[float, float]]:
