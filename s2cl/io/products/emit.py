@@ -26,6 +26,7 @@ from s2cl.errors import InputError
 from s2cl.io.cube_reader import CubeReader, real, wavelength_scale
 from s2cl.io.georef import GeoRef, crs_wkt
 from s2cl.io.products.bands import BandSelection, scaled
+from s2cl.io.products.hdf5 import open_hdf5
 
 #: EMIT's fill value of reflectance where the variable does not carry one
 FILL = -9999.0
@@ -33,19 +34,10 @@ FILL = -9999.0
 SOURCE_CHUNK_BYTES = 8_000_000
 
 
-def _h5(p: Path) -> Any:
-    import h5py
-
-    try:
-        return h5py.File(p, "r")
-    except OSError as err:
-        raise InputError(f"cannot read as HDF5 ({type(err).__name__})", source=p) from None
-
-
 def is_emit(p: Path, variable: str | None = None) -> bool:
     """Whether ``p`` holds an EMIT L2A layout (a reflectance variable, ``sensor_band_parameters`` and
     ``location``)."""
-    with _h5(p) as f:
+    with open_hdf5(p) as f:
         return ("sensor_band_parameters" in f and "location" in f and (variable or "reflectance") in f
                 and "wavelengths" in f["sensor_band_parameters"])
 
@@ -61,7 +53,7 @@ def _attr_text(value: Any) -> str:
 def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> Any:
     """The EMIT L2A file ``p`` opened for reading by rows, on its map grid or in sensor geometry."""
     name = variable or "reflectance"
-    with _h5(p) as f:
+    with open_hdf5(p) as f:
         v = f[name]
         if v.ndim != 3:
             raise InputError(f"needs 3 dimensions (downtrack, crosstrack, bands), got {v.ndim}", source=p, key=name)
@@ -97,7 +89,7 @@ def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> An
               "fwhm_nm": None if fwhm is None else fwhm[index]}
     if glt_shape is None:
         def read_sensor(start: int, stop: int) -> np.ndarray:
-            with _h5(p) as f:
+            with open_hdf5(p) as f:
                 raw = f[name][start:stop]
             return scaled(raw[:, :, index], fill, 1.0, 0.0)
 
@@ -106,7 +98,7 @@ def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> An
                           notes=tuple(notes), **common)
 
     def read_map(start: int, stop: int) -> np.ndarray:
-        with _h5(p) as f:
+        with open_hdf5(p) as f:
             gx = np.asarray(f["location/glt_x"][start:stop], dtype=np.int64)
             gy = np.asarray(f["location/glt_y"][start:stop], dtype=np.int64)
             _check_glt(gx, gy, start, down, cross, p)

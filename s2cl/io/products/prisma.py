@@ -25,25 +25,17 @@ from s2cl.errors import InputError
 from s2cl.io.cube_reader import CubeReader
 from s2cl.io.georef import GeoRef, crs_wkt
 from s2cl.io.products.bands import BandSelection
+from s2cl.io.products.hdf5 import open_hdf5
 
 SWATH = "HDFEOS/SWATHS/PRS_L2D_HCO"
 CUBES = {"Vnir": f"{SWATH}/Data Fields/VNIR_Cube", "Swir": f"{SWATH}/Data Fields/SWIR_Cube"}
 DN_MAX = 65535.0
 
 
-def _h5(p: Path) -> Any:
-    import h5py
-
-    try:
-        return h5py.File(p, "r")
-    except OSError as err:
-        raise InputError(f"cannot read as HDF5 ({type(err).__name__})", source=p) from None
-
-
 def is_prisma(p: Path) -> bool:
     """Whether ``p`` is a PRISMA product (an ``HDFEOS/SWATHS/PRS_…`` swath); one of another level than L2D is
     refused here, naming its level."""
-    with _h5(p) as f:
+    with open_hdf5(p) as f:
         swaths = list(f["HDFEOS/SWATHS"]) if "HDFEOS/SWATHS" in f else []
     prs = [s for s in swaths if s.startswith("PRS_")]
     if not prs:
@@ -71,7 +63,7 @@ def _scalar(f: Any, name: str, p: Path) -> float:
 def open_prisma(p: Path) -> Any:
     """The PRISMA L2D file ``p`` opened for reading by rows."""
     det: dict[str, dict[str, Any]] = {}
-    with _h5(p) as f:
+    with open_hdf5(p) as f:
         shape = None
         for d, path in CUBES.items():
             if path not in f:
@@ -110,7 +102,7 @@ def open_prisma(p: Path) -> Any:
     offsets = np.array([det[d]["offset"] for d, _ in source], np.float64)
 
     def read(start: int, stop: int) -> np.ndarray:
-        with _h5(p) as f:
+        with open_hdf5(p) as f:
             raw = {d: np.asarray(f[CUBES[d]][start:stop]) for d in CUBES}  # (rows, bands, cols)
         empty = np.all(raw["Vnir"] == 0, axis=1) & np.all(raw["Swir"] == 0, axis=1)
         out = np.empty((stop - start, raw["Vnir"].shape[2], len(source)), np.float32)
