@@ -333,3 +333,32 @@ def test_a_cube_without_georeference_needs_a_gsd(tmp_path) -> None:
     with pytest.raises(InputError, match=r"surface\.gsd_m: .* NetCDF c\.nc does not give it in metres \(it has no "
                                          r"georeference\)"):
         resolve_product_scene(_scene(tmp_path, "c.nc"))
+
+
+def test_a_bad_band_without_a_wavelength_is_not_listed_among_the_bad() -> None:
+    """The kept bands sorted by wavelength with their file positions; the bad ones listed by wavelength, except a
+    slot with none (0 nm: PRISMA's unused detector slots)."""
+    from s2cl.io.products.bands import BandSelection
+
+    sel = BandSelection.of(np.array([450.0, 0.0, 520.0, 400.0, 0.0]), np.array([True, False, False, True, False]),
+                           "p.he5", "List_Cw_Vnir")
+    assert sel.index.tolist() == [3, 0] and sel.wavelengths_nm.tolist() == [400.0, 450.0]
+    assert sel.bad_nm.tolist() == [520.0]
+
+
+def test_a_geotiffs_bad_band_list_follows_the_envi_rule(tmp_path) -> None:
+    """GDAL's ``bbl`` item on a GeoTIFF is read by the same rule as an ENVI header's: a wrong count is refused in one
+    line naming ``bbl``, and a 0 drops its band (reported among the bad)."""
+    rasterio = pytest.importorskip("rasterio")
+    path, _ = pf.write_geotiff(tmp_path)
+    with rasterio.open(path) as src:
+        n = src.count
+    with rasterio.open(path, "r+") as dst:
+        dst.update_tags(bbl="{1, 0}")
+    with pytest.raises(InputError, match=rf"cube\.tif: bbl: lists 2 values for bands = {n}"):
+        open_cube(path)
+    with rasterio.open(path, "r+") as dst:
+        dst.update_tags(bbl="{" + ", ".join(["0"] + ["1"] * (n - 1)) + "}")
+    reader = open_cube(path)
+    assert reader.wavelengths_nm.size == n - 1 and reader.wavelengths_nm[0] == pytest.approx(410.0)
+    assert np.asarray(reader.bad_nm).tolist() == pytest.approx([400.0])

@@ -94,14 +94,11 @@ def require_device_launches(rt: Runtime, scene: Scene) -> None:
     real_bytes = 8 if scene.run.precision == "float64" else 4
     nb, device = scene.sensor.size, rt.memory
     resampling = resample_buffers(nb, scene.grid.size, real_bytes, atmosphere=True)
-    if not device.units_fitting(resampling, 1):
-        device.require(resampling, 1, what=f"resampling {scene.grid.size:,} wavelengths to {nb} bands",
-                       key="grid.step_nm", source=scene.source, fits="coarsen the grid or choose a device with "
-                       "more memory (compute.device, --device)")
-    sensing = sense_buffers(chain(scene.effects), nb, real_bytes)
-    if not device.units_fitting(sensing, 1):
-        device.require(sensing, 1, what=f"the per-pixel stages of {nb} bands", key="compute.device",
-                       source=scene.source, fits="choose a device with more memory (--device)")
+    device.require(resampling, 1, what=f"resampling {scene.grid.size:,} wavelengths to {nb} bands",
+                   key="grid.step_nm", source=scene.source, fits="coarsen the grid or choose a device with more "
+                   "memory (compute.device, --device)")
+    device.require(sense_buffers(chain(scene.effects), nb, real_bytes), 1, what=f"the per-pixel stages of {nb} bands",
+                   key="compute.device", source=scene.source, fits="choose a device with more memory (--device)")
 
 
 def netcdf_bytes(checked: Checked) -> float:

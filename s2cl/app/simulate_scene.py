@@ -25,7 +25,7 @@ from s2cl.io.cog import write_cogs
 from s2cl.io.outdir import check_output_dir, claim
 from s2cl.io.output import require_free, write_json
 from s2cl.io.products.geotiff import rasterio_module
-from s2cl.io.simulation_file import simulation_file
+from s2cl.io.simulation_file import SIMULATION_NC, simulation_file
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 
@@ -91,13 +91,13 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     with claim(folder):
         if on_start:
             on_start(f"{sc.name}: {checked.library.size} spectra × {sc.run.copies}", total)
-        result = simulate_to_netcdf(checked, folder / "simulation.nc", device=device, progress=progress)
+        result = simulate_to_netcdf(checked, folder / SIMULATION_NC, device=device, progress=progress)
         seconds = time.perf_counter() - t0
         write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": result.attrs, "pixels": total,
                                               "seconds": seconds, "stage_seconds": result.seconds,
                                               "bands": result.rows, "analysis": result.analysis,
                                               "warnings": warnings})
-    return SimulationRun(sc.name, folder, (folder / "simulation.nc", folder / SIMULATION_JSON), result.rows,
+    return SimulationRun(sc.name, folder, (folder / SIMULATION_NC, folder / SIMULATION_JSON), result.rows,
                          result.attrs, result.analysis, total, seconds)
 
 
@@ -169,10 +169,10 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
     require_device_launches(rt, sc)
     cube = load_scene_cube(sc)
     per_band = CUBE_DISK_BYTES_PER_BAND + (2 * COG_BYTES_PER_BAND if cog else 0)  # a COG and its strips, at once
-    require_free(folder / "simulation.nc", 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)
+    require_free(folder / SIMULATION_NC, 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
-    nc = folder / "simulation.nc"
+    nc = folder / SIMULATION_NC
     written = [nc, folder / SIMULATION_JSON]
     with claim(folder):
         if on_start:

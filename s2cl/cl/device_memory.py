@@ -9,13 +9,12 @@ host-sized numbers, then plans as a small GPU would. :attr:`s2cl.cl.runtime.Runt
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from s2cl.errors import ResourceError
-from s2cl.io.budget import gb, parse_size
+from s2cl.io.budget import gb, largest_fitting, parse_size
 
 GLOBAL_ENV = "S2CL_DEVICE_GLOBAL_MEM"
 MAX_ALLOC_ENV = "S2CL_DEVICE_MAX_ALLOC"
@@ -77,7 +76,7 @@ class DeviceMemory:
             if a + b > limit:
                 return 0
             if b > 0:
-                n = min(n, math.floor((limit - a) / b))
+                n = min(n, largest_fitting(limit, a, b))
         return max(0, int(n))
 
     def require(self, buffers: Sequence[DeviceBuffer], units: int, *, what: str, key: str | None,

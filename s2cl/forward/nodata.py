@@ -44,19 +44,18 @@ def nodata_rows(flat: np.ndarray, step: int = 4096) -> np.ndarray:
     return mask
 
 
-def footprint_nodata(nodata: np.ndarray, factor: int, reach: tuple[int, int], top: int = 0,
-                     out_rows: int | None = None) -> np.ndarray:
+def footprint_nodata(nodata: np.ndarray, factor: int, reach: tuple[int, int], top: int,
+                     out_rows: int) -> np.ndarray:
     """Output-pixel NODATA mask: any NODATA input pixel within ``reach`` ``(rows, cols)`` input pixels of the
     ``factor × factor`` box (trailing partial boxes dropped, as the box average drops them).
 
     ``nodata`` may be a band of an image's rows (a row block read with its halo, at least ``reach[0]`` rows beyond
-    the boxes on each side where the image goes on): then ``out_rows`` output rows whose boxes start at its row
-    ``top``, the same as those rows of the whole image's mask (default: every whole box from ``top``)."""
+    the boxes on each side where the image goes on): ``out_rows`` output rows whose boxes start at its row ``top``,
+    the same as those rows of the whole image's mask."""
     rows, cols = reach
     near = maximum_filter(nodata, size=(2 * rows + 1, 2 * cols + 1), mode="nearest") if rows or cols else nodata
-    ny = (near.shape[0] - top) // factor if out_rows is None else out_rows
     nx = (near.shape[1] // factor) * factor
-    return near[top : top + ny * factor, :nx].reshape(ny, factor, nx // factor, factor).any(axis=(1, 3))
+    return near[top : top + out_rows * factor, :nx].reshape(out_rows, factor, nx // factor, factor).any(axis=(1, 3))
 
 
 def gap_weights(weights: list[BandWeights], grid: SpectralGrid, kept_nm: np.ndarray,

@@ -31,6 +31,7 @@ from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_head
 from s2cl.io.georef import envi_georef
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.io.products import file_kind, open_product
+from s2cl.io.products.bands import bad_band_flags
 
 #: CF ``flag_meanings`` words that mean "no data here" (compared in lower case)
 NODATA_MEANINGS = frozenset({"no_data", "nodata", "no_data_value", "missing", "missing_data", "missing_value",
@@ -241,26 +242,6 @@ def _header_number(meta: dict, key: str, p: Path) -> float | None:
         raise InputError(f"must be a number, got {token(str(text))}", source=p, key=key) from None
 
 
-def _bad_band_list(meta: dict, bands: int, p: Path) -> np.ndarray:
-    """``bbl`` as booleans (True: good band); all good when absent."""
-    bbl = meta.get("bbl")
-    if bbl is None:
-        return np.ones(bands, bool)
-    values = bbl if isinstance(bbl, list) else [bbl]
-    if len(values) != bands:
-        raise InputError(f"lists {len(values)} values for bands = {bands}", source=p, key="bbl")
-    try:
-        flags = np.array([parse_number(str(x).strip()) for x in values])
-    except ValueError:
-        raise InputError("holds a value that is not 0 or 1", source=p, key="bbl") from None
-    if not np.isin(flags, (0.0, 1.0)).all():
-        raise InputError(f"holds {flags[~np.isin(flags, (0.0, 1.0))][0]:g}; bad band list values are 0 (bad) or "
-                         "1 (good)", source=p, key="bbl")
-    if not flags.any():
-        raise InputError("marks every band bad", source=p, key="bbl")
-    return flags == 1.0
-
-
 #: numpy types of the ENVI data types (:data:`s2cl.io.envi.ENVI_ITEM_BYTES`), before the header's byte order
 _ENVI_TYPES = {"1": "u1", "2": "i2", "3": "i4", "4": "f4", "5": "f8", "12": "u2", "13": "u4", "14": "i8", "15": "u8"}
 #: axes of the data file per interleave, named l(ines), s(amples), b(ands)
@@ -277,7 +258,8 @@ def _open_envi(p: Path) -> CubeReader:
     scale = _header_number(meta, "reflectance scale factor", p)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise InputError(f"must be a finite number > 0, got {scale:g}", source=p, key="reflectance scale factor")
-    good = _bad_band_list(meta, layout.bands, p)
+    bbl = meta.get("bbl")
+    good = bad_band_flags(None if bbl is None else bbl if isinstance(bbl, list) else [bbl], layout.bands, p)
     interleave = str(meta.get("interleave", "bsq")).strip().lower()
     if interleave not in _INTERLEAVES:
         raise InputError(f"is {token(interleave)}; ENVI interleaves are bsq, bil and bip", source=p, key="interleave")

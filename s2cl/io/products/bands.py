@@ -10,6 +10,7 @@ import numpy as np
 
 from s2cl.errors import InputError
 from s2cl.grid import check_wavelengths
+from s2cl.io.inputs import parse_number
 
 
 @dataclass(frozen=True)
@@ -24,7 +25,8 @@ class BandSelection:
     @classmethod
     def of(cls, wavelengths_nm: np.ndarray, good: np.ndarray, source: str | Path, key: str) -> BandSelection:
         """Keep the ``good`` bands of ``wavelengths_nm`` (file order, nm), sorted by wavelength; refuse when none is
-        good, or two good bands share a wavelength (:func:`s2cl.grid.check_wavelengths`)."""
+        good, or two good bands share a wavelength (:func:`s2cl.grid.check_wavelengths`). A bad band without a
+        wavelength (0 or less: PRISMA's unused slots) is not listed among the bad."""
         w = np.asarray(wavelengths_nm, dtype=np.float64)
         good = np.asarray(good, dtype=bool)
         if not good.any():
@@ -32,7 +34,28 @@ class BandSelection:
         kept = np.flatnonzero(good)
         order = kept[np.argsort(w[kept], kind="stable")]
         wl = check_wavelengths(w[order], source=str(source), key=key)
-        return cls(order, wl, np.sort(w[~good]))
+        bad = w[~good]
+        return cls(order, wl, np.sort(bad[bad > 0]))
+
+
+def bad_band_flags(values: list | None, bands: int, source: str | Path) -> np.ndarray:
+    """A bad band list (ENVI's ``bbl``: one 0 (bad) or 1 (good) per band, as text or numbers) as booleans, True for
+    a good band; all good when absent (None). Refused in one line naming ``bbl``: another count, another value,
+    every band bad."""
+    if values is None:
+        return np.ones(bands, bool)
+    if len(values) != bands:
+        raise InputError(f"lists {len(values)} values for bands = {bands}", source=source, key="bbl")
+    try:
+        flags = np.array([parse_number(str(x).strip()) for x in values])
+    except ValueError:
+        raise InputError("holds a value that is not 0 or 1", source=source, key="bbl") from None
+    if not np.isin(flags, (0.0, 1.0)).all():
+        raise InputError(f"holds {flags[~np.isin(flags, (0.0, 1.0))][0]:g}; bad band list values are 0 (bad) or "
+                         "1 (good)", source=source, key="bbl")
+    if not flags.any():
+        raise InputError("marks every band bad", source=source, key="bbl")
+    return flags == 1.0
 
 
 def scaled(raw: np.ndarray, nodata: np.ndarray | float | None, gain: np.ndarray | float,

@@ -20,7 +20,7 @@ from s2cl.errors import DependencyError, InputError, token
 from s2cl.io.cube_reader import CubeReader, wavelength_scale
 from s2cl.io.georef import GEO_EXTRA, GeoRef, crs_wkt
 from s2cl.io.inputs import parse_number
-from s2cl.io.products.bands import BandSelection, scaled
+from s2cl.io.products.bands import BandSelection, bad_band_flags, scaled
 
 #: rasterio data types s2cl reads (real numbers)
 REAL_TYPES = ("uint8", "int8", "uint16", "int16", "uint32", "int32", "int64", "uint64", "float32", "float64")
@@ -131,14 +131,7 @@ def _band_wavelengths(src: Any, p: Path) -> tuple[np.ndarray, np.ndarray | None]
 
 
 def _bad_band_list(src: Any, p: Path) -> np.ndarray:
-    """The ``bbl`` item (default or ``ENVI`` domain) as booleans (True: good); all good when absent."""
+    """The ``bbl`` item (default or ``ENVI`` domain) as booleans (True: good; :func:`bad_band_flags`)."""
     text = src.tags().get("bbl") or src.tags(ns="ENVI").get("bbl")
-    if text is None:
-        return np.ones(src.count, bool)
-    values = [v for v in str(text).strip("{} ").split(",") if v.strip()]
-    if len(values) != src.count:
-        raise InputError(f"lists {len(values)} values for {src.count} bands", source=p, key="bbl")
-    flags = np.array([_number(v, p, "bbl") for v in values])
-    if not np.isin(flags, (0.0, 1.0)).all():
-        raise InputError("bad band list values are 0 (bad) or 1 (good)", source=p, key="bbl")
-    return flags == 1.0
+    values = None if text is None else [v for v in str(text).strip("{} ").split(",") if v.strip()]
+    return bad_band_flags(values, src.count, p)

@@ -92,9 +92,7 @@ def open_prisma(p: Path) -> Any:
     wl = np.concatenate([det["Vnir"]["wl"][~overlap], det["Swir"]["wl"]])
     good = np.concatenate([det["Vnir"]["good"][~overlap], det["Swir"]["good"]])
     fwhm = np.concatenate([det["Vnir"]["fwhm"][~overlap], det["Swir"]["fwhm"]])
-    bad_wl = wl[~good]
-    bands = BandSelection.of(np.where(good, wl, 0.0), good, p, "List_Cw_Vnir")
-    bands = BandSelection(bands.index, bands.wavelengths_nm, np.sort(bad_wl[bad_wl > 0]))
+    bands = BandSelection.of(wl, good, p, "List_Cw_Vnir")
     vnir_pos = np.flatnonzero(~overlap)  # positions in the VNIR cube of the merged list's first entries
     n_vnir = vnir_pos.size
     source = [("Vnir", int(vnir_pos[k])) if k < n_vnir else ("Swir", k - n_vnir) for k in bands.index]
