@@ -19,7 +19,7 @@ import numpy as np
 
 from s2cl.cl.runtime import get_runtime
 from s2cl.sweep.design_tables import config_tables, design_tables
-from s2cl.sweep.engine import SweepJob, evaluate_chunk
+from s2cl.sweep.engine import SweepJob, evaluate_chunk, last_one
 from s2cl.sweep.kernel import SweepKernel
 from s2cl.sweep.raw import ChunkEvaluator, RawChunk
 
@@ -66,15 +66,13 @@ class DesignKernels:
 _KERNELS: dict[tuple[str, str | None], DesignKernels] = {}
 
 
-def design_kernels(job: SweepJob, device: str | None = None) -> DesignKernels:
+def design_kernels(job: SweepJob, device: str | None = None,
+                   evaluator_of: Callable[[SweepJob], ChunkEvaluator] | None = None) -> DesignKernels:
     """The kernels that score designs of ``job`` on ``device``, kept between calls (the reference row, its pixels and
-    the within-noise set share one build)."""
-    key = (job.fingerprint(), device)
-    kernels = _KERNELS.get(key)
-    if kernels is None:
-        _KERNELS.clear()
-        kernels = _KERNELS[key] = DesignKernels(device)
-    return kernels
+    the within-noise set share one build); with ``evaluator_of``, that evaluator per batch instead (not kept)."""
+    if evaluator_of is not None:
+        return DesignKernels(device, evaluator_of)
+    return last_one(_KERNELS, (job.fingerprint(), device), lambda: DesignKernels(device))
 
 
 def batch_job(job: SweepJob, designs: np.ndarray, copies: int, rows: int) -> SweepJob:
@@ -105,7 +103,7 @@ def score_designs(job: SweepJob, configs: np.ndarray, *, device: str | None = No
     one kernel launch per :func:`batch_rows` designs. ``evaluator_of``: an evaluator per batch instead of the kernel
     (tests: the numpy twin)."""
     configs = np.asarray(configs, dtype=np.int64).ravel()
-    kernels = DesignKernels(device, evaluator_of) if evaluator_of else design_kernels(job, device)
+    kernels = design_kernels(job, device, evaluator_of)
     parts = [kernels.rows(batch, n) for batch, n in _batches(job, configs)]
     rows = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     rows["config"] = configs
@@ -117,7 +115,7 @@ def design_pixels(job: SweepJob, configs: np.ndarray, *, device: str | None = No
     """Per-pixel results of configurations ``configs`` of ``job`` on every copy (row ``i`` for ``configs[i]``; the
     sweep's pixels and noise deviates), one kernel launch per :func:`batch_rows` designs."""
     configs = np.asarray(configs, dtype=np.int64).ravel()
-    kernels = DesignKernels(device, evaluator_of) if evaluator_of else design_kernels(job, device)
+    kernels = design_kernels(job, device, evaluator_of)
     parts = [kernels.pixels(batch, n) for batch, n in _batches(job, configs)]
     condition = None if any(p.condition is None for p in parts) else np.concatenate([p.condition for p in parts])
     return RawChunk(0, configs.size, np.concatenate([p.index for p in parts]),

@@ -104,17 +104,22 @@ class SweepJob:
 _EVALUATORS: dict[tuple[str, str | None], ChunkEvaluator] = {}
 
 
+def last_one(cache: dict[Any, Any], key: Any, make: Callable[[], Any]) -> Any:
+    """``cache[key]``, made by ``make()`` and kept alone (a process works on one sweep at a time: a new key drops the
+    previous sweep's kernels)."""
+    if key not in cache:
+        value = make()
+        cache.clear()
+        cache[key] = value
+    return cache[key]
+
+
 def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator:
     """The fused sweep kernel for ``job`` on ``device`` (built once per process and job)."""
     device = device or job.device
-    key = (job.fingerprint(), device)
-    ev = _EVALUATORS.get(key)
-    if ev is None:
-        ev = SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision,
-                         lanes=job.lanes)
-        _EVALUATORS.clear()
-        _EVALUATORS[key] = ev
-    return ev
+    return last_one(_EVALUATORS, (job.fingerprint(), device),
+                    lambda: SweepKernel(job.tables, job.analysis, get_runtime(device), precision=job.precision,
+                                        lanes=job.lanes))
 
 
 def evaluate_chunk(job: SweepJob, start: int, stop: int, device: str | None = None,
