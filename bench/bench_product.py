@@ -176,8 +176,9 @@ def kernel_alone(scene_path: Path, block_rows: int | None) -> float:
     from s2cl.cl.runtime import get_runtime
     from s2cl.forward.cube import load_scene_cube
     from s2cl.forward.product_scene import resolve_product_scene
-    from s2cl.forward.simulate import Simulator, scene_atmosphere
+    from s2cl.forward.simulate import Simulator
     from s2cl.scene.scene import Scene
+    from s2cl.scene.terms import scene_atmosphere
 
     cube = load_scene_cube(Scene.load(str(scene_path)))
     scene, _ = resolve_product_scene(Scene.load(str(scene_path)))

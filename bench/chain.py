@@ -21,11 +21,12 @@ import numpy as np
 from bench.common import check, interleaved_medians, max_rel_error
 from s2cl import Scene, Simulator, SpectralLibrary
 from s2cl.cl.runtime import get_runtime
-from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample, toa_radiance
 from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
 from s2cl.retrieve.quantify import RetrievalScore, score_igrm
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import find_scene
+from s2cl.scene.terms import scene_atmosphere
 from s2cl.sensor.srf import BandWeights
 
 BANDS = ("B4", "B5", "B6", "B8")  # the default scene's analysis (and sweep) bands, in wavelength order

@@ -39,12 +39,12 @@ from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
 from s2cl.atmos.atmosphere import ARRAY_DIMS as LUT_DIMS
 from s2cl.cl.runtime import get_runtime
-from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.reference.forward import resample
 from s2cl.retrieve.igrm import IgrmFitter
 from s2cl.retrieve.igrm_settings import IgrmSettings, kernel_config
 from s2cl.retrieve.quantify import score_igrm, score_retrieval
-from s2cl.scene.terms import scene_lut, true_state
+from s2cl.scene.library import scene_library
+from s2cl.scene.terms import scene_atmosphere, scene_lut, true_state
 
 KnobResult = dict[str, Any]
 RADIANCE_ERROR = ("err_radiance_ner_max", "max band-radiance error / NER")

@@ -43,9 +43,9 @@ import numpy as np
 
 from bench.common import RESULTS, ROOT, machine_info, save_figure, write_json
 from s2cl.app.plan import plan_sweep
-from s2cl.forward.simulate import scene_library
 from s2cl.reference.sweep import band_reflectance, variant_indices
 from s2cl.retrieve.metrics import regression_metrics
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene, find_scene
 from s2cl.sweep.engine import SweepJob, evaluate_chunk
 

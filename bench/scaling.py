@@ -21,8 +21,9 @@ from bench.common import ROOT, check, max_rel_error, median_time
 from bench.sweep_check import validate_sweep
 from s2cl import Simulator
 from s2cl.cl.runtime import get_runtime
-from s2cl.forward.simulate import scene_atmosphere, scene_library
 from s2cl.retrieve.igrm import IgrmFitter
+from s2cl.scene.library import scene_library
+from s2cl.scene.terms import scene_atmosphere
 
 
 def slope(x: list[float], t: list[float]) -> float:

@@ -37,8 +37,10 @@ from bench.common import RESULTS, interleaved_medians, load_average, machine_inf
 from s2cl.app.optimise import optimise
 from s2cl.app.plan import plan_sweep
 from s2cl.cl.runtime import Runtime, get_runtime
-from s2cl.forward.simulate import Simulator, scene_atmosphere, scene_library
+from s2cl.forward.simulate import Simulator
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import scene_atmosphere
 from s2cl.sweep.kernel import SweepKernel
 
 OUTPUT = RESULTS / "stage-costs.json"

@@ -96,6 +96,53 @@ def test_packages_import_only_those_below_them() -> None:
     assert not set(KNOWN_UPWARD) - upward, f"fixed, remove from KNOWN_UPWARD: {sorted(set(KNOWN_UPWARD) - upward)}"
 
 
+#: the engines: they take the parts the checks resolved (sensor, grid, run, terms, library or cube reader, ...), never
+#: the whole scene (:mod:`s2cl.app.checks` resolves it once)
+ENGINES = ("s2cl.forward", "s2cl.sweep", "s2cl.retrieve")
+#: engine modules that still take the scene, to be emptied; a fixed one must leave this list (the test says so)
+KNOWN_SCENE_TAKERS: set[str] = {
+    "s2cl.forward.simulate", "s2cl.forward.product_scene", "s2cl.forward.instrument", "s2cl.forward.cube",
+    "s2cl.forward.reach", "s2cl.sweep.tables", "s2cl.sweep.space", "s2cl.sweep.addition",
+}
+
+
+def test_engines_never_import_the_scene() -> None:
+    takers = {m for m, deps in _graph().items() if _package_of(m) in ENGINES and "s2cl.scene.scene" in deps}
+    assert not takers - KNOWN_SCENE_TAKERS, f"engines importing s2cl.scene.scene: {sorted(takers - KNOWN_SCENE_TAKERS)}"
+    assert not KNOWN_SCENE_TAKERS - takers, f"fixed, remove: {sorted(KNOWN_SCENE_TAKERS - takers)}"
+
+
+#: engine functions that still take a ``scene`` (typed or not), to be emptied with KNOWN_SCENE_TAKERS
+KNOWN_SCENE_PARAMETERS: set[str] = {
+    "s2cl.forward.cube:scene_cube_size", "s2cl.forward.cube:scene_cube_shape", "s2cl.forward.cube:load_scene_cube",
+    "s2cl.forward.cube:simulate_cube", "s2cl.forward.cube:__init__", "s2cl.forward.instrument:smile_radiance",
+    "s2cl.forward.instrument:smile_twin", "s2cl.forward.instrument:plan", "s2cl.forward.instrument:__init__",
+    "s2cl.forward.instrument:of", "s2cl.forward.product_scene:scene_reader",
+    "s2cl.forward.product_scene:interpolates_cube", "s2cl.forward.product_scene:resolve_product_scene",
+    "s2cl.forward.product_scene:_coverage_grid", "s2cl.forward.reach:band_groups", "s2cl.forward.reach:spatial_reach",
+    "s2cl.forward.reach:cube_halo", "s2cl.forward.run_attrs:run_attrs", "s2cl.forward.simulate:simulate",
+    "s2cl.forward.simulate:_require_memory", "s2cl.forward.simulate:for_scene", "s2cl.forward.simulate:run_library",
+    "s2cl.forward.stages:_quantisation_caveats", "s2cl.forward.stages:image_only", "s2cl.forward.stages:caveats",
+    "s2cl.retrieve.analysis:analysis_targets", "s2cl.retrieve.family:from_scene", "s2cl.sweep.addition:check_base",
+    "s2cl.sweep.addition:check_base_score", "s2cl.sweep.space:sweep_space", "s2cl.sweep.space:band_range",
+    "s2cl.sweep.space:_check_on_grid", "s2cl.sweep.space:_sensor_band", "s2cl.sweep.space:added_band",
+    "s2cl.sweep.space:_added_range", "s2cl.sweep.space:addition_scene", "s2cl.sweep.tables:build_tables",
+}
+
+
+def test_engine_functions_take_parts_not_the_scene() -> None:
+    takers = set()
+    for module, path in _modules().items():
+        if _package_of(module) not in ENGINES:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                if "scene" in [a.arg for a in node.args.args + node.args.kwonlyargs + node.args.posonlyargs]:
+                    takers.add(f"{module}:{node.name}")
+    assert not takers - KNOWN_SCENE_PARAMETERS, f"engines taking a scene: {sorted(takers - KNOWN_SCENE_PARAMETERS)}"
+    assert not KNOWN_SCENE_PARAMETERS - takers, f"fixed, remove: {sorted(KNOWN_SCENE_PARAMETERS - takers)}"
+
+
 def test_no_subpackage_imports_the_top_package() -> None:
     offenders = sorted(m for m, deps in _graph().items() if m not in ("s2cl", "s2cl.__main__") and "s2cl" in deps)
     assert not offenders, offenders

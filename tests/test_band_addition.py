@@ -198,7 +198,7 @@ def test_an_igrm_addition_flags_exactly_what_the_design_rule_refuses() -> None:
 
 
 def test_select_keeps_the_spectra_whose_parameter_lies_in_the_range() -> None:
-    from s2cl.forward.simulate import scene_library
+    from s2cl.scene.library import scene_library
 
     lib = scene_library(_scene(VEG, **{"surface.select": {"cab": [0.0, 25.0]}, "sweep": None}))
     assert lib.size == 5 * 2 * 3 and set(lib.params["cab"]) == {5.0, 10.0, 15.0, 20.0, 25.0}

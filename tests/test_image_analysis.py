@@ -17,7 +17,7 @@ from s2cl.app.checks import check_simulate
 from s2cl.app.image_analysis import CommonGrid, analyse_image, common_grid, pure_pixels, truth_on_grid
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube, simulate_cube
-from s2cl.forward.simulate import Simulator, scene_atmosphere
+from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.io.image_store import MemoryStore
 from s2cl.libraries.fields import CLASSES, fields_image, fields_shape
@@ -26,6 +26,7 @@ from s2cl.reference.igrm_varpro import fit_numpy_varpro
 from s2cl.retrieve.igrm import IgrmSettings
 from s2cl.retrieve.metrics import poly2_fit, regression_metrics
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import scene_atmosphere
 from s2cl.status import FITTED, PixelFlag, Status
 
 RED_EDGE = ["B4", "B5", "B6", "B7"]

@@ -186,7 +186,7 @@ def test_an_envi_data_file_that_is_a_fifo_is_refused(tmp_path) -> None:
 
 def test_relative_library_paths_resolve_once_from_another_working_folder(tmp_path, monkeypatch) -> None:
     """From the scene's parent folder, `simulate sub/s.toml` looked for sub/sub/lib.csv."""
-    from s2cl.forward.simulate import scene_library
+    from s2cl.scene.library import scene_library
     from s2cl.scene.scene import Scene
 
     (tmp_path / "sub" / "data").mkdir(parents=True)

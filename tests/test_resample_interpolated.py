@@ -149,8 +149,9 @@ def test_a_product_through_the_chain_matches_the_oracle(rt, real_t: str, tmp_pat
 
     from s2cl.forward.cube import load_scene_cube
     from s2cl.forward.product_scene import resolve_product_scene
-    from s2cl.forward.simulate import Simulator, scene_atmosphere
+    from s2cl.forward.simulate import Simulator
     from s2cl.scene.scene import Scene
+    from s2cl.scene.terms import scene_atmosphere
 
     writer = {"enmap": pf.write_enmap, "prisma": pf.write_prisma}[name]
     path, truth = writer(tmp_path)

@@ -99,7 +99,7 @@ def test_every_effect_combination_builds(rt, real_t: str, effects: EffectSet) ->
 @pytest.mark.parametrize("name", sorted(builtin_scenes()))
 def test_every_builtin_scene_renders_and_builds(rt, name: str) -> None:
     scene = Scene.load(name)
-    from s2cl.forward.simulate import scene_atmosphere
+    from s2cl.scene.terms import scene_atmosphere
 
     sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
     assert sim.resampler.kernel is not None

@@ -16,7 +16,6 @@ from typing import Any
 
 from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
 from s2cl.errors import InputError, token
-from s2cl.forward.simulate import scene_library
 from s2cl.forward.stages import caveats as stage_caveats
 from s2cl.io.budget import Budget
 from s2cl.io.inputs import input_file
@@ -26,6 +25,7 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.retrieve.family import registry
 from s2cl.scene.caveats import Caveat, grid_caveats, srf_caveats
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import SweepSpace

@@ -10,10 +10,10 @@ import numpy as np
 from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.sweep_budget import Budget, SweepPlan, sweep_resources
 from s2cl.cl.runtime import get_runtime
-from s2cl.forward.simulate import scene_library
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import count_underdetermined
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace

@@ -33,7 +33,7 @@ from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_d
 from s2cl.forward.resample import resample_buffers
 from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import sense_buffers
-from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator, scene_atmosphere
+from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator
 from s2cl.forward.stages import chain, outputs
 from s2cl.io.budget import (
     ANALYSIS_BYTES_PER_PIXEL,
@@ -46,6 +46,7 @@ from s2cl.io.budget import (
     require_disk,
 )
 from s2cl.io.simulation_file import simulation_file
+from s2cl.scene.terms import scene_atmosphere
 
 Progress = Callable[[int], None]
 

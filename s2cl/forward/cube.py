@@ -47,7 +47,7 @@ from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
 from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
 from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import Sensing
-from s2cl.forward.simulate import Progress, Simulator, scene_atmosphere
+from s2cl.forward.simulate import Progress, Simulator
 from s2cl.forward.stages import band_attrs as stage_attrs
 from s2cl.forward.stages import senses
 from s2cl.grid import SpectralGrid, check_wavelengths
@@ -57,6 +57,7 @@ from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
 from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
 from s2cl.libraries.library import resample_to_grid
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import scene_atmosphere
 from s2cl.status import PixelFlag
 
 __all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube",

@@ -13,7 +13,7 @@ import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime, get_runtime
-from s2cl.errors import InputError, token
+from s2cl.errors import InputError
 from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
@@ -22,10 +22,10 @@ from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
 from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
 from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.libraries.registry import load_library
 from s2cl.scene.effects import EffectSet
+from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
-from s2cl.scene.terms import correction_terms, scene_terms
+from s2cl.scene.terms import correction_terms, scene_atmosphere
 from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import point_weights
 from s2cl.status import PixelFlag
@@ -271,38 +271,3 @@ def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
                    f"{copies:,} copies", key="surface.copies", source=scene.source,
                    fits=f"at most {largest_fitting(budget.memory_bytes, BASELINE_BYTES, per_copy):,} copies fit; "
                         "`s2cl simulate` writes any number of copies in bounded memory")
-
-
-def scene_library(scene: Scene, *, budget: Budget | None = None) -> SpectralLibrary:
-    """The scene's spectral library on the scene's grid (a file sized against ``budget`` before it is read)."""
-    spec = scene.spec.surface.library
-    assert spec is not None
-    want = scene.spec.surface.quantity
-    lib = load_library(spec, scene.grid, source=scene.source, key="surface.library", quantity=want,
-                       base_dir=scene.base_dir, budget=budget)
-    if lib.quantity != want:
-        raise InputError(f"library {token(spec)} holds {lib.quantity}, the scene says surface.quantity = {want!r}",
-                         source=scene.source, key="surface.quantity")
-    return _selected(scene, lib)
-
-
-def _selected(scene: Scene, lib: SpectralLibrary) -> SpectralLibrary:
-    """The spectra of ``lib`` whose parameters lie in the scene's ``surface.select`` ranges (all without one)."""
-    keep = np.ones(lib.size, dtype=bool)
-    for name, (low, high) in scene.spec.surface.select.items():
-        if name not in lib.params:
-            raise InputError(f"library has no parameter {name!r}; it has {', '.join(sorted(lib.params)) or 'none'}",
-                             source=scene.source, key=f"surface.select.{name}")
-        keep &= (lib.params[name] >= low) & (lib.params[name] <= high)
-    if not keep.any():
-        raise InputError("no spectrum of the library lies in these ranges", source=scene.source,
-                         key="surface.select")
-    return lib if keep.all() else lib.subset(np.flatnonzero(keep))
-
-
-def scene_atmosphere(scene: Scene) -> AtmosphereArrays | None:
-    """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
-    if not scene.effects.atmosphere:
-        return None
-
-    return scene_terms(scene)

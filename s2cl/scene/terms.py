@@ -83,3 +83,11 @@ def scene_terms(scene: Scene) -> Any:
 def correction_terms(scene: Scene) -> Any:
     """Per-wavelength terms of the atmosphere the correction assumes."""
     return state_terms(scene, assumed_state(scene), "correction")
+
+
+def scene_atmosphere(scene: Scene) -> Any:
+    """The per-wavelength TOA terms for the scene's atmosphere, when that effect is on."""
+    if not scene.effects.atmosphere:
+        return None
+
+    return scene_terms(scene)

@@ -24,9 +24,10 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
 from s2cl.forward.cube import load_scene_cube
 from s2cl.forward.instrument import Instrument
-from s2cl.forward.simulate import Simulator, scene_atmosphere
+from s2cl.forward.simulate import Simulator
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.scene.scene import Scene
+from s2cl.scene.terms import scene_atmosphere
 from s2cl.studies.common import StudyResult, StudySetup
 from s2cl.studies.instrument_costs import analysis_score, effect_costs, effect_settings, product_variable, with_effects
 
