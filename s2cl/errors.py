@@ -7,6 +7,8 @@ line and exits non-zero. Messages name the file, the key and the allowed range.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 #: Longest piece of a file's content an error message may quote (characters).
@@ -59,11 +61,26 @@ class InputError(S2CLError, ValueError):
             where = f"{key}: "
         super().__init__(where + message)
 
+    def at(self, source: str | Path | None) -> InputError:
+        """This error addressed to ``source`` (e.g. the scene file) where it names no file of its own."""
+        return self if self.source or source is None else type(self)(self.detail, source=source, key=self.key)
 
     def within(self, source: str | Path, section: str) -> InputError:
         """The same error re-addressed to ``section.key`` of ``source`` (e.g. a scene file)."""
         key = f"{section}.{self.key}" if self.key else section
         return InputError(self.detail, source=source, key=key)
+
+
+@contextmanager
+def errors_in(source: str | Path | None) -> Iterator[None]:
+    """Engines name the key of what is wrong; the application layer runs them inside this, which adds the file
+    (the scene's) to an :class:`InputError` that names none."""
+    try:
+        yield
+    except InputError as err:
+        if err.source or source is None:
+            raise
+        raise err.at(source) from None
 
 
 class DeviceError(S2CLError):
