@@ -58,3 +58,22 @@ def test_a_band_addition_needs_no_terms_of_its_own(counted: dict[str, list]) -> 
     assert counted["terms"] == ["atmosphere", "correction"]
     assert counted["library"] == [1]
     assert counted["tables"] == [4, 1]
+
+
+#: modules whose functions receive the scene or the resolved object through ``plan_sweep`` of the default scene
+#: (``python tools/follow_scene.py``: a dynamic trace): 13 before the scene was resolved once (sweep.tables,
+#: sweep.space, sweep.addition, retrieve.analysis and retrieve.family took it), 8 after
+MAX_SCENE_MODULES = 8
+#: the engine modules that still take the scene on this path (the caveats of the chain's stages)
+SCENE_ENGINES = {"s2cl.forward.stages"}
+
+
+def test_the_scene_through_plan_sweep_visits_few_modules_and_nothing_reloads() -> None:
+    from tools.follow_scene import ENGINES, follow, plan_default
+
+    trace = follow(plan_default)
+    counts = trace.report()
+    assert counts["modules"] <= MAX_SCENE_MODULES, sorted(trace.modules)
+    assert {m for m in trace.modules if m.startswith(ENGINES)} <= SCENE_ENGINES, sorted(trace.modules)
+    assert counts["climbs"] == 0, sorted(trace.climbs)
+    assert counts["library_loads"] == 1 and counts["terms_computed"] == 2
