@@ -219,9 +219,10 @@ def _table3_summary(runs: dict[str, dict[str, float]], how: str) -> dict[str, An
 
 
 def plan_config_count(scene: str) -> int:
-    from s2cl.sweep.tables import sweep_space
+    from s2cl.sweep.space import sweep_space
 
-    return int(sweep_space(Scene.load(scene)).size)
+    sc = Scene.load(scene)
+    return int(sweep_space(sc.spec.sweep, sc.sensor, sc.grid, sc.run.support).size)
 
 
 def main() -> None:

@@ -79,7 +79,8 @@ def local_check(best: dict[str, list[float]], rms: float, tmp: Path, scene_name:
     from s2cl.sweep.report import open_results, rankable
     from s2cl.sweep.space import sweep_space
 
-    space = sweep_space(scene_of(scene_name, {}))
+    wide = scene_of(scene_name, {})
+    space = sweep_space(wide.spec.sweep, wide.sensor, wide.grid, wide.run.support)
     inside = {r.band: {(round(c, 6), round(w, 6)) for c, w in r.variants()} for r in space.ranges}
     frames = []
     for k, ranges in enumerate(check_sweeps(best, joint)):

@@ -56,6 +56,7 @@ from bench.common import (
 )
 from bench.sweep_check import validate_sweep
 from s2cl.app import plan
+from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.plan import plan_sweep
 from s2cl.cl.kernel_args import bind
 from s2cl.cl.runtime import Runtime, get_runtime
@@ -165,11 +166,12 @@ def block_iterations(kernel: SweepKernel, lo: int, hi: int) -> tuple[np.ndarray,
             kernel.rt.fetch(out["status"], (n, pitch), np.uint8)[:, :m])
 
 
-def reference_tables(scene: Scene, job: SweepJob) -> SweepTables:
+def reference_tables(checked: Checked, job: SweepJob) -> SweepTables:
     """The tables of the one design the sensor itself has (each band at its own centre and width)."""
+    scene = checked.scene
     bands = [scene.sensor.band(b) for b in job.tables.bands]
     fixed = SweepSpace(tuple(BandRange.fixed(b.name, b.centre_nm, b.fwhm_nm) for b in bands))
-    return plan._tables(scene, fixed.validate(scene.source), job.analysis)
+    return plan.sweep_tables(checked, fixed.validate(scene.source), job.analysis)
 
 
 def standalone_launches(rt: Runtime, fitter: IgrmFitter, rho: np.ndarray, centres: np.ndarray, m: int
@@ -226,7 +228,8 @@ def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int
     from a third of the way in (as ``bench.bench_sweep``), ``n_sample`` drawn with ``seed`` for the iterations,
     ``repeat`` interleaved rounds (medians, seconds)."""
     scene = Scene.load(scene_name)
-    job = plan_sweep(scene)
+    checked = check_sweep(scene)
+    job = plan_sweep(scene, checked=checked)
     t, rt = job.tables, get_runtime()
 
     def build(*switches: str, tables: SweepTables = t, analysis: AnalysisSettings = job.analysis) -> SweepKernel:
@@ -250,7 +253,7 @@ def profile(scene_name: str, n_block: int, n_sample: int, repeat: int, seed: int
                             f"(seed {seed}) from the whole sweep"),
            "timed_block": (*block_iterations(counting, lo, hi), f"configurations {lo}–{hi - 1}, the block "
                            "python -m bench.bench_sweep times"),
-           "reference_design": (*block_iterations(build("iterations", tables=reference_tables(scene, job)), 0, 1),
+           "reference_design": (*block_iterations(build("iterations", tables=reference_tables(checked, job)), 0, 1),
                                 "the scene's own band set (" + ", ".join(
                                     f"{b} {scene.sensor.band(b).centre_nm:g}/{scene.sensor.band(b).fwhm_nm:g} nm"
                                     for b in t.bands) + ")")}

@@ -9,8 +9,10 @@ from s2cl.libraries.registry import load_library
 from s2cl.reference.sweep import NumpyEvaluator
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.scene.scene import Scene
+from s2cl.sensor.variants import SweepSpace
 from s2cl.sweep.engine import SweepJob
-from s2cl.sweep.tables import build_tables, sweep_space
+from s2cl.sweep.space import sweep_space
+from s2cl.sweep.tables import SweepTables, build_tables
 
 
 class Terms:
@@ -19,6 +21,20 @@ class Terms:
         self.path_radiance = (40.0 - 35.0 * x) * scale
         self.ground_term = (120.0 - 100.0 * x) * scale
         self.spherical_albedo = 0.2 - 0.15 * x
+
+
+def scene_space(scene: Scene) -> SweepSpace:
+    """The scene's [sweep] as the engine reads it (its parts, not the scene)."""
+    return sweep_space(scene.spec.sweep, scene.sensor, scene.grid, scene.run.support)
+
+
+def scene_tables(scene: Scene, space: SweepSpace, lib, truth, assumed, **kwargs) -> SweepTables:
+    """:func:`build_tables` with the scene's sensor, grid, run and [effects]."""
+    return build_tables(space, lib, truth, assumed, scene.sensor, scene.grid, scene.run, scene.spec.effects, **kwargs)
+
+
+def scene_analysis(scene: Scene, bands: list[str]) -> AnalysisSettings:
+    return AnalysisSettings.from_spec(scene.spec.analysis, bands)
 
 
 def gvmi_scene(copies: int = 20, b11_max_width: float = 150.0) -> Scene:
@@ -35,11 +51,11 @@ def gvmi_scene(copies: int = 20, b11_max_width: float = 150.0) -> Scene:
 
 def gvmi_job(chunk: int = 5, copies: int = 20, b11_max_width: float = 150.0) -> SweepJob:
     scene = gvmi_scene(copies, b11_max_width)
-    space = sweep_space(scene)
+    space = scene_space(scene)
     lib = load_library("builtin:leaf-water", scene.grid)
     terms = Terms(scene.grid.size)
-    tables = build_tables(scene, space, lib, terms, terms, target=lib.params["ewt"])
-    analysis = AnalysisSettings.from_scene(scene, space.bands)
+    tables = scene_tables(scene, space, lib, terms, terms, target=lib.params["ewt"])
+    analysis = scene_analysis(scene, space.bands)
     return SweepJob(tables, analysis, chunk=chunk, scene_name=scene.name)
 
 

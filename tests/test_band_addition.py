@@ -174,7 +174,7 @@ def test_the_base_score_is_a_fixed_band_sweep_of_the_base_set() -> None:
         assert job.base_row[column] == plain[column][0], column
     assert job.addition["base_score"] == plain["omission_error_pct"][0]
     # the reference row of an addition sweep is its base, the added band without a shape
-    ref = reference_row(_scene(MINERALS), job)
+    ref = reference_row(check_sweep(_scene(MINERALS)), job)
     assert ref["omission_error_pct"] == plain["omission_error_pct"][0] and ref["N2300_centre_nm"] is None
 
 

@@ -100,7 +100,7 @@ def check_like_sweep_count(data: dict[str, Any], folder: Path) -> None:
 
     scene = Scene.from_dict(data, path=folder / "fuzz.toml")
     checked = check_sweep(scene)
-    count_table(scene)
+    count_table(checked)
     sweep_resources(checked, budget=Budget(2**31, "the fuzz test's limit"))
 
 

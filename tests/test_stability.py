@@ -58,9 +58,10 @@ def _sweep_tables(app, space):
     from s2cl.retrieve.analysis import analysis_targets
     from s2cl.scene.terms import correction_terms, scene_terms
 
-    lib, target, classes = analysis_targets(app.scene, app.library, app.analysis)
-    return build_tables(app.scene, space, lib, scene_terms(app.scene), correction_terms(app.scene), target=target,
-                        class_names=classes)
+    scene = app.scene
+    lib, target, classes = analysis_targets(app.library, app.analysis, scene.spec.analysis.classes)
+    return build_tables(space, lib, scene_terms(scene), correction_terms(scene), scene.sensor, scene.grid, scene.run,
+                        scene.spec.effects, target=target, class_names=classes)
 
 
 def test_identity_zero_drift_is_the_sweeps_nominal_design(igrm, igrm_errors, rt):
@@ -72,7 +73,7 @@ def test_identity_zero_drift_is_the_sweeps_nominal_design(igrm, igrm_errors, rt)
         assert e["error"]["shift"][b][zero] == e["nominal"]
         assert e["error"]["width"][b][one] == e["nominal"]
     tables = drift_tables(igrm, DRIFTS)
-    row = reference_row(igrm.scene, SweepJob(tables, igrm.analysis, chunk=1))
+    row = reference_row(igrm.checked, SweepJob(tables, igrm.analysis, chunk=1))
     assert e["nominal"] == pytest.approx(row["rms"], rel=1e-9)
     assert e["recalibrated"]["shift"][igrm.bands[0]][zero] == pytest.approx(row["rms"], rel=1e-9)
     standard = _sweep_tables(igrm, _fixed(igrm, igrm.nominal))

@@ -181,9 +181,9 @@ def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
 )
 def test_bad_sweep_sections(sweep_section: dict, message: str) -> None:
     from s2cl.scene.scene import Scene
-    from s2cl.sweep.tables import sweep_space
+    from s2cl.sweep.space import sweep_space
 
     scene = Scene.from_dict({"scene": {"name": "t"}, "surface": {"library": "x.csv"}, "sweep": sweep_section})
     with pytest.raises(InputError, match=message) as err:
-        sweep_space(scene)
+        sweep_space(scene.spec.sweep, scene.sensor, scene.grid, scene.run.support)
     assert "sweep" in str(err.value)

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sweep_fixtures import Terms, gvmi_job
+from sweep_fixtures import Terms, gvmi_job, scene_analysis, scene_space, scene_tables
 
 from s2cl.libraries.registry import load_library
 from s2cl.reference.sweep import evaluate
-from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.scene.scene import Scene
 from s2cl.status import Status
 from s2cl.sweep.kernel import SweepKernel
-from s2cl.sweep.tables import build_tables, sweep_space
 
 
 def test_gvmi_sweep_matches_numpy(rt, real_t: str, lanes: int) -> None:
@@ -49,13 +47,13 @@ def _sam_job(threshold: float | None):
             "B12": {"centres": [2150, 2190, 2220], "widths": [30, 60, 180]}}},
         "analysis": {"kind": "sam", **({"angle_threshold_deg": threshold} if threshold else {})},
     })
-    space = sweep_space(scene)
+    space = scene_space(scene)
     lib = load_library("builtin:minerals-swir", scene.grid)
     classes = tuple(sorted(set(lib.groups)))
     terms = Terms(scene.grid.size)
     target = np.array([classes.index(g) for g in lib.groups], dtype=float)
-    tables = build_tables(scene, space, lib, terms, terms, target=target, class_names=classes)
-    return tables, AnalysisSettings.from_scene(scene, space.bands)
+    tables = scene_tables(scene, space, lib, terms, terms, target=target, class_names=classes)
+    return tables, scene_analysis(scene, space.bands)
 
 
 @pytest.mark.parametrize("threshold", [None, 3.0])
@@ -79,11 +77,11 @@ def _igrm_job(copies: int = 6):
             "B6": {"centres": [740], "widths": [15, 30]}, "B7": {"centre": 783, "width": 20}}},
         "analysis": {"kind": "igrm", "parameter": "cab"},
     })
-    space = sweep_space(scene)
+    space = scene_space(scene)
     lib = load_library("builtin:lib1", scene.grid)
     terms = Terms(scene.grid.size)
-    tables = build_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
-    return tables, AnalysisSettings.from_scene(scene, space.bands)
+    tables = scene_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
+    return tables, scene_analysis(scene, space.bands)
 
 
 def test_igrm_sweep_matches_numpy_lm(rt) -> None:
@@ -122,11 +120,11 @@ def test_igrm_sweep_sorts_bands_and_flags_coincident_ones_by_condition(rt) -> No
             "B6": {"centre": 740, "width": 15}, "B7": {"centre": 783, "width": 20}}},
         "analysis": {"kind": "igrm", "parameter": "cab"},
     })
-    space = sweep_space(scene)
+    space = scene_space(scene)
     lib = load_library("builtin:lib1", scene.grid)
     terms = Terms(scene.grid.size)
-    tables = build_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
-    analysis = AnalysisSettings.from_scene(scene, space.bands)
+    tables = scene_tables(scene, space, lib, terms, terms, target=lib.params["cab"])
+    analysis = scene_analysis(scene, space.bands)
     ref = evaluate(tables, analysis, 0, 3)
     got = SweepKernel(tables, analysis, rt, precision="float64")(0, 3)
     assert np.mean(got.status == ref.status) > 0.99

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.runtime import Runtime
-from s2cl.errors import InputError
+from s2cl.errors import InputError, errors_in
 from s2cl.forward.simulate import LibrarySimulation
 from s2cl.retrieve.analysis import AnalysisSettings
 from s2cl.retrieve.design import check_design
@@ -39,7 +39,9 @@ def analysis_design(scene: Scene, bands: list[str] | None = None,
     refused in one line (file and key) when the retrieval cannot fit that design (:mod:`s2cl.retrieve.design`, the
     rule sweeps apply): call it before work."""
     bands = bands if bands is not None else analysis_bands(scene)
-    settings = settings or AnalysisSettings.from_scene(scene, bands)
+    if settings is None:
+        with errors_in(scene.source):
+            settings = AnalysisSettings.from_spec(scene.spec.analysis, bands)
     shapes = [scene.sensor.band(b) for b in bands]
     check_design(settings, bands, [b.centre_nm for b in shapes], [b.fwhm_nm for b in shapes],
                  source=scene.source, key="analysis.bands")

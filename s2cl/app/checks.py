@@ -7,16 +7,21 @@ computed, never enumerated), validate the [analysis] section against the library
 (parameter, classes, IGRM settings with their full keys), put the atmosphere states through the
 LUT's ranges, and collect the caveats (:mod:`s2cl.scene.caveats`). Errors name the scene file and the full
 key; a scene with a broken [sweep] section is refused by ``simulate`` too (it is one scene).
+
+What the checks compute they keep: :class:`Checked` is the scene resolved once (library, sweep space, analysis,
+atmosphere terms, the sweep's sensor), and the engines take its parts, never the scene (docs/architecture.md).
+The engines' errors name the key; the checks run them inside :func:`s2cl.errors.errors_in`, which adds the file.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
-from s2cl.errors import InputError, token
+from s2cl.errors import InputError, errors_in, token
+from s2cl.forward.resample import AtmosphereArrays
 from s2cl.forward.stages import caveats as stage_caveats
+from s2cl.grid import SpectralGrid
 from s2cl.io.budget import Budget
 from s2cl.io.inputs import input_file
 from s2cl.libraries.fields import is_builtin_cube
@@ -25,17 +30,20 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design, count_underdetermined
 from s2cl.retrieve.family import registry
 from s2cl.scene.caveats import Caveat, grid_caveats, srf_caveats
+from s2cl.scene.config import RunConfig
 from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
 from s2cl.scene.terms import correction_terms, scene_terms
+from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.variants import SweepSpace
-from s2cl.sweep.addition import check_base
-from s2cl.sweep.tables import sweep_space
+from s2cl.sweep.addition import AdditionBase, check_base
+from s2cl.sweep.space import sweep_space, with_added_band
 
 
 @dataclass(frozen=True, eq=False)
 class Checked:
-    """A scene that passed every check, with what the checks loaded (reused by the run)."""
+    """A scene that passed every check, resolved once: what the checks loaded and computed, which the run reuses
+    (the engines take these parts, not the scene)."""
 
     scene: Scene
     library: SpectralLibrary | None
@@ -44,7 +52,27 @@ class Checked:
     analysis_bands: list[str] = field(default_factory=list)
     caveats: list[Caveat] = field(default_factory=list)
     #: a band-addition sweep's base set and the analysis that scores it alone (s2cl.sweep.addition)
-    base: Any = None
+    base: AdditionBase | None = None
+    #: per-wavelength terms of the true atmosphere on the scene's grid (None where nothing needs them)
+    truth: AtmosphereArrays | None = None
+    #: per-wavelength terms of the atmosphere the correction assumes (None where nothing needs them)
+    assumed: AtmosphereArrays | None = None
+    #: the sensor a sweep's tables see: the scene's, with a band-addition sweep's added band appended
+    #: (:func:`s2cl.sweep.space.with_added_band`); the scene's own for ``simulate``
+    sensor: Sensor | None = None
+
+    @property
+    def source(self) -> str:
+        """The scene file, which the application layer adds to the engines' errors."""
+        return self.scene.source
+
+    @property
+    def grid(self) -> SpectralGrid:
+        return self.scene.grid
+
+    @property
+    def run(self) -> RunConfig:
+        return self.scene.run
 
 
 def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
@@ -61,9 +89,9 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
-    _atmosphere(scene)
+    truth, assumed = _atmosphere(scene)
     caveats = _caveats(scene, space, list(scene.sensor.band_names))
-    return Checked(scene, library, space, analysis, bands, caveats)
+    return Checked(scene, library, space, analysis, bands, caveats, truth=truth, assumed=assumed, sensor=scene.sensor)
 
 
 def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
@@ -76,11 +104,13 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
     analysis = _analysis(scene, space.bands, library)
     check_fittable(scene, space, analysis)
 
-    base = check_base(scene, space, library)  # an addition sweep: its base set scorable alone
-    _atmosphere(scene)
+    with errors_in(scene.source):  # an addition sweep: its base set scorable alone
+        base = check_base(scene.spec.sweep.add, scene.spec.analysis, space, library)
+        sensor = with_added_band(scene.sensor, scene.spec.sweep)
+    truth, assumed = _atmosphere(scene)
     known = [b for b in space.bands if base is None or b != base.added]  # the added band has the model SRF
     caveats = _caveats(scene, space, known) + srf_caveats(scene, known)
-    return Checked(scene, library, space, analysis, list(space.bands), caveats, base)
+    return Checked(scene, library, space, analysis, list(space.bands), caveats, base, truth, assumed, sensor)
 
 
 def check_fittable(scene: Scene, space: SweepSpace, analysis: AnalysisSettings) -> None:
@@ -112,7 +142,8 @@ def _space(scene: Scene) -> SweepSpace | None:
         raise InputError("a [sweep] runs over a spectral library (surface.library), not an image cube: remove "
                          "[sweep] to simulate the cube, or sweep a library", source=scene.source, key="sweep")
 
-    return sweep_space(scene)
+    with errors_in(scene.source):
+        return sweep_space(scene.spec.sweep, scene.sensor, scene.grid, scene.run.support)
 
 
 def _known_bands(scene: Scene, bands: list[str], key: str) -> list[str]:
@@ -125,18 +156,20 @@ def _known_bands(scene: Scene, bands: list[str], key: str) -> list[str]:
 
 
 def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -> AnalysisSettings:
-    settings = AnalysisSettings.from_scene(scene, bands)
-    if library is not None:
-        analysis_targets(scene, library, settings)
+    with errors_in(scene.source):
+        settings = AnalysisSettings.from_spec(scene.spec.analysis, bands)
+        if library is not None:
+            analysis_targets(library, settings, scene.spec.analysis.classes)
     return settings
 
 
-def _atmosphere(scene: Scene) -> None:
-    """Both atmosphere states inside the LUT's ranges (the terms are computed: cheap, and cached)."""
-    if scene.effects.atmosphere or scene.spec.sweep is not None:
-        scene_terms(scene)
-    if scene.effects.correct or scene.spec.sweep is not None:
-        correction_terms(scene)
+def _atmosphere(scene: Scene) -> tuple[AtmosphereArrays | None, AtmosphereArrays | None]:
+    """The terms of the true atmosphere and of the one the correction assumes, each where the scene needs it (the
+    effect is on, or the scene has a sweep): both states inside the LUT's ranges, checked by computing them once."""
+    sweep = scene.spec.sweep is not None
+    truth = scene_terms(scene) if scene.effects.atmosphere or sweep else None
+    assumed = correction_terms(scene) if scene.effects.correct or sweep else None
+    return truth, assumed
 
 
 def _caveats(scene: Scene, space: SweepSpace | None, bands: list[str]) -> list[Caveat]:

@@ -10,14 +10,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from s2cl.app.checks import check_sweep
-from s2cl.app.plan import count_table, plan_sweep, reference_pixels, reference_row, underdetermined_count
+from s2cl.app.checks import Checked, check_sweep
+from s2cl.app.plan import (
+    count_table,
+    own_design,
+    plan_sweep,
+    reference_pixels,
+    reference_row,
+    underdetermined_count,
+)
 from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
 from s2cl.io.outdir import check_output_dir, claim
-from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
@@ -146,8 +152,8 @@ class PreparedSweep:
     scheduler: str | None
     overwrite: bool
     device: str | None
-    #: the library the checks loaded (the reference row's own tables are built from it, not from the file again)
-    library: SpectralLibrary | None = None
+    #: the scene resolved by the checks (the reference's own tables are built from its parts, nothing again)
+    checked: Checked
 
 
 def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int | None, scheduler: str | None,
@@ -174,7 +180,7 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
     if not (workers or scheduler or searching):
         kernel_evaluator(job, device)  # the sweep kernel builds here, not after the folder is made
     return PreparedSweep(sc, folder, job, searching, report(checked.caveats), t0, workers, scheduler, overwrite,
-                         device, checked.library)
+                         device, checked)
 
 
 def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = None,
@@ -193,16 +199,17 @@ def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = 
 def rank_against_reference(run: PreparedSweep, results: Path) -> tuple[Digest, dict[str, Any]]:
     """Rank the results against the sensor's own bands (the reference row), test the best designs for being told
     apart within the noise (``within_noise_top``), and the digest and summary."""
-    sc, job = run.scene, run.job
+    sc, job, checked = run.scene, run.job, run.checked
     path, meta = open_results(results)
-    reference = reference_row(sc, job, run.device, run.library)
+    own = own_design(checked, job) if job.base_row is None else None  # its tables built once, for row and pixels
+    reference = reference_row(checked, job, run.device, own)
     candidates = sc.spec.sweep.within_noise_top
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(sc.name, list(job.tables.bands)),
                             top_n=max(TOP, candidates))
     summary = summarise(digest, meta, reference)
     if candidates:
         tested = within_noise(job, digest.top.head(candidates), digest.metric, device=run.device,
-                              reference=reference_pixels(sc, job, run.device, run.library), ranked=digest.ranked)
+                              reference=reference_pixels(checked, job, run.device, own), ranked=digest.ranked)
         if tested is not None:
             summary["within_noise"] = tested
         mark_top(summary)
@@ -235,7 +242,7 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     check_output_dir(folder, where=where)
     report(checked.caveats)
     assert checked.space is not None
-    variants = count_table(sc)
+    variants = count_table(checked)
     if on_counted:
         on_counted(sc.name, variants, checked.space.size)
     rt = get_runtime(sc.run.device)

@@ -1,8 +1,12 @@
-"""From a scene to a sweep: tables, analysis, chunking, and the scene's own band set as reference."""
+"""From a checked scene to a sweep: tables, analysis, chunking, and the scene's own band set as reference.
+
+Everything here starts from :class:`s2cl.app.checks.Checked` (the scene resolved once): the tables are built from
+its library, atmosphere terms and sensor, never from the scene again; the engines' errors get the scene's file here
+(:func:`s2cl.errors.errors_in`)."""
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -10,27 +14,28 @@ import numpy as np
 from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.sweep_budget import Budget, SweepPlan, sweep_resources
 from s2cl.cl.runtime import get_runtime
-from s2cl.libraries.library import SpectralLibrary
+from s2cl.errors import errors_in
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import count_underdetermined
-from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
-from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandRange, SweepSpace
 from s2cl.sweep.addition import base_reference, check_base_score, meta_of
 from s2cl.sweep.designs import design_pixels, score_designs
 from s2cl.sweep.engine import SweepJob
 from s2cl.sweep.raw import RawChunk
 from s2cl.sweep.search import SearchSettings
-from s2cl.sweep.space import addition_scene
-from s2cl.sweep.tables import SweepTables, build_tables, sweep_space
+from s2cl.sweep.tables import SweepTables, build_tables
 
 
-def _tables(scene: Scene, space: SweepSpace, analysis: AnalysisSettings,
-            library: SpectralLibrary | None = None) -> SweepTables:
-    lib, target, classes = analysis_targets(scene, library or scene_library(scene), analysis)
-    return build_tables(scene, space, lib, scene_terms(scene), correction_terms(scene), target=target,
-                        class_names=classes)
+def sweep_tables(checked: Checked, space: SweepSpace, analysis: AnalysisSettings) -> SweepTables:
+    """Tables of ``space`` scored by ``analysis``, from the checked scene's library, atmosphere terms and sensor."""
+    scene = checked.scene
+    assert checked.library is not None and checked.truth is not None and checked.assumed is not None
+    assert checked.sensor is not None and scene.spec.analysis is not None
+    with errors_in(scene.source):
+        lib, target, classes = analysis_targets(checked.library, analysis, scene.spec.analysis.classes)
+        return build_tables(space, lib, checked.truth, checked.assumed, checked.sensor, scene.grid, scene.run,
+                            scene.spec.effects, target=target, class_names=classes)
 
 
 def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | None = None,
@@ -45,9 +50,8 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
     checked = checked or check_sweep(scene)
     plan = resources or sweep_resources(checked, chunk=chunk, budget=budget, host_metrics=host_metrics,
                                         rt=get_runtime(device or scene.run.device))
-    assert checked.space is not None and checked.analysis is not None
-    tables_scene = addition_scene(scene)  # with [sweep.add]: the added band in the sensor
-    tables = _tables(tables_scene, checked.space, checked.analysis, checked.library)
+    assert checked.space is not None and checked.analysis is not None and scene.spec.sweep is not None
+    tables = sweep_tables(checked, checked.space, checked.analysis)  # with [sweep.add]: the added band's too
     text = scene.path.read_text(encoding="utf-8") if scene.path else ""
     run = scene.run
     search = SearchSettings.of_spec(scene.spec.sweep)
@@ -57,8 +61,9 @@ def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | Non
     base = checked.base
     if base is None:
         return job
-    row = fixed_row(tables_scene, job, base.space, base.analysis, checked.library, device)
-    score = check_base_score(scene, row, base.analysis)
+    row = fixed_row(checked, job, base.space, base.analysis, device)
+    with errors_in(scene.source):
+        score = check_base_score(row, base.analysis)
     return replace(job, base_row=row, addition=meta_of(base, score))
 
 
@@ -68,18 +73,49 @@ def underdetermined_count(space: SweepSpace, analysis: AnalysisSettings) -> int 
     return count_underdetermined(analysis, space)
 
 
-def reference_row(scene: Scene, job: SweepJob, device: str | None = None,
-                  library: SpectralLibrary | None = None) -> dict[str, Any]:
-    """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise; for a
-    band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`). ``library``: the sweep's,
-    as the checks loaded it (default: loaded again from the scene) where the design needs tables of its own."""
-    if job.base_row is not None:
-        return base_reference(job.base_row, job.addition["band"])
-    shapes = _own_shapes(scene, job)
+@dataclass(frozen=True)
+class OwnDesign:
+    """The sensor's own band set (e.g. ESA's) as a design of a sweep: configuration ``config`` of ``job``, the sweep's
+    own job when the design is one of its configurations, else a one-configuration job with tables of its own (built
+    once, for both :func:`reference_row` and :func:`reference_pixels`)."""
+
+    job: SweepJob
+    config: int
+
+
+def own_design(checked: Checked, job: SweepJob) -> OwnDesign:
+    """The sensor's own design of ``job``'s sweep (:class:`OwnDesign`): its configuration when the sweep has it, else
+    its own tables from the checked scene's library, atmosphere terms and noise deviates."""
+    shapes = _own_shapes(checked, job)
     config = configuration_of(job.tables, shapes)
     if config is not None:  # the sensor's own design is one of the sweep's: its tables serve
-        return _first(score_designs(job, np.array([config]), device=device))
-    return fixed_row(scene, job, _own_bands(scene, job), job.analysis, library, device)
+        return OwnDesign(job, config)
+    bands = SweepSpace(tuple(BandRange.fixed(b, c, w) for b, (c, w) in zip(job.tables.bands, shapes, strict=True)))
+    with errors_in(checked.source):
+        bands.validate()
+    return OwnDesign(_one_job(checked, job, bands, job.analysis), 0)
+
+
+def reference_row(checked: Checked, job: SweepJob, device: str | None = None,
+                  own: OwnDesign | None = None) -> dict[str, Any]:
+    """Metrics of the sensor's own band set (e.g. ESA's) with the same library, atmosphere and noise; for a
+    band-addition sweep, the base set's row (:func:`s2cl.sweep.addition.base_reference`). ``own``: the design as
+    :func:`own_design` gives it (default: found here; pass it to score it and its pixels on one set of tables)."""
+    if job.base_row is not None:
+        return base_reference(job.base_row, job.addition["band"])
+    own = own or own_design(checked, job)
+    return _first(score_designs(own.job, np.array([own.config]), device=device))
+
+
+def reference_pixels(checked: Checked, job: SweepJob, device: str | None = None,
+                     own: OwnDesign | None = None) -> RawChunk | None:
+    """Per-pixel results of the sensor's own band set (:func:`reference_row`'s design) on the sweep's pixels and
+    noise deviates, by the sweep kernel on ``device``; None for a band-addition sweep (its base set is another
+    analysis). ``own``: as for :func:`reference_row`."""
+    if job.base_row is not None:
+        return None
+    own = own or own_design(checked, job)
+    return design_pixels(own.job, np.array([own.config]), device=device)
 
 
 def _first(rows: dict[str, Any]) -> dict[str, Any]:
@@ -99,50 +135,30 @@ def configuration_of(tables: SweepTables, shapes: list[tuple[float, float]]) -> 
     return config
 
 
-def reference_pixels(scene: Scene, job: SweepJob, device: str | None = None,
-                     library: SpectralLibrary | None = None) -> RawChunk | None:
-    """Per-pixel results of the sensor's own band set (:func:`reference_row`'s design) on the sweep's pixels and
-    noise deviates, by the sweep kernel on ``device``; None for a band-addition sweep (its base set is another
-    analysis). ``library``: as for :func:`reference_row`."""
-    if job.base_row is not None:
-        return None
-    config = configuration_of(job.tables, _own_shapes(scene, job))
-    if config is not None:
-        return design_pixels(job, np.array([config]), device=device)
-    return design_pixels(_one_job(scene, job, _own_bands(scene, job), job.analysis, library), np.array([0]),
-                         device=device)
-
-
-def _own_shapes(scene: Scene, job: SweepJob) -> list[tuple[float, float]]:
+def _own_shapes(checked: Checked, job: SweepJob) -> list[tuple[float, float]]:
     """(centre, width) in nm of the sensor's own band in each of the sweep's slots."""
-    return [(scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm) for b in job.tables.bands]
+    sensor = checked.scene.sensor
+    return [(sensor.band(b).centre_nm, sensor.band(b).fwhm_nm) for b in job.tables.bands]
 
 
-def _own_bands(scene: Scene, job: SweepJob) -> SweepSpace:
-    """The sweep's bands fixed at the sensor's own shapes."""
-    return SweepSpace(tuple(BandRange.fixed(b, c, w) for b, (c, w) in zip(job.tables.bands, _own_shapes(scene, job),
-                                                                          strict=True))).validate(scene.source)
-
-
-def _one_job(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
-             library: SpectralLibrary | None = None) -> SweepJob:
+def _one_job(checked: Checked, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings) -> SweepJob:
     """``job`` over the one configuration of ``space`` (fixed bands) scored by ``analysis``."""
-    tables = _tables(scene, space, analysis, library)
+    tables = sweep_tables(checked, space, analysis)
     return replace(job, tables=tables, analysis=analysis, chunk=1, base_row=None, addition=None, search=None)
 
 
-def fixed_row(scene: Scene, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
-              library: SpectralLibrary | None = None, device: str | None = None) -> dict[str, Any]:
+def fixed_row(checked: Checked, job: SweepJob, space: SweepSpace, analysis: AnalysisSettings,
+              device: str | None = None) -> dict[str, Any]:
     """Metrics of the one configuration of ``space`` (fixed bands) scored by ``analysis``, with ``job``'s library,
-    atmosphere, noise deviates (keyed by each band's index in ``scene``'s sensor), precision and device."""
-    return _first(score_designs(_one_job(scene, job, space, analysis, library), np.array([0]), device=device))
+    atmosphere, noise deviates (keyed by each band's index in the checked sensor), precision and device."""
+    return _first(score_designs(_one_job(checked, job, space, analysis), np.array([0]), device=device))
 
 
-def count_table(scene: Scene) -> list[dict[str, Any]]:
-    """Variants per band (count and extremes) for ``s2cl sweep count``."""
-    space = sweep_space(scene)
+def count_table(checked: Checked) -> list[dict[str, Any]]:
+    """Variants per band (count and extremes) of the checked sweep, for ``s2cl sweep count``."""
+    assert checked.space is not None
     rows = []
-    for r, n in zip(space.ranges, space.counts, strict=True):
+    for r, n in zip(checked.space.ranges, checked.space.counts, strict=True):
         c0, c1, w0, w1 = r.extent()
         rows.append({"band": r.band, "variants": n, "centres_nm": f"{c0:g}–{c1:g}", "widths_nm": f"{w0:g}–{w1:g}"})
     return rows

@@ -172,36 +172,35 @@ class AnalysisSettings:
         return self.family.metric.regressed
 
     @classmethod
-    def from_scene(cls, scene: Any, bands: list[str]) -> AnalysisSettings:
-        """From the scene's [analysis] section; ``bands`` are the band slots in order. The checks every family
-        shares are here; the family reads its own keys (:meth:`s2cl.retrieve.family.Family.settings`)."""
-        a = scene.spec.analysis
+    def from_spec(cls, a: Any, bands: list[str]) -> AnalysisSettings:
+        """From the scene's [analysis] section ``a`` (None: refused); ``bands`` are the band slots in order. The checks
+        every family shares are here; the family reads its own keys (:meth:`s2cl.retrieve.family.Family.settings`).
+        Errors name the key ``analysis.*`` (the caller adds the scene's file: :func:`s2cl.errors.errors_in`)."""
         if a is None:
-            raise InputError("the scene has no [analysis] section", source=scene.source, key="analysis")
-        family = family_of(a.kind, scene.source)
+            raise InputError("the scene has no [analysis] section", key="analysis")
+        family = family_of(a.kind)
         lower = [b.lower() for b in bands]
 
         def slot(name: str, key: str) -> int:
             if name.lower() not in lower:
-                raise InputError(f"band {name!r} is not among the bands {', '.join(bands)}", source=scene.source,
-                                 key=f"analysis.{key}")
+                raise InputError(f"band {name!r} is not among the bands {', '.join(bands)}", key=f"analysis.{key}")
             return lower.index(name.lower())
 
         if family.metric.regressed and not a.parameter:
             raise InputError(f"{a.kind} needs the library parameter to regress (e.g. {family.example_parameter!r})",
-                             source=scene.source, key="analysis.parameter")
+                             key="analysis.parameter")
         own = family.roles(a)
         stray = [r for r in a.roles if r not in own]
         if stray:
             raise InputError(f"not a band role of {a.kind} " + (f"(its roles: {', '.join(own)})" if own else
                                                                  "(it has none), nor a key of [analysis]"),
-                             source=scene.source, key=f"analysis.{stray[0]}")
+                             key=f"analysis.{stray[0]}")
         foreign = sorted(k for k in family_keys() - set(family.keys) if k in a.model_fields_set)
         if foreign:
             owners = [f.kind for f in dict.fromkeys(registry().values()) if foreign[0] in f.keys]
             raise InputError(f"only kind = {' or '.join(map(repr, owners))} reads this key, not {a.kind}",
-                             source=scene.source, key=f"analysis.{foreign[0]}")
-        return family.settings(a, bands, slot, scene.source)
+                             key=f"analysis.{foreign[0]}")
+        return family.settings(a, bands, slot, None)
 
 
 def _load() -> dict[str, Family]:

@@ -16,7 +16,7 @@ from s2cl.atmos.atmosphere import AtmosphereLUT
 from s2cl.atmos.correction import BandAtmosphere, correct
 from s2cl.atmos.state import AtmosphereState
 from s2cl.atmos.terms import AtmosphericTerms
-from s2cl.errors import InputError
+from s2cl.errors import InputError, errors_in
 from s2cl.forward.noise import add_noise
 from s2cl.forward.sense import Radiometry
 from s2cl.libraries.library import SpectralLibrary
@@ -27,7 +27,7 @@ from s2cl.scene.terms import assumed_state, scene_lut, state_terms, true_state
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights
 from s2cl.sensor.variants import SweepSpace
-from s2cl.sweep.tables import sweep_space
+from s2cl.sweep.space import sweep_space
 
 
 @dataclass(frozen=True)
@@ -99,7 +99,10 @@ class StudySetup:
 
     def space(self) -> SweepSpace:
         """The [sweep] section as band variants (:mod:`s2cl.sensor.variants`)."""
-        return sweep_space(self.scene).validate(self.source)
+        scene = self.scene
+        with errors_in(scene.source):
+            space = sweep_space(scene.spec.sweep, scene.sensor, scene.grid, scene.run.support)
+        return space.validate(self.source)
 
     def nominal(self, space: SweepSpace) -> int:
         """The configuration of ``space`` whose bands have the sensor's own shapes.

@@ -25,8 +25,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from s2cl.app.checks import check_sweep
-from s2cl.errors import InputError, key_token
+from s2cl.app.checks import Checked, check_sweep
+from s2cl.errors import InputError, errors_in, key_token
 from s2cl.forward.stages import stage
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
@@ -34,7 +34,6 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.metrics import regression_metrics
 from s2cl.retrieve.quantify import fit_polynomial
 from s2cl.scene.scene import Scene, builtin_scenes
-from s2cl.scene.terms import correction_terms, scene_terms
 from s2cl.sensor.variants import BandList, SweepSpace
 from s2cl.sweep.raw import ChunkEvaluator
 from s2cl.sweep.tables import SweepTables, build_tables
@@ -54,6 +53,8 @@ class Application:
     #: nominal (centre, width) of each band, nm: the sensor's own shapes
     nominal: tuple[tuple[float, float], ...]
     library: SpectralLibrary
+    #: the scene resolved by the checks (its atmosphere terms and sensor build the drift tables)
+    checked: Checked
 
     @property
     def metric(self) -> str:
@@ -87,7 +88,7 @@ def load_application(study: Scene, label: str, ref: str, copies: int) -> Applica
     bands = tuple(checked.space.bands)
     nominal = tuple((scene.sensor.band(b).centre_nm, scene.sensor.band(b).fwhm_nm) for b in bands)
     assert checked.library is not None   # check_sweep refuses a cube
-    return Application(label, scene, checked.analysis, bands, nominal, checked.library)
+    return Application(label, scene, checked.analysis, bands, nominal, checked.library, checked)
 
 
 @dataclass(frozen=True)
@@ -133,10 +134,13 @@ def drift_tables(app: Application, drifts: Drifts, *, noise: bool = True) -> Swe
     """Sweep tables of ``app`` in which each drifted variant keeps its radiance and σ and takes the nominal
     variant's centre, width, correction terms and SAM references (what the processing assumes). Without
     ``noise``: one copy per spectrum, no noise (quantisation stays)."""
-    scene = app.scene if noise else replace(app.scene, run=replace(app.scene.run, copies=1))
-    lib, target, classes = analysis_targets(scene, app.library, app.analysis)
-    t = build_tables(scene, drift_space(app, drifts), lib, scene_terms(scene), correction_terms(scene),
-                     target=target, class_names=classes)
+    scene, checked = app.scene, app.checked
+    run = scene.run if noise else replace(scene.run, copies=1)
+    assert checked.truth is not None and checked.assumed is not None and checked.sensor is not None
+    with errors_in(scene.source):
+        lib, target, classes = analysis_targets(app.library, app.analysis, scene.spec.analysis.classes)
+        t = build_tables(drift_space(app, drifts), lib, checked.truth, checked.assumed, checked.sensor, scene.grid, run,
+                         scene.spec.effects, target=target, class_names=classes)
 
     def nominal(arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
         return tuple(np.repeat(a[:1], len(a), axis=0) for a in arrays)

@@ -6,7 +6,7 @@ scored by its gain over the base set alone, on the same pixels and noise.
   two-band indices, which either leave the added band out or the base set without an index).
 - The base score is a fixed-band sweep of the base bands (:func:`s2cl.app.plan.fixed_row`): the same library,
   atmosphere, and noise deviates, because the base bands keep their noise streams and the added band draws its
-  own (:func:`s2cl.sweep.space.addition_scene`).
+  own (:func:`s2cl.sweep.space.with_added_band`).
 - ``gain = base score − candidate score``: RMS for regressions, mean omission error (percentage points) for SAM;
   positive is better. ``results.parquet`` carries it as column ``gain``; every candidate keeps its own failure
   accounting (statuses, fractions, ``underdetermined``), and ``summary.json`` the base row's.
@@ -28,7 +28,7 @@ from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
 from s2cl.retrieve.design import check_design
 from s2cl.retrieve.family import family_of, registry
 from s2cl.retrieve.metric import metric_in
-from s2cl.scene.scene import Scene
+from s2cl.scene.schema import AddSpec
 from s2cl.sensor.names import safe_file_part
 from s2cl.sensor.variants import SweepSpace
 from s2cl.sweep.report import draw_grid
@@ -54,45 +54,45 @@ def score_column(analysis: AnalysisSettings) -> str:
     return analysis.family.score_column
 
 
-def check_base(scene: Scene, space: SweepSpace, library: SpectralLibrary | None) -> AdditionBase | None:
-    """The base set of ``scene``'s addition sweep (``space``: base bands then the added band, as
-    :func:`s2cl.sweep.space.sweep_space` orders them), checked to be scorable alone by the scene's analysis;
-    None for a scene without [sweep.add].
+def check_base(add: AddSpec | None, analysis_spec: Any, space: SweepSpace, library: SpectralLibrary | None
+               ) -> AdditionBase | None:
+    """The base set of an addition sweep (``add``: its [sweep.add] section; ``space``: base bands then the added
+    band, as :func:`s2cl.sweep.space.sweep_space` orders them), checked to be scorable alone by the scene's analysis
+    (``analysis_spec``: its [analysis] section); None without [sweep.add].
 
     :raises InputError: (key ``sweep.add``) the analysis cannot run on the base bands alone.
     """
-    add = scene.spec.sweep.add if scene.spec.sweep is not None else None
     if add is None:
         return None
     base = SweepSpace(space.ranges[:-1])
     names = base.bands
-    kind = scene.spec.analysis.kind if scene.spec.analysis is not None else None
-    if kind is not None and not family_of(kind, scene.source).uses_every_band:
+    kind = analysis_spec.kind if analysis_spec is not None else None
+    if kind is not None and not family_of(kind).uses_every_band:
         # such a family (an index, a formula) reads the bands it names: it either leaves the added band out (every
         # candidate scores the base: no gain to measure) or names it (then the base set alone has no value)
         users = ", ".join(k for k, f in registry().items() if f.uses_every_band)
         raise InputError(f"a band addition needs an analysis that uses every band ({users}); {kind} reads the bands "
                          "it names, so the added band would either not enter it or leave the base set without one",
-                         source=scene.source, key=ADD_KEY)
+                         key=ADD_KEY)
     what = f"the base set {', '.join(names)} alone cannot be scored by {kind}, so no gain"
     try:
-        analysis = AnalysisSettings.from_scene(scene, names)
+        analysis = AnalysisSettings.from_spec(analysis_spec, names)
         shape = base.shapes(0, 1)[0]
         check_design(analysis, names, shape[:, 0], shape[:, 1])
         if library is not None:
-            analysis_targets(scene, library, analysis)
+            analysis_targets(library, analysis, analysis_spec.classes)
     except InputError as err:
-        raise InputError(f"{what}: {err.detail}", source=scene.source, key=ADD_KEY) from None
+        raise InputError(f"{what}: {err.detail}", key=ADD_KEY) from None
     return AdditionBase(base, analysis, add.name, add.like)
 
 
-def check_base_score(scene: Scene, row: dict[str, Any], analysis: AnalysisSettings) -> float:
+def check_base_score(row: dict[str, Any], analysis: AnalysisSettings) -> float:
     """The base row's score, refused (key ``sweep.add``) when it is not a finite number (every pixel failed)."""
     column = score_column(analysis)
     value = row.get(column)
     if value is None or not np.isfinite(value):
         raise InputError(f"the base set's {column} is not finite (failed_fraction {row.get('failed_fraction')}): "
-                         "no gain can be measured against it", source=scene.source, key=ADD_KEY)
+                         "no gain can be measured against it", key=ADD_KEY)
     return float(value)
 
 

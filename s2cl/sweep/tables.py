@@ -30,12 +30,13 @@ from s2cl.forward.noise import sensor_noise
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays
 from s2cl.forward.stages import Value, chain, compute, inputs, stage
+from s2cl.grid import SpectralGrid
 from s2cl.libraries.library import SpectralLibrary
-from s2cl.scene.scene import Scene
+from s2cl.scene.config import RunConfig
+from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.variants import SweepSpace
-from s2cl.sweep.space import sweep_space
 
-__all__ = ["SweepTables", "build_tables", "sweep_space"]
+__all__ = ["SweepTables", "build_tables"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,24 +110,26 @@ class SweepTables:
         return h.hexdigest()
 
 
-def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, truth: AtmosphereArrays,
-                 assumed: AtmosphereArrays, *, target: np.ndarray | None = None,
-                 class_names: tuple[str, ...] = ()) -> SweepTables:
-    """Tables for a sweep of ``space`` over ``library`` (surface reflectance) seen through ``truth``
-    and corrected with ``assumed`` (per-wavelength terms on the scene's grid)."""
+def build_tables(space: SweepSpace, library: SpectralLibrary, truth: AtmosphereArrays, assumed: AtmosphereArrays,
+                 sensor: Sensor, grid: SpectralGrid, run: RunConfig, settings: Any, *,
+                 target: np.ndarray | None = None, class_names: tuple[str, ...] = ()) -> SweepTables:
+    """Tables for a sweep of ``space`` over ``library`` (surface reflectance) seen through ``truth`` and corrected
+    with ``assumed`` (per-wavelength terms on ``grid``), by ``sensor``'s bands (a band-addition sweep's sensor holds
+    the added band) and the chain of ``run`` (its stages, seed, SRF support, copies); ``settings``: the scene's
+    [effects] section, which the stages read. Errors name the key (the caller adds the file)."""
     if library.quantity != "reflectance":
         raise InputError("a sweep needs a reflectance library (it runs the atmosphere and its correction)",
-                         source=scene.source, key="surface.quantity")
-    grid, support, e = scene.grid, scene.run.support, scene.run
+                         key="surface.quantity")
+    support, e = run.support, run
     rho = library.spectra
     toa = truth.path_radiance + truth.ground_term * rho / (1.0 - truth.spherical_albedo * rho)
-    stages = chain(scene.effects)
-    bands = [scene.sensor.band(r.band) for r in space.ranges]
+    stages = chain(run.effects)
+    bands = [sensor.band(r.band) for r in space.ranges]
     # keyed by each band's index in the sensor, as `s2cl simulate` keys it: pixel p of band B gets the
     # same deviate on both paths (and in every configuration: common random numbers)
-    band_ids = [scene.sensor.band_names.index(b.name) for b in bands]
-    settings = dict(settings=scene.spec.effects, seed=e.seed)
-    base = compute(stages, Radiometry.of(bands, scene.sensor.bits, band_ids, **settings))
+    band_ids = [sensor.band_names.index(b.name) for b in bands]
+    chain_settings = dict(settings=settings, seed=e.seed)
+    base = compute(stages, Radiometry.of(bands, sensor.bits, band_ids, **chain_settings))
     wanted = inputs(stages, "sweep")
     values: dict[str, Any] = {v.name: base[v.name] for v in wanted if v.varies in ("band", "scalar", "pairs")}
     per_variant: dict[str, list[np.ndarray]] = {v.name: [] for v in wanted if v.varies in ("variant", "pixel")}
@@ -135,15 +138,15 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
         shaped, radiance, weights_all, surface = [], [], [], []
         for c, w in variants:
             shaped.append(band.with_shape(c, w))
-            weights = shaped[-1].weights(grid, support, scene.source)
+            weights = shaped[-1].weights(grid, support)
             sl = slice(weights.start, weights.stop)
             radiance.append(toa[:, sl] @ weights.weights)
             weights_all.append(weights)
             surface.append(rho[:, sl] @ weights.weights)
         corr = BandAtmosphere.of(assumed, weights_all)
         table = np.array(radiance)
-        of_variants = compute(stages, Radiometry.of(shaped, scene.sensor.bits, [band_id] * len(shaped),
-                                                    correction=corr, radiance=table, **settings))
+        of_variants = compute(stages, Radiometry.of(shaped, sensor.bits, [band_id] * len(shaped),
+                                                    correction=corr, radiance=table, **chain_settings))
         for name, rows in per_variant.items():
             rows.append(np.asarray(of_variants[name]))
         per_slot["centre"].append(variants[:, 0].copy())
@@ -160,7 +163,7 @@ def build_tables(scene: Scene, space: SweepSpace, library: SpectralLibrary, trut
     return SweepTables(
         bands=tuple(r.band for r in space.ranges), counts=tuple(space.counts),
         centre=tuple(per_slot["centre"]), width=tuple(per_slot["width"]), radiance=tuple(per_slot["radiance"]),
-        bits=scene.sensor.bits, copies=copies, z=z,
+        bits=sensor.bits, copies=copies, z=z,
         target=np.zeros(n_pixels) if target is None else np.repeat(np.asarray(target), copies),
         class_names=tuple(class_names), references=tuple(per_slot["refs"]),
         stages=tuple(s.name for s in stages), values=values,
