@@ -56,7 +56,7 @@ def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray
     x = np.asarray(index)
     status = np.asarray(status)
     bounds = np.asarray(bounds)
-    parts = []
+    parts, medians = [], []
     for a, b in row_blocks(x.shape[0]):
         # C order: each row's reductions run over contiguous memory, in the same order in any block
         xb = np.ascontiguousarray(x[a:b], dtype=np.float64)
@@ -73,11 +73,12 @@ def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray
         part.update(fit_accounting(status[a:b], bounds[a:b]))
         if condition is not None:
             fitted = _any_of(status[a:b], (Status.OK, Status.STALLED, Status.ITERATION_LIMIT))
-            part["log10_condition_median"] = median_code(np.asarray(condition)[a:b], fitted) / \
-                CONDITION_CODES_PER_DECADE
+            medians.append(median_code(np.asarray(condition)[a:b], fitted) / CONDITION_CODES_PER_DECADE)
         parts.append(part)
     out = _joined(parts)
     out["excluded_fraction"] = 1.0 - out["n_valid"] / x.shape[1]
+    if condition is not None:
+        out["log10_condition_median"] = np.concatenate(medians)
     return out
 
 
