@@ -25,11 +25,13 @@ ROOT = Path(__file__).resolve().parents[1]
 LOWEST = 0.7  # measured / declared at least
 BIG = Budget(10**11, "test")
 
-#: in a child process: plan the sweep of gvmi_scene(copies) on a device, run one warm-up chunk, then measure one
-#: chunk of CHUNK configurations: the growth of the peak resident set (VmHWM reset) and numpy's traced peak
+#: in a child process: plan the sweep of gvmi_scene(copies) on a device, run one warm-up chunk, then measure chunks of
+#: CHUNKS configurations one after the other (a sweep's full chunks and its last, smaller one): the growth of the
+#: peak resident set (VmHWM reset) and numpy's traced peak
 _CHILD = r"""
 import json, sys, tracemalloc
-device, copies, chunk, host = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4] == "host"
+device, copies, host = sys.argv[1], int(sys.argv[2]), sys.argv[4] == "host"
+chunks = [int(c) for c in sys.argv[3].split(",")]
 from sweep_fixtures import gvmi_scene
 from s2cl.app.plan import plan_sweep
 from s2cl.io.budget import Budget
@@ -45,17 +47,18 @@ with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
 base = status("VmRSS:")
 tracemalloc.start()
-evaluate_chunk(job, 0, chunk, device)
+for chunk in chunks:
+    evaluate_chunk(job, 0, chunk, device)
 traced = tracemalloc.get_traced_memory()[1]
 tracemalloc.stop()
 print(json.dumps({"rss": status("VmHWM:") - base, "traced": traced, "pixels": job.tables.n_pixels}))
 """
 
 
-def _measure(device: str, copies: int, chunk: int, where: str) -> dict[str, float]:
+def _measure(device: str, copies: int, chunks: str, where: str) -> dict[str, float]:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests"),
                                                         os.environ.get("PYTHONPATH", "")])}
-    out = subprocess.run([sys.executable, "-c", _CHILD, device, str(copies), str(chunk), where], capture_output=True,
+    out = subprocess.run([sys.executable, "-c", _CHILD, device, str(copies), chunks, where], capture_output=True,
                          text=True, env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -64,16 +67,17 @@ def _measure(device: str, copies: int, chunk: int, where: str) -> dict[str, floa
 @pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="needs Linux's /proc peak resident set")
 @pytest.mark.parametrize("where", ["device", "host"])
 def test_a_chunk_allocates_what_its_host_footprint_declares(rt, where: str) -> None:
-    """One chunk of 640 configurations × 24,600 pixels, the metrics on the device (where it has float64) or in
-    numpy: its resident set within the declared chunk (device buffers included on a CPU device), numpy's part within
-    the declared host arrays."""
+    """A chunk of 640 configurations × 24,600 pixels and then one of 600 (a sweep's last), the metrics on the device
+    (where it has float64) or in numpy: the resident set within the declared chunk of 640 (device buffers included
+    on a CPU device: the memory pool does not keep the first chunk's while the second runs), numpy's part within the
+    declared host arrays."""
     from s2cl.app.checks import check_sweep
     from s2cl.app.sweep_budget import host_footprint
 
     if where == "device" and not rt.has_fp64:
         pytest.skip("the metrics kernel needs float64")
     copies, chunk = 100, 640
-    measured = _measure(rt.info.spec, copies, chunk, where)
+    measured = _measure(rt.info.spec, copies, f"{chunk},{chunk - 40}", where)
     checked = check_sweep(gvmi_scene(copies))
     fp = host_footprint(checked, host_metrics=where == "host", device_memory=rt.host_memory,
                         device_metrics=where == "device")

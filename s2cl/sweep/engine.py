@@ -312,6 +312,8 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
             write_chunk(out, lo, rows)
             if progress:
                 progress(len(rows["config"]))
+        if not (workers or scheduler or evaluator):  # the chunks' buffers go back before the merge and the report
+            get_runtime(device or job.device).free_held()
     return merge_results(job, out)
 
 
