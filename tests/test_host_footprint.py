@@ -151,3 +151,21 @@ def test_the_deviates_draw_holds_what_it_declares() -> None:
         peak = _traced_peak(sensor_noise, 7, np.arange(n, dtype=np.uint64), list(range(bands)))
         declared = sensor_noise_bytes(n, bands)
         assert LOWEST * declared <= peak <= declared, (n, bands, peak, declared)
+
+
+def test_the_device_buffers_count_in_the_host_memory_only_where_the_device_works_in_it() -> None:
+    """A GPU's buffers are its own memory: the host's chunk is then the metric rows and the results alone; on a CPU
+    device the chunk's buffers (float32 index, three status bytes per padded pixel, float64 scratch per pixel) are
+    the host's, rounded up by the memory pool (at most 1/16)."""
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.sweep_budget import host_footprint
+
+    checked = check_sweep(gvmi_scene(20))  # 4,920 pixels, padded to 4,928 for 16 lanes
+    gpu = host_footprint(checked, host_metrics=False, device_memory=False, device_metrics=True).chunk
+    assert {a.name for a in gpu} == {"metric rows", "marked rows", "results"}
+    cpu = {a.name: a.per_unit for a in host_footprint(checked, host_metrics=False, device_memory=True,
+                                                      device_metrics=True).chunk}
+    assert cpu["index"] == 4 * 4928 * 17 / 16 and cpu["status"] == cpu["bounds"] == cpu["condition"] == 4928 * 17 / 16
+    assert cpu["scratch"] == 8 * 4920 * 17 / 16
+    # 16 metric columns as float64, fetched and copied; 2 + 2 + 24 result columns as float64, twice
+    assert cpu["metric rows"] == 2 * 8 * 16 and cpu["results"] == 2 * 8 * 28
