@@ -169,3 +169,48 @@ def test_the_device_buffers_count_in_the_host_memory_only_where_the_device_works
     assert cpu["scratch"] == 8 * 4920 * 17 / 16
     # 16 metric columns as float64, fetched and copied; 2 + 2 + 24 result columns as float64, twice
     assert cpu["metric rows"] == 2 * 8 * 16 and cpu["results"] == 2 * 8 * 28
+
+
+_DIGEST_CHILD = r"""
+import json, sys
+import pandas, pyarrow.parquet
+from s2cl.sweep.digest import Digest
+Digest.of_file(sys.argv[2], {"analysis": "igrm"})  # the modules a digest loads, before the measurement
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")
+def status(key):
+    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
+base = status("VmRSS:")
+d = Digest.of_file(sys.argv[1], {"analysis": "igrm"})
+print(json.dumps({"rss": status("VmHWM:") - base, "variants": d.variants("B4") + d.variants("B5")}))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="needs Linux's /proc peak resident set")
+@pytest.mark.parametrize("rows", [200_000, 800_000])
+def test_the_report_digest_holds_what_it_declares_whatever_the_rows(tmp_path: Path, rows: int) -> None:
+    """The digest of a results file (26 columns, two swept bands of 2,000 pairs each) streamed in a child process:
+    its resident set within the declared batch and pairs (:mod:`s2cl.sweep.digest`), at least 0.7 of it, the same for
+    four times the rows."""
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BATCH_ROWS, BYTES_PER_VARIANT
+
+    rng = np.random.default_rng(2)
+    centre, width = rng.integers(0, 100, rows) + 500.0, rng.integers(0, 20, rows) + 10.0
+    df = pd.DataFrame({"config": np.arange(rows), "B4_centre_nm": centre, "B4_width_nm": width,
+                       "B5_centre_nm": centre[::-1].copy(), "B5_width_nm": width[::-1].copy(), "rms": rng.random(rows),
+                       **{f"m{k}": rng.random(rows) for k in range(20)}})
+    path, small = tmp_path / "results.parquet", tmp_path / "small.parquet"
+    pq.write_table(pa.Table.from_pandas(df, preserve_index=False), path, row_group_size=BATCH_ROWS)
+    pq.write_table(pa.Table.from_pandas(df.head(10), preserve_index=False), small)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", _DIGEST_CHILD, str(path), str(small)], capture_output=True, text=True,
+                         env=env, cwd=ROOT, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    measured = json.loads(out.stdout.strip().splitlines()[-1])
+    declared = BATCH_BYTES_PER_COLUMN * len(df.columns) + BYTES_PER_VARIANT * measured["variants"]
+    assert measured["variants"] == 4000
+    assert LOWEST * declared <= measured["rss"] <= declared, (measured, declared)
