@@ -234,7 +234,7 @@ SERIES = (Column("x", "{x}", "the problem size (pixels, bands or configurations)
 MEMORY = (Column("chunk", "chunk", "configurations per chunk"),
           Column("chunk_rss_mib", "measured", "peak growth of the resident set while the chunk runs (sampled: a "
                  "lower bound)", unit="MiB"),
-          Column("estimate_mib", "estimate", "s2cl's planning estimate (check_resources)", unit="MiB"), TIME_MS)
+          Column("estimate_mib", "estimate", "s2cl's planning estimate (host_footprint)", unit="MiB"), TIME_MS)
 DASK = (Column("label", "run", "in-process, or Dask with that many workers"),
         Column("seconds", "wall", "wall time, cluster start-up included", unit="s"),
         Column("configs_per_s", "configurations/s", "configurations evaluated per second"))

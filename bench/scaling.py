@@ -184,16 +184,25 @@ def memory_vs_chunk(ctx: Context, copies: int, chunks: tuple[int, ...]) -> dict[
         out = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(c), str(copies)], capture_output=True,
                              text=True, env=env, cwd=ROOT, check=True)
         points.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    from s2cl.sweep.engine import HOST_BYTES_PER_EVALUATION
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.sweep_budget import host_footprint
+    from s2cl.cl.runtime import get_runtime
+    from s2cl.sweep.host_footprint import per_unit_bytes
+    from s2cl.sweep.metrics_kernel import metrics_on_device
 
-    pixels = job.tables.n_pixels
+    rt = get_runtime()
+    on_device = metrics_on_device(rt)
+    chunk_part = host_footprint(check_sweep(_sweep_scene(ctx, copies)), host_metrics=not on_device,
+                                device_memory=rt.host_memory, device_metrics=on_device).chunk
+    per_config = per_unit_bytes(chunk_part)
     for p in points:
         p["mib_per_config"] = p["chunk_rss_mib"] / p["chunk"]
-        p["estimate_mib"] = p["chunk"] * pixels * HOST_BYTES_PER_EVALUATION / 2**20
-    return {"pixels_per_config": pixels, "points": points,
+        p["estimate_mib"] = p["chunk"] * per_config / 2**20
+    return {"pixels_per_config": job.tables.n_pixels, "points": points,
             "note": "chunk_rss_mib: peak growth of the resident set while the chunk runs, over the process after "
                     "set-up (sampled, so a lower bound); estimate_mib: s2cl's own planning estimate "
-                    "(check_resources), 64 B per configuration-pixel"}
+                    f"(s2cl.app.sweep_budget.host_footprint), {per_config / job.tables.n_pixels:.1f} B per "
+                    "configuration-pixel"}
 
 
 def dask_workers(ctx: Context, copies: int) -> dict[str, Any]:

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from sweep_fixtures import gvmi_job, numpy_evaluator
+from sweep_fixtures import gvmi_job, gvmi_scene, numpy_evaluator
 
-from s2cl.errors import InputError
+from s2cl.errors import InputError, ResourceError
 from s2cl.reference.sweep import evaluate
 from s2cl.sweep.engine import RESULTS, run_sweep
 
@@ -152,21 +152,20 @@ def test_dask_workers_run_the_kernel_on_the_named_device(rt, tmp_path) -> None:
     assert (tmp_path / "dask" / RESULTS).read_bytes() == (tmp_path / "single" / RESULTS).read_bytes()
 
 
-def test_resources_are_checked_before_starting(tmp_path, monkeypatch) -> None:
+def test_the_disk_is_checked_before_the_tables_are_built(tmp_path, monkeypatch) -> None:
+    """The results' disk is refused before anything is built (the chunk's memory: tests/test_host_footprint.py)."""
     import shutil as _shutil
 
-    import s2cl.sweep.engine as sweep
+    import s2cl.io.budget as budget
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.sweep_budget import require_sweep_disk
 
-    job = gvmi_job()
-    monkeypatch.setattr(sweep, "_available_memory", lambda: 1e5)
-    with pytest.raises(InputError, match=r"GB of memory.*lower sweep.chunk"):
-        run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "a")
-    monkeypatch.setattr(sweep, "_available_memory", lambda: None)
+    checked = check_sweep(gvmi_scene())
     usage = _shutil.disk_usage(tmp_path)
-    monkeypatch.setattr(sweep.shutil, "disk_usage", lambda p: usage._replace(free=10))
-    with pytest.raises(InputError, match="MB of disk"):
-        run_sweep(job, evaluator=numpy_evaluator(job), out=tmp_path / "b")
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    monkeypatch.setattr(budget.shutil, "disk_usage", lambda p: usage._replace(free=10))
+    with pytest.raises(ResourceError, match="MB of disk"):
+        require_sweep_disk(checked, tmp_path / "b")
+    assert not (tmp_path / "b").exists()
 
 
 @pytest.mark.parametrize(

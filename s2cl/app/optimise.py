@@ -192,7 +192,7 @@ def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = 
                           overwrite=run.overwrite, device=run.device)
     started = (lambda todo, done: on_start(run.job, todo, done)) if on_start else None
     results = run_sweep(run.job, run.folder, progress=progress, on_start=started, workers=run.workers,
-                        scheduler=run.scheduler, overwrite=run.overwrite, device=run.device, resources_checked=True)
+                        scheduler=run.scheduler, overwrite=run.overwrite, device=run.device)
     return results, None
 
 

@@ -14,25 +14,20 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from s2cl.errors import ResourceError
-from s2cl.io.budget import gb, largest_fitting, parse_size
+from s2cl.io.budget import Allocation, gb, largest_fitting, parse_size
 
 GLOBAL_ENV = "S2CL_DEVICE_GLOBAL_MEM"
 MAX_ALLOC_ENV = "S2CL_DEVICE_MAX_ALLOC"
 #: the share of the device's global memory s2cl's live buffers may take: the driver, other programs on the device
 #: and the memory pool's rounding (pyopencl rounds a buffer up by at most 1/16) take the rest
 GLOBAL_FRACTION = 0.8
+#: what pyopencl's memory pool (:attr:`s2cl.cl.runtime.Runtime.pool`, the buffers of each launch) adds to a buffer at
+#: most: it rounds the size up to its bin
+POOL_ROUNDING = 1 / 16
 
 
-@dataclass(frozen=True)
-class DeviceBuffer:
-    """A device buffer whose size (bytes) is ``fixed + per_unit · n`` for ``n`` units of work."""
-
-    name: str
-    fixed: float
-    per_unit: float = 0.0
-
-    def bytes(self, units: int) -> float:
-        return self.fixed + self.per_unit * units
+#: a device buffer whose size (bytes) is ``fixed + per_unit · n`` for ``n`` units of work
+DeviceBuffer = Allocation
 
 
 @dataclass(frozen=True)

@@ -270,6 +270,14 @@ class Runtime:
         tools = __import__("pyopencl.tools", fromlist=["MemoryPool"])
         return tools.MemoryPool(tools.ImmediateAllocator(self.queue))
 
+    def free_held(self) -> None:
+        """Give the buffers :attr:`pool` keeps for reuse back to the driver (on a CPU device: to the host's memory):
+        when the sizes of the next launches change (a sweep's last, smaller chunk) and when an engine's launches are
+        over, so that the pool never holds more than the launches that use it (:mod:`s2cl.sweep.host_footprint`)."""
+        pool = self.__dict__.get("pool")
+        if pool is not None:
+            pool.free_held()
+
     def alloc(self, nbytes: int) -> Any:
         """An uninitialised device buffer of ``nbytes`` from :attr:`pool` (back to the pool when released)."""
         return self.pool.allocate(max(int(nbytes), 1))

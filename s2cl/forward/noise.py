@@ -63,6 +63,18 @@ def sensor_noise(seed: int, pixels: np.ndarray, band_ids: list[int] | tuple[int,
     return out
 
 
+#: eight-byte values per pixel the draw of one band holds at once besides its output (the counter's four words as
+#: uint64, the Philox products, halves and round outputs, the uniforms and normals in float64; :func:`normal4`):
+#: what tests/test_host_footprint.py measures
+DRAW_VALUES_PER_PIXEL = 22
+
+
+def sensor_noise_bytes(n_pixels: int, n_bands: int) -> int:
+    """Bytes :func:`sensor_noise` holds at its peak for ``n_pixels`` pixels of ``n_bands`` bands: its float64 output
+    and one band's draw."""
+    return 8 * n_pixels * (n_bands + DRAW_VALUES_PER_PIXEL)
+
+
 def add_noise(radiance: np.ndarray, noise_a: np.ndarray, noise_b: np.ndarray, band_ids: Sequence[int], seed: int,
               pixel_offset: int = 0, frame: int = 0) -> np.ndarray:
     """``radiance`` ``(n_bands, n_pixels)`` plus σ(L)·z on the host, float64: σ from each band's noise

@@ -91,6 +91,19 @@ class Budget:
                             f"({self.why}){tail}", source=source, key=key)
 
 
+@dataclass(frozen=True)
+class Allocation:
+    """Memory an engine allocates for ``n`` units of work (the configurations of a sweep chunk, say): ``fixed +
+    per_unit · n`` bytes, named for the messages; engines list theirs from the arrays and buffers they make."""
+
+    name: str
+    fixed: float
+    per_unit: float = 0.0
+
+    def bytes(self, units: int) -> float:
+        return self.fixed + self.per_unit * units
+
+
 def gb(nbytes: float) -> str:
     """'1.2 GB' / '350 MB' (decimal units, as users read them)."""
     return f"{nbytes / 1e9:.1f} GB" if nbytes >= 1e9 else f"{nbytes / 1e6:,.0f} MB"

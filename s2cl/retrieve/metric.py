@@ -152,7 +152,7 @@ class _Classification(Metric):
 
     def metrics(self, index: np.ndarray, status: np.ndarray, bounds: np.ndarray, target: np.ndarray, *,
                 regress: Sequence[int], n_classes: int, condition: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        return classification_metrics(np.asarray(index).astype(np.int64), status,
+        return classification_metrics(index, status,  # int64 class numbers, a row block at a time
                                       np.asarray(target).astype(np.int64), n_classes)
 
     def spectrum_stats(self, index: np.ndarray, status: np.ndarray, target: np.ndarray, copies: int, *,

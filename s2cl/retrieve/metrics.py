@@ -30,6 +30,17 @@ from s2cl.status import Status
 
 MAD_TO_SIGMA = 1.482602218505602  # 1 / Φ⁻¹(3/4)
 ROW_BLOCK = 32  # configurations per pass: keeps the float64 temporaries in cache
+#: arrays of a row block × the pixels a regression holds at once at most: float64 (:func:`_poly2`: the index, its
+#: weights, u, u², the residual and the expressions' temporaries); a classification's int64 (the classes, their
+#: masked copy, the confusion keys and their temporary); tests/test_host_footprint.py measures them
+REGRESSION_BLOCK_ARRAYS, CLASSIFICATION_BLOCK_ARRAYS = 8, 4
+
+
+def block_work_bytes(n_pixels: int, *, classifies: bool) -> int:
+    """Bytes the numpy metrics hold at once for one row block (:func:`row_blocks`) of ``n_pixels`` pixels: the same
+    for any number of configurations (8-byte values)."""
+    arrays = CLASSIFICATION_BLOCK_ARRAYS if classifies else REGRESSION_BLOCK_ARRAYS
+    return 8 * ROW_BLOCK * n_pixels * arrays
 
 
 def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray, target: np.ndarray, *,
@@ -45,9 +56,8 @@ def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray
     x = np.asarray(index)
     status = np.asarray(status)
     bounds = np.asarray(bounds)
-    parts = []
-    for a in range(0, max(x.shape[0], 1), ROW_BLOCK):
-        b = min(a + ROW_BLOCK, x.shape[0])
+    parts, medians = [], []
+    for a, b in row_blocks(x.shape[0]):
         # C order: each row's reductions run over contiguous memory, in the same order in any block
         xb = np.ascontiguousarray(x[a:b], dtype=np.float64)
         vb = _any_of(status[a:b], regress)
@@ -59,14 +69,28 @@ def regression_metrics(index: np.ndarray, status: np.ndarray, bounds: np.ndarray
         if bounded.size:
             refit = _poly2(xb[bounded], vb[bounded] & ~bounded_px[bounded], target, robust=False)
             part["rms_unbounded"][bounded] = refit["rms"]
+        del xb, vb, bounded_px
+        part.update(fit_accounting(status[a:b], bounds[a:b]))
+        if condition is not None:
+            fitted = _any_of(status[a:b], (Status.OK, Status.STALLED, Status.ITERATION_LIMIT))
+            medians.append(median_code(np.asarray(condition)[a:b], fitted) / CONDITION_CODES_PER_DECADE)
         parts.append(part)
-    out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    out.update(fit_accounting(status, bounds))
+    out = _joined(parts)
     out["excluded_fraction"] = 1.0 - out["n_valid"] / x.shape[1]
     if condition is not None:
-        fitted = _any_of(status, (Status.OK, Status.STALLED, Status.ITERATION_LIMIT))
-        out["log10_condition_median"] = median_code(np.asarray(condition), fitted) / CONDITION_CODES_PER_DECADE
+        out["log10_condition_median"] = np.concatenate(medians)
     return out
+
+
+def row_blocks(n_rows: int) -> list[tuple[int, int]]:
+    """The (start, stop) row ranges of :data:`ROW_BLOCK` configurations the numpy metrics take one at a time (one
+    empty block for no rows): their work arrays are a block's, whatever the chunk (:func:`block_work_bytes`); every
+    metric is a per-row reduction, so a row's value does not depend on its block."""
+    return [(a, min(a + ROW_BLOCK, n_rows)) for a in range(0, max(n_rows, 1), ROW_BLOCK)]
+
+
+def _joined(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def _any_of(codes: np.ndarray, values: tuple[int, ...]) -> np.ndarray:
@@ -228,8 +252,14 @@ def classification_metrics(predicted: np.ndarray, status: np.ndarray, truth: np.
                            n_classes: int) -> dict[str, np.ndarray]:
     """Confusion matrices ``(n_configs, n_classes, n_classes + 1)`` (last column: unclassified) and
     the mean omission error (%) per configuration."""
-    pred = np.where(status == 0, np.asarray(predicted, dtype=np.int64), n_classes)
     truth = np.asarray(truth, dtype=np.int64)
+    return _joined([_classification_block(np.asarray(predicted[a:b], dtype=np.int64), np.asarray(status[a:b]),
+                                          truth, n_classes) for a, b in row_blocks(len(predicted))])
+
+
+def _classification_block(predicted: np.ndarray, status: np.ndarray, truth: np.ndarray,
+                          n_classes: int) -> dict[str, np.ndarray]:
+    pred = np.where(status == 0, predicted, n_classes)
     n_cfg = pred.shape[0]
     flat = (np.arange(n_cfg)[:, None] * n_classes + truth[None, :]) * (n_classes + 1) + pred
     confusion = np.bincount(flat.ravel(), minlength=n_cfg * n_classes * (n_classes + 1)).reshape(

@@ -27,10 +27,13 @@ BATCH_ROWS = 65_536
 TOP = 10
 #: most centre rows and width columns a heatmap draws; beyond them consecutive values are grouped
 HEATMAP_CENTRES, HEATMAP_WIDTHS = 60, 40
-#: bytes the digest holds per band variant (sorted pairs, their best value, merge transients) and per
-#: batch (the Arrow batch, its DataFrame and the sorted pool): :mod:`s2cl.app.sweep_budget` counts them
-BYTES_PER_VARIANT = 96
-BATCH_BYTES_PER_COLUMN = 4 * 8 * BATCH_ROWS
+#: what the digest holds per band variant: the pair's key (complex128) and best value (float64), in at most four
+#: copies at once (the sorted pairs, those pending a merge, the merge's concatenation and its sort)
+BYTES_PER_VARIANT = 4 * (16 + 8)
+#: 8-byte copies of a batch's column the digest holds at once at most: the Parquet reader's decoded pages and the
+#: blocks its allocator keeps, the Arrow batch, its DataFrame, the rankable rows and their sort
+BATCH_COPIES = 14
+BATCH_BYTES_PER_COLUMN = BATCH_COPIES * 8 * BATCH_ROWS
 
 
 def metric_of(columns: list[str], meta: dict[str, str] | None = None) -> str:
@@ -256,7 +259,9 @@ def _labels(values: np.ndarray, group: int) -> list[str]:
 def _batches(path: str | Path) -> Iterator[Any]:
     import pyarrow.parquet as pq
 
-    with pq.ParquetFile(path) as f:
+    # pre_buffer=False: with it, pyarrow buffers every row group of the file ahead of the batches (the digest's memory
+    # grew with the configurations: 0.5 GB for 1.6 M rows of 26 columns)
+    with pq.ParquetFile(path, pre_buffer=False) as f:
         for batch in f.iter_batches(batch_size=BATCH_ROWS):
             yield batch.to_pandas()
 

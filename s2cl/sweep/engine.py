@@ -28,8 +28,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.cl.runtime import get_runtime
-from s2cl.errors import InputError, ResourceError
-from s2cl.io.budget import available_memory, require_disk
+from s2cl.errors import InputError
 from s2cl.io.output import write_json
 from s2cl.resources import code_fingerprint
 from s2cl.retrieve.analysis import AnalysisSettings
@@ -46,7 +45,6 @@ from s2cl.version import __version__
 
 REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
 MANIFEST = "manifest.json"
-HOST_BYTES_PER_EVALUATION = 64  # float64 work arrays of the metrics, per configuration-pixel
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,22 +280,6 @@ def results_disk_bytes(n_configs: int, n_slots: int) -> float:
     return n_configs * (2 * n_slots + 11) * 8 * 1.3 + 1e6
 
 
-def check_resources(job: SweepJob, out: Path) -> dict[str, float]:
-    """Disk and memory the sweep needs; :class:`InputError` before starting when they are not there."""
-    disk = results_disk_bytes(job.n_configs, len(job.tables.bands))
-    require_disk(out, disk, what=f"the results of {job.n_configs:,} configurations", key="sweep")
-    memory = job.chunk * job.tables.n_pixels * HOST_BYTES_PER_EVALUATION
-    available = _available_memory()
-    if available and memory > 0.8 * available:
-        raise ResourceError(f"a chunk of {job.chunk} configurations needs about {memory / 1e9:.1f} GB of memory, "
-                            f"{available / 1e9:.1f} GB are available; lower sweep.chunk", key="sweep.chunk")
-    return {"disk_bytes": disk, "chunk_memory_bytes": memory}
-
-
-def _available_memory() -> float | None:
-    return float(available_memory())
-
-
 # -- running ------------------------------------------------------------------------------------------
 
 Progress = Callable[[int], None]
@@ -305,19 +287,18 @@ Progress = Callable[[int], None]
 
 def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
               overwrite: bool = False, device: str | None = None, progress: Progress | None = None,
-              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None,
-              resources_checked: bool = False) -> Path:
+              on_start: Callable[[int, int], None] | None = None, evaluator: ChunkEvaluator | None = None
+              ) -> Path:
     """Run (or resume) a sweep into folder ``out``; returns the path of ``results.parquet``.
 
     :param device: the OpenCL device of every chunk, here and on Dask workers (each builds its own context).
     :param on_start: called with (configurations to compute, configurations already done).
     :param evaluator: a picklable chunk evaluator instead of the kernel (tests and bench: the numpy twin).
-    :param resources_checked: the caller has checked disk and memory already (:func:`s2cl.app.optimise.optimise`
-        does, before it builds anything); else :func:`check_resources` checks them here.
+
+    The chunk's memory and the results' disk are planned before the job is made
+    (:func:`s2cl.app.sweep_budget.sweep_resources`, :func:`s2cl.app.sweep_budget.require_sweep_disk`).
     """
     out = Path(out)
-    if not resources_checked:
-        check_resources(job, out)
     todo = prepare_folder(job, out, overwrite=overwrite)
     done = job.n_configs - sum(hi - lo for lo, hi in todo)
     if on_start:
@@ -331,6 +312,8 @@ def run_sweep(job: SweepJob, out: str | Path, *, workers: int | None = None, sch
             write_chunk(out, lo, rows)
             if progress:
                 progress(len(rows["config"]))
+        if not (workers or scheduler or evaluator):  # the chunks' buffers go back before the merge and the report
+            get_runtime(device or job.device).free_held()
     return merge_results(job, out)
 
 

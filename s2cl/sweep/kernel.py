@@ -173,6 +173,7 @@ class SweepKernel:
         self.kernel = self.rt.kernel(self.rt.build(self.source, template=TEMPLATE), "sweep_configs")
         self._upload()
         self._metrics = None  # the metrics kernel, built on first use
+        self._launched = 0  # configurations of the last launch (the size of the buffers the pool holds)
 
     def _upload(self) -> None:
         t, dtype, rt = self.tables, self.T.dtype, self.rt
@@ -205,6 +206,9 @@ class SweepKernel:
         if n <= 0 or stop > self.tables.n_configs:
             raise InputError(f"configurations {start}–{stop} outside 0–{self.tables.n_configs}")
         rt, T, pitch = self.rt, self.T, self.pitch
+        if n != self._launched:  # the pool's buffers of another size go back: it holds one launch's, not two
+            rt.free_held()
+            self._launched = n
         out = {"index": rt.alloc(n * pitch * T.dtype.itemsize), "status": rt.alloc(n * pitch),
                "bounds": rt.alloc(n * pitch), "condition": rt.alloc(n * pitch)}
         if "reflectance" in self.profile:
