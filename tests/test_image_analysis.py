@@ -13,11 +13,11 @@ import pytest
 import xarray as xr
 
 from s2cl.app.analysis import analysis_design, pixel_results, retrieve_pixels
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.app.checks import check_simulate
 from s2cl.app.image_analysis import CommonGrid, analyse_image, common_grid, pure_pixels, truth_on_grid
+from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.errors import InputError
-from s2cl.forward.cube import load_scene_cube, simulate_cube
-from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.io.image_store import MemoryStore
 from s2cl.libraries.fields import CLASSES, fields_image, fields_shape
@@ -48,9 +48,9 @@ def _scene(cube: str = "builtin:fields:40x48", *, noise: bool = True, psf: str =
 def _run(rt, scene: Scene, block_rows: int | None = None) -> tuple[xr.Dataset, dict, object, MemoryStore]:
     """Simulate and analyse ``scene`` in memory, ``block_rows`` input rows at a time (the analysis: half as many)."""
     checked = check_simulate(scene)
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     store = MemoryStore()
-    simulate_cube(rt, scene, cube=cube, store=store, block_rows=block_rows)
+    simulate_image(rt, scene, cube=cube, store=store, block_rows=block_rows)
     a = analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis,
                       block_rows=None if block_rows is None else block_rows // 2)
     return store.dataset(), a, cube, store
@@ -90,7 +90,7 @@ def test_uniform_parcels_give_the_library_pixels_own_retrieval(rt) -> None:
     scene = _scene(noise=False)
     ds, _, cube, _ = _run(rt, scene)
     lib = fields_image(scene.grid, 40, 48, scene.run.seed).library
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    sim = scene_simulator(rt, scene, atmosphere=scene_atmosphere(scene))
     own = pixel_results(rt, scene, sim.run_library(lib, copies=1, seed=scene.run.seed))
     labels = cube.labels.reshape(40, 48)[::2, ::2][:20, :24]  # the spectrum of each 20 m pixel's first input pixel
     pure = pure_pixels(cube.parcels, 2, 24)
@@ -153,9 +153,9 @@ def test_non_finite_reflectance_is_invalid_and_leaves_neighbours(rt) -> None:
     assert np.all(r.status[[0, 2, 3, 5]] == r.status[0]) and np.all(np.isfinite(r.index[[0, 2, 3, 5]]))
     # in an image: one NaN input pixel spoils its own 20 m box only
     checked = check_simulate(scene)
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     store = MemoryStore()
-    simulate_cube(rt, scene, cube=cube, store=store)
+    simulate_image(rt, scene, cube=cube, store=store)
     store.read("reflectance_B4", slice(None))[5, 7] = np.nan
     analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis)
     ds = store.dataset()
