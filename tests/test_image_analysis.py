@@ -15,7 +15,14 @@ import xarray as xr
 from s2cl.app.analysis import analysis_design, pixel_results, retrieve_pixels
 from s2cl.app.chain_parts import scene_simulator
 from s2cl.app.checks import check_simulate
-from s2cl.app.image_analysis import CommonGrid, analyse_image, common_grid, pure_pixels, truth_on_grid
+from s2cl.app.image_analysis import (
+    CommonGrid,
+    StreamedAnalysis,
+    analyse_image,
+    common_grid,
+    pure_pixels,
+    truth_on_grid,
+)
 from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.errors import InputError
 from s2cl.grid import DEFAULT_GRID
@@ -543,3 +550,32 @@ def test_the_calibration_refits_without_the_fits_on_a_bound() -> None:
     assert out["calibration_pixels"] == 4
     assert out["calibration_rms"] == pytest.approx(np.sqrt(np.mean(resid**2)), rel=1e-9) and out["calibration_rms"] > 1
     assert out["calibration_rms_unbounded"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_analysis_of_simulate_is_fed_as_it_writes_and_reads_nothing_back(rt, monkeypatch) -> None:
+    """``s2cl simulate``'s analysis takes the analysis bands' reflectance and flags rows as the simulation writes them
+    (:class:`StreamedAnalysis`): in blocks of 12 input rows, with nothing read back from the store, it writes the
+    variables and returns the figures that the analysis of the image read back gives."""
+    scene = _scene("builtin:fields:58x44", psf="gaussian")
+    reference, ref_figures, _, _ = _run(rt, scene, block_rows=12)
+    checked = check_simulate(scene)
+    cube = scene_cube(scene)
+    store, reads = MemoryStore(), []
+    read = MemoryStore.read
+
+    def counted(self, name, rows):
+        reads.append(name)
+        return read(self, name, rows)
+
+    monkeypatch.setattr(MemoryStore, "read", counted)
+    streamed = StreamedAnalysis(rt, checked.scene, list(checked.analysis_bands), checked.analysis, cube.rows,
+                                cube.cols)
+    simulate_image(rt, scene, cube=cube, store=streamed.tee(store), block_rows=12)
+    figures = streamed.finish(store, cube, 6)
+    assert not [n for n in reads if n.startswith(("reflectance_", "flags_"))]
+    ds = store.dataset()
+    assert set(ds.data_vars) == set(reference.data_vars) and "cab_error" in ds
+    for name in reference.data_vars:
+        np.testing.assert_array_equal(ds[name].values, reference[name].values, err_msg=name)
+        assert ds[name].attrs.keys() == reference[name].attrs.keys()
+    assert json.dumps(figures, sort_keys=True) == json.dumps(ref_figures, sort_keys=True)

@@ -12,7 +12,7 @@ from typing import Any
 
 from s2cl.app.chain_parts import chain_parts, scene_instrument
 from s2cl.app.checks import Checked, check_simulate
-from s2cl.app.image_analysis import analyse_image
+from s2cl.app.image_analysis import StreamedAnalysis
 from s2cl.app.image_quicklook import write_quicklook
 from s2cl.app.optimise import output_folder
 from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
@@ -181,11 +181,16 @@ def _simulate_cube(checked: Checked, folder: Path, device: str | None, budget: A
         if on_start:
             on_start(f"{sc.name}: cube", cube.rows * cube.cols)
         with simulation_file(nc) as store:
-            with errors_in(sc.source):
-                simulate_cube(rt, parts, cube, progress=progress, store=store, block_rows=block_rows)
-            analysis = None
+            streamed = None  # the analysis is fed the rows as they are written: nothing is read back
             if checked.analysis is not None:
-                analysis = _analyse_cube(rt, checked, store, cube, block_rows)
+                streamed = StreamedAnalysis(rt, sc, list(checked.analysis_bands), checked.analysis, cube.rows,
+                                            cube.cols)
+            with errors_in(sc.source):
+                simulate_cube(rt, parts, cube, progress=progress, store=store if streamed is None else
+                              streamed.tee(store), block_rows=block_rows)
+            analysis = None
+            if streamed is not None:
+                analysis = streamed.finish(store, cube, _analysis_step(checked, block_rows))
                 written.append(folder / "quicklook.png")
                 write_quicklook(store, written[-1], analysis["map"])
             if cog:
@@ -199,9 +204,8 @@ def _simulate_cube(checked: Checked, folder: Path, device: str | None, budget: A
                          pixels=cube.rows * cube.cols, seconds=seconds)
 
 
-def _analyse_cube(rt: Any, checked: Any, store: Any, cube: Any, block_rows: int | None) -> dict[str, Any]:
-    """The scene's [analysis] on the image in ``store``, by blocks of as many input rows as the simulation's."""
+def _analysis_step(checked: Checked, block_rows: int | None) -> int | None:
+    """Rows of the analysis's common grid in as many input rows as a block of the simulation (None: all)."""
     sc, bands = checked.scene, list(checked.analysis_bands)
     factor = max(sc.sensor.band(b).gsd_m for b in bands) / (sc.spec.surface.gsd_m or 1.0)
-    step = None if block_rows is None else max(1, int(block_rows // factor))
-    return analyse_image(rt, sc, store, cube, bands, checked.analysis, block_rows=step)
+    return None if block_rows is None else max(1, int(block_rows // factor))
