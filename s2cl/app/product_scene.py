@@ -89,7 +89,8 @@ def resolve_cube(scene: Scene) -> tuple[Scene, ResolvedCube | None]:
         spec = scene.spec.model_copy(update={"surface": s.model_copy(update={"gsd_m": gsd})})
         scene = replace(scene, spec=spec, grid=grid)
     cube = ResolvedCube(reader, None, reader.rows, reader.cols, reader.bands_read, gsd, grid,
-                        not on_grid(reader.wavelengths_nm, grid), source, s.quantity, tuple(caveats))
+                        not on_grid(reader.wavelengths_nm, grid), str(scene.resolve(s.cube)), s.quantity,
+                        tuple(caveats))
     return scene, cube
 
 

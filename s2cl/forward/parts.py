@@ -58,7 +58,8 @@ class ResolvedCube:
     :param gsd_m: its ground sampling distance (m): the scene's, or the product's pixel size.
     :param grid: the spectral grid the chain runs on (the scene's, or taken from the product's coverage).
     :param interpolates: the resampling kernel puts the file's own wavelengths on ``grid`` (they are not its samples).
-    :param source: the cube file (errors about its contents name it), or the scene for a generated cube.
+    :param source: the cube file as the scene names it (errors about its contents name it), or the scene for a
+        generated cube.
     :param quantity: what its values are (``surface.quantity``).
     :param caveats: what was taken from the product (GSD, grid), one line each.
     """
