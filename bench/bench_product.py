@@ -32,8 +32,6 @@ from typing import Any
 import numpy as np
 
 from bench.common import ROOT, load_average, machine_info, write_result
-from s2cl.app.chain_parts import scene_simulator
-from s2cl.app.image_simulation import scene_cube
 
 SEED = 1
 EXAMPLE_SIZE = 120
@@ -175,6 +173,8 @@ def read_alone(scene_path: Path, block_rows: int | None) -> float:
 def kernel_alone(scene_path: Path, block_rows: int | None) -> float:
     """Seconds of the chain's resampling kernel on every pixel of the product, each block as the chain gives it to the
     kernel (read, no-data pixels zeroed: untimed)."""
+    from s2cl.app.chain_parts import scene_simulator
+    from s2cl.app.image_simulation import scene_cube
     from s2cl.app.product_scene import resolve_product_scene
     from s2cl.cl.runtime import get_runtime
     from s2cl.scene.scene import Scene
@@ -183,7 +183,7 @@ def kernel_alone(scene_path: Path, block_rows: int | None) -> float:
     cube = scene_cube(Scene.load(str(scene_path)))
     scene, _ = resolve_product_scene(Scene.load(str(scene_path)))
     sim = scene_simulator(get_runtime(scene.run.device), scene, atmosphere=scene_atmosphere(scene),
-                              interpolation=cube.interpolation)
+                          interpolation=cube.interpolation)
     kernel = 0.0
     for r0, r1 in _blocks(cube.rows, block_rows):
         spectra, _ = cube.block(r0, r1)
