@@ -11,6 +11,11 @@ says that the scene left open.
   band whose support leaves the cube's coverage is refused, naming the band and the file.
 - **Quantity**: a product that states what it holds (the L2A products hold surface reflectance) must agree with
   ``surface.quantity``.
+
+The file's metadata is opened once per run: :func:`resolve_cube` (called by the checks,
+:func:`s2cl.app.checks.check_simulate`) returns the completed scene and the cube resolved from it
+(:class:`s2cl.forward.parts.ResolvedCube`: the reader, its shape, the GSD, the grid, the caveats and whether the
+resampling kernel interpolates the file's wavelengths), which the memory rules and the engines take.
 """
 
 from __future__ import annotations
@@ -99,13 +104,6 @@ def resolve_product_scene(scene: Scene) -> tuple[Scene, tuple[Caveat, ...]]:
     taken; ``scene`` itself when there is nothing to complete."""
     resolved, cube = resolve_cube(scene)
     return resolved, () if cube is None else cube.caveats
-
-
-def interpolates_cube(scene: Scene) -> bool:
-    """Whether the resampling kernel puts the scene's cube file on the grid itself (the file's wavelengths are not
-    the grid's: its own bands stream in, no spectra on the grid are held), from the file's metadata only."""
-    cube = resolve_cube(scene)[1]
-    return cube is not None and cube.interpolates
 
 
 def _pixel_metres(reader: CubeReader) -> float | None:
