@@ -160,7 +160,7 @@ def _blocks(rows: int, block_rows: int | None) -> list[tuple[int, int]]:
 
 def read_alone(scene_path: Path, block_rows: int | None) -> float:
     """Seconds to read every row of the product through its reader, by the end-to-end run's blocks."""
-    from s2cl.forward.product_scene import scene_reader
+    from s2cl.app.product_scene import scene_reader
     from s2cl.scene.scene import Scene
 
     reader = scene_reader(Scene.load(str(scene_path)))
@@ -173,17 +173,17 @@ def read_alone(scene_path: Path, block_rows: int | None) -> float:
 def kernel_alone(scene_path: Path, block_rows: int | None) -> float:
     """Seconds of the chain's resampling kernel on every pixel of the product, each block as the chain gives it to the
     kernel (read, no-data pixels zeroed: untimed)."""
+    from s2cl.app.chain_parts import scene_simulator
+    from s2cl.app.image_simulation import scene_cube
+    from s2cl.app.product_scene import resolve_product_scene
     from s2cl.cl.runtime import get_runtime
-    from s2cl.forward.cube import load_scene_cube
-    from s2cl.forward.product_scene import resolve_product_scene
-    from s2cl.forward.simulate import Simulator
     from s2cl.scene.scene import Scene
     from s2cl.scene.terms import scene_atmosphere
 
-    cube = load_scene_cube(Scene.load(str(scene_path)))
+    cube = scene_cube(Scene.load(str(scene_path)))
     scene, _ = resolve_product_scene(Scene.load(str(scene_path)))
-    sim = Simulator.for_scene(get_runtime(scene.run.device), scene, atmosphere=scene_atmosphere(scene),
-                              interpolation=cube.interpolation)
+    sim = scene_simulator(get_runtime(scene.run.device), scene, atmosphere=scene_atmosphere(scene),
+                          interpolation=cube.interpolation)
     kernel = 0.0
     for r0, r1 in _blocks(cube.rows, block_rows):
         spectra, _ = cube.block(r0, r1)

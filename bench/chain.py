@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from bench.common import check, interleaved_medians, max_rel_error
-from s2cl import Scene, Simulator, SpectralLibrary
+from s2cl import Scene, SpectralLibrary
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.cl.runtime import get_runtime
 from s2cl.reference.forward import resample, toa_radiance
 from s2cl.retrieve.igrm import IgrmFitter, IgrmResult, IgrmSettings
@@ -152,7 +153,7 @@ def run_chain(ctx: Context, label: str, overrides: dict[str, Any] | None = None,
     t0 = time.perf_counter()
     scene = ctx.scene(**{"surface.copies": copies, **(overrides or {})})
     lib = ctx.library_slice(scene, library)
-    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    sim = scene_simulator(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
     fitter = IgrmFitter(get_runtime(), len(BANDS), fit or IgrmSettings(), real_t=fit_real)
     rows, centres, target = analysis_bands(scene, lib, copies)
     setup = time.perf_counter() - t0
@@ -230,7 +231,7 @@ def validate_reference(ctx: Context) -> None:
     lib = ctx.library_slice(scene, first=12)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the reference scene has no atmosphere")
-    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
+    sim = scene_simulator(get_runtime(), scene, atmosphere=terms)
     weights = sim.plan.weights
     err = max_rel_error(sim.band_radiance(lib.spectra), oracle_band_radiance(lib.spectra, terms, weights))
     check(err < 1e-10, f"float64 chain band radiance disagrees with the numpy oracle: max rel {err:.2e}")
@@ -269,7 +270,7 @@ def slice_reflectance(ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     validated(ctx)
     scene = ctx.scene(**{"surface.copies": copies})
     lib = ctx.library_slice(scene)
-    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+    sim = scene_simulator(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
     res = sim.run_library(lib, copies=copies, seed=SEED)
     check(res.reflectance is not None, "the default scene does not correct to reflectance")
     rows, centres, target = analysis_bands(scene, lib, copies)

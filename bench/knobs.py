@@ -37,6 +37,7 @@ from bench.chain import (
 )
 from bench.common import check, interleaved_medians
 from s2cl import SpectralLibrary
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.atmos.atmosphere import ARRAY_DIMS as LUT_DIMS
 from s2cl.cl.runtime import get_runtime
 from s2cl.reference.forward import resample
@@ -264,7 +265,6 @@ def knob_lut(ctx: Context) -> KnobResult:
 
 def knob_copies(ctx: Context, seeds: int) -> KnobResult:
     """Noise copies per spectrum: the confidence interval of the chlorophyll RMS each buys."""
-    from s2cl import Simulator
 
     validated(ctx)
     seed_list = range(1, seeds + 1)
@@ -272,7 +272,7 @@ def knob_copies(ctx: Context, seeds: int) -> KnobResult:
     for copies in (10, 100, 1000):
         scene = ctx.scene(**{"surface.copies": copies})
         lib = scene_library(scene)  # the whole Lib1 (120 spectra), as the default scene runs it
-        sim = Simulator.for_scene(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
+        sim = scene_simulator(get_runtime(), scene, atmosphere=scene_atmosphere(scene))
         fitter = IgrmFitter(get_runtime(), len(BANDS))
         slots, centres, target = analysis_bands(scene, lib, copies)
         rms, times = [], []

@@ -19,7 +19,7 @@ import numpy as np
 from bench.chain import BANDS, REFERENCE_FIT, Context, oracle_band_radiance
 from bench.common import ROOT, check, max_rel_error, median_time
 from bench.sweep_check import validate_sweep
-from s2cl import Simulator
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.cl.runtime import get_runtime
 from s2cl.retrieve.igrm import IgrmFitter
 from s2cl.scene.library import scene_library
@@ -51,7 +51,7 @@ def forward_vs_pixels(ctx: Context, block: int) -> dict[str, Any]:
     lib = scene_library(scene)
     terms = scene_atmosphere(scene)
     check(terms is not None, "the default scene has no atmosphere")
-    sim = Simulator.for_scene(get_runtime(), scene, atmosphere=terms)
+    sim = scene_simulator(get_runtime(), scene, atmosphere=terms)
     sizes = [1_000, 10_000, 100_000, 1_000_000]
     spectra = np.ascontiguousarray(np.resize(lib.spectra, (min(block, max(sizes)), lib.spectra.shape[1])),
                                    dtype=np.float32)

@@ -34,10 +34,10 @@ import numpy as np
 
 from bench.bench_sweep import KERNEL_BLOCK
 from bench.common import RESULTS, interleaved_medians, load_average, machine_info, write_json
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.app.optimise import optimise
 from s2cl.app.plan import plan_sweep
 from s2cl.cl.runtime import Runtime, get_runtime
-from s2cl.forward.simulate import Simulator
 from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
 from s2cl.scene.terms import scene_atmosphere
@@ -88,7 +88,7 @@ def forward_costs(rt: Runtime, copies: int, rounds: int) -> dict[str, Any]:
     × ``copies``, without a new stage and with each alone."""
     scenes = {"none": Scene.load("default"), **{n: with_effects("default", {n: s}) for n, s in STAGES.items()}}
     lib = scene_library(scenes["none"])
-    sims = {n: Simulator.for_scene(rt, s, atmosphere=scene_atmosphere(s)) for n, s in scenes.items()}
+    sims = {n: scene_simulator(rt, s, atmosphere=scene_atmosphere(s)) for n, s in scenes.items()}
     radiance = np.repeat(sims["none"].band_radiance(lib.spectra), copies, axis=1)
     times = interleaved_medians([lambda s=s: s.sense(radiance, seed=1) for s in sims.values()], repeat=rounds,
                                 warmup=1)

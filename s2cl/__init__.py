@@ -21,10 +21,11 @@ from s2cl.errors import BuildError, DeviceError, InputError, S2CLError
 from s2cl.version import __version__
 
 if TYPE_CHECKING:  # what the names below are, for type checkers and readers; imported on first use
+    from s2cl.app.library_simulation import simulate
     from s2cl.app.optimise import OptimiseResult, optimise
     from s2cl.atmos.atmosphere import AtmosphereLUT
     from s2cl.atmos.state import AtmosphereState
-    from s2cl.forward.simulate import LibrarySimulation, Simulator, simulate
+    from s2cl.forward.simulate import LibrarySimulation, Simulator
     from s2cl.grid import DEFAULT_GRID, SpectralGrid
     from s2cl.libraries.library import SpectralLibrary
     from s2cl.libraries.registry import available_libraries, load_library
@@ -50,7 +51,7 @@ LAZY: dict[str, str] = {
     "available_libraries": "s2cl.libraries.registry",
     "load_library": "s2cl.libraries.registry",
     "optimise": "s2cl.app.optimise",
-    "simulate": "s2cl.forward.simulate",
+    "simulate": "s2cl.app.library_simulation",
 }
 
 

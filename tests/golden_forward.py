@@ -25,9 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.app.chain_parts import scene_simulator
+from s2cl.app.image_simulation import simulate_image
+from s2cl.app.library_simulation import simulate
 from s2cl.cl.runtime import Runtime, get_runtime
-from s2cl.forward.cube import simulate_cube
-from s2cl.forward.simulate import Simulator, simulate
 from s2cl.scene.scene import Scene
 
 GOLDEN = Path(__file__).resolve().parent / "data" / "golden"
@@ -80,7 +81,7 @@ def hard_case(rt: Runtime, precision: str) -> Arrays:
     scene = Scene.from_dict({
         "scene": {"name": "hard"}, "surface": {"library": "builtin:lib1", "quantity": "radiance"},
         "sensor": {"bands": ["B2", "B4", "B11"]}, "effects": {"seed": 2}, "compute": {"precision": precision}})
-    sim = Simulator.for_scene(rt, scene)
+    sim = scene_simulator(rt, scene)
     lmax = np.array([b.lmax for b in scene.sensor.bands])
     base = np.array([np.nan, np.inf, -np.inf, 0.0, -5.0, 1e-3, 1.0, 10.0, 80.0, 1e4, 1e30, -1e30])
     radiance = np.stack([np.concatenate([base, [lmax[k], lmax[k] * 0.999, lmax[k] * 1.2]]) for k in range(3)])
@@ -109,7 +110,7 @@ def cube_instrument_case(rt: Runtime, precision: str) -> Arrays:
         "mtf": True, "mtf_nyquist_bands": {"B5": 0.3}, "coregistration": True,
         "coregistration_shifts": {"B4": [0.2, -0.1]}, "smile": True, "smile_width_pct": [0.0, 1.0],
         "nonuniformity": True})
-    return _dataset_arrays(simulate_cube(rt, scene))
+    return _dataset_arrays(simulate_image(rt, scene))
 
 
 def cube_psf_case(rt: Runtime, precision: str) -> Arrays:
@@ -131,7 +132,7 @@ def cube_psf_case(rt: Runtime, precision: str) -> Arrays:
     cube = rng.uniform(0.2, 1.6, (24, 18, 1)) * np.where(rng.random((24, 18, 1)) < 0.5, veg, soil)
     cube[3, 4] = np.nan
     cube[20, 11, 100:200] = np.nan
-    return _dataset_arrays(simulate_cube(rt, scene, cube.astype(np.float32), block_rows=12))
+    return _dataset_arrays(simulate_image(rt, scene, cube.astype(np.float32), block_rows=12))
 
 
 def _sweep_job(name: str, precision: str) -> Any:

@@ -100,10 +100,7 @@ def test_packages_import_only_those_below_them() -> None:
 #: the whole scene (:mod:`s2cl.app.checks` resolves it once)
 ENGINES = ("s2cl.forward", "s2cl.sweep", "s2cl.retrieve")
 #: engine modules that still take the scene, to be emptied; a fixed one must leave this list (the test says so)
-KNOWN_SCENE_TAKERS: set[str] = {
-    "s2cl.forward.simulate", "s2cl.forward.product_scene", "s2cl.forward.instrument", "s2cl.forward.cube",
-    "s2cl.forward.reach",
-}
+KNOWN_SCENE_TAKERS: set[str] = set()
 
 
 def test_engines_never_import_the_scene() -> None:
@@ -113,17 +110,7 @@ def test_engines_never_import_the_scene() -> None:
 
 
 #: engine functions that still take a ``scene`` (typed or not), to be emptied with KNOWN_SCENE_TAKERS
-KNOWN_SCENE_PARAMETERS: set[str] = {
-    "s2cl.forward.cube:scene_cube_size", "s2cl.forward.cube:scene_cube_shape", "s2cl.forward.cube:load_scene_cube",
-    "s2cl.forward.cube:simulate_cube", "s2cl.forward.cube:__init__", "s2cl.forward.instrument:smile_radiance",
-    "s2cl.forward.instrument:smile_twin", "s2cl.forward.instrument:plan", "s2cl.forward.instrument:__init__",
-    "s2cl.forward.instrument:of", "s2cl.forward.product_scene:scene_reader",
-    "s2cl.forward.product_scene:interpolates_cube", "s2cl.forward.product_scene:resolve_product_scene",
-    "s2cl.forward.product_scene:_coverage_grid", "s2cl.forward.reach:band_groups", "s2cl.forward.reach:spatial_reach",
-    "s2cl.forward.reach:cube_halo", "s2cl.forward.run_attrs:run_attrs", "s2cl.forward.simulate:simulate",
-    "s2cl.forward.simulate:_require_memory", "s2cl.forward.simulate:for_scene", "s2cl.forward.simulate:run_library",
-    "s2cl.forward.stages:_quantisation_caveats", "s2cl.forward.stages:image_only", "s2cl.forward.stages:caveats",
-}
+KNOWN_SCENE_PARAMETERS: set[str] = set()
 
 
 def test_engine_functions_take_parts_not_the_scene() -> None:

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from s2cl.app.image_simulation import simulate_image
 from s2cl.errors import InputError
-from s2cl.forward.cube import aggregate, load_cube, simulate_cube
+from s2cl.forward.cube import aggregate, load_cube
 from s2cl.forward.sense import Radiometry
 from s2cl.grid import DEFAULT_GRID
 from s2cl.io.output import write_netcdf
@@ -32,7 +33,7 @@ def _scene(tmp_path=None, **surface) -> Scene:
 def test_bands_at_their_own_gsd(rt) -> None:
     cube = _cube()
     scene = _scene()
-    ds = simulate_cube(rt, scene, cube)
+    ds = simulate_image(rt, scene, cube)
     assert ds["dn_B2"].shape == (60, 60)
     assert ds["dn_B5"].shape == (30, 30)
     assert ds["dn_B1"].shape == (10, 10)
@@ -67,7 +68,7 @@ def test_netcdf_cube_in_and_out(rt, tmp_path) -> None:
     read = load_cube(tmp_path / "cube.nc")
     loaded, wl = read.values, read.wavelengths_nm
     assert loaded.shape == cube.shape and np.allclose(wl, DEFAULT_GRID.wavelengths)
-    out = simulate_cube(rt, _scene(tmp_path))
+    out = simulate_image(rt, _scene(tmp_path))
     path = write_netcdf(tmp_path / "out" / "simulation.nc", out)
     back = xr.open_dataset(path, engine="h5netcdf")
     assert back["dn_B4"].dtype == np.uint16 and back["dn_B12"].shape == (6, 6)
@@ -85,17 +86,17 @@ def test_envi_cube(rt, tmp_path) -> None:
     read = load_cube(tmp_path / "cube.hdr")
     loaded, wl = read.values, read.wavelengths_nm
     assert np.allclose(loaded, cube) and wl.size == DEFAULT_GRID.size
-    ds = simulate_cube(rt, _scene(tmp_path, cube="cube.hdr"))
+    ds = simulate_image(rt, _scene(tmp_path, cube="cube.hdr"))
     assert ds["dn_B2"].shape == (6, 6)
 
 
 def test_cube_bad_inputs(rt, tmp_path) -> None:
     with pytest.raises(InputError, match="not a whole multiple"):
-        simulate_cube(rt, _scene(gsd_m=15.0), _cube(12, 12))
+        simulate_image(rt, _scene(gsd_m=15.0), _cube(12, 12))
     with pytest.raises(InputError, match="wavelengths"):
-        simulate_cube(rt, _scene(), _cube(6, 6)[:, :, :2000])
+        simulate_image(rt, _scene(), _cube(6, 6)[:, :, :2000])
     with pytest.raises(InputError, match="smaller than one"):
-        simulate_cube(rt, _scene(), _cube(4, 4))
+        simulate_image(rt, _scene(), _cube(4, 4))
     with pytest.raises(InputError, match="not found"):
         load_cube(tmp_path / "missing.nc")
     (tmp_path / "junk.nc").write_text("not netcdf")
@@ -105,4 +106,4 @@ def test_cube_bad_inputs(rt, tmp_path) -> None:
     with pytest.raises(InputError, match="wavelength"):
         load_cube(tmp_path / "nowl.nc")
     with pytest.raises(InputError, match="shape"):
-        simulate_cube(rt, _scene(), np.zeros((10, 2101), np.float32))
+        simulate_image(rt, _scene(), np.zeros((10, 2101), np.float32))

@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.errors import InputError
-from s2cl.forward.cube import load_cube, simulate_cube
+from s2cl.forward.cube import load_cube
 from s2cl.forward.nodata import gap_weights
 from s2cl.grid import DEFAULT_GRID
 from s2cl.scene.scene import Scene
@@ -94,7 +95,7 @@ def _reference(rt, tmp_path: Path, ints: np.ndarray, psf: str) -> xr.Dataset:
     xr.Dataset({"reflectance": (("y", "x", "wavelength"), refl)},
                coords={"wavelength": ("wavelength", WL[~BAD], {"units": "nm"})}).to_netcdf(
         tmp_path / "plain.nc", engine="h5netcdf")
-    return simulate_cube(rt, _scene(tmp_path, "plain.nc", psf))
+    return simulate_image(rt, _scene(tmp_path, "plain.nc", psf))
 
 
 def _expected(mask: np.ndarray, factor: int, psf: str) -> np.ndarray:
@@ -139,7 +140,7 @@ def test_enmap_like_envi_cube_flags_exactly_its_no_data(rt, tmp_path, psf: str, 
     assert read.values.dtype == np.float32 and read.values.shape == (ROWS, COLS, (~BAD).sum())
     np.testing.assert_allclose(read.wavelengths_nm, WL[~BAD]) and np.testing.assert_allclose(read.bad_nm, WL[BAD])
     with caplog.at_level(logging.WARNING, logger="s2cl"):
-        ds = simulate_cube(rt, _scene(tmp_path, hdr.name, psf))
+        ds = simulate_image(rt, _scene(tmp_path, hdr.name, psf))
     (gap,) = [r.getMessage() for r in caplog.records if "bad band list" in r.getMessage()]
     assert "B10" in gap and "interpolated" in gap  # 1375 nm lies in the dropped window
     assert ds.attrs["nodata_input_pixels"] == mask.sum()
@@ -151,7 +152,7 @@ def test_float_envi_cube_with_nan_ignore_value_and_scale(rt, tmp_path) -> None:
     ints = _reflectance()
     holed, mask = _holes(ints, -9999.5, nan=True)
     hdr = _write_envi(tmp_path, holed, dtype="float32", interleave="bil", ignore="-9999.5")
-    ds = simulate_cube(rt, _scene(tmp_path, hdr.name))
+    ds = simulate_image(rt, _scene(tmp_path, hdr.name))
     _check_against_reference(ds, _reference(rt, tmp_path, ints, "none"), mask, "none")
 
 
@@ -173,7 +174,7 @@ def test_netcdf_cube_with_fill_value_scale_factor_and_cf_flags(rt, tmp_path) -> 
         encoding={"refl": {"dtype": "int16", "scale_factor": 1e-4, "_FillValue": -99}})
     with xr.open_dataset(tmp_path / "enmap.nc", engine="h5netcdf", decode_cf=False) as raw:
         assert raw["refl"].dtype == np.int16  # stored as integers, decoded by the reader
-    ds = simulate_cube(rt, _scene(tmp_path, "enmap.nc"))
+    ds = simulate_image(rt, _scene(tmp_path, "enmap.nc"))
     _check_against_reference(ds, _reference(rt, tmp_path, ints, "none"), mask, "none")
 
 
@@ -187,7 +188,7 @@ def test_in_memory_nan_pixels_become_nodata_not_an_error(rt, tmp_path) -> None:
     before = cube.copy()
     scene = Scene.from_dict({"scene": {"name": "c"}, "surface": {"cube": "c.nc", "gsd_m": 10.0},
                              "effects": {"seed": 1, "noise": False, "quantise": False, "calibrate": False}})
-    ds = simulate_cube(rt, scene, cube)
+    ds = simulate_image(rt, scene, cube)
     assert np.array_equal(np.isnan(cube), np.isnan(before)) and np.array_equal(cube[~np.isnan(cube)],
                                                                                before[~np.isnan(before)])
     b2 = ds["radiance_B2"].values
@@ -213,12 +214,11 @@ def test_bad_band_gap_weights() -> None:
 
 
 def test_a_radiance_cube_cannot_interpolate_over_bad_bands(tmp_path) -> None:
-    from s2cl.forward.cube import load_scene_cube
 
     hdr = _write_envi(tmp_path, _reflectance())
     message = r"enmap\.hdr: bbl: SRF weight on wavelengths the bad band list \(bbl\) dropped: B10 100 %; .*bands\)"
     with pytest.raises(InputError, match=message) as err:
-        load_scene_cube(_scene(tmp_path, hdr.name, quantity="radiance"))
+        scene_cube(_scene(tmp_path, hdr.name, quantity="radiance"))
     assert "\n" not in str(err.value)
 
 
@@ -295,11 +295,11 @@ def test_file_cubes_simulated_by_row_blocks_equal_the_whole_image(rt, tmp_path) 
                                                                     "_FillValue": -99}})
     for cube, psf in ((hdr.name, "gaussian"), ("cube.nc", "none")):
         scene = _scene(tmp_path, cube, psf)
-        whole = simulate_cube(rt, scene)
+        whole = simulate_image(rt, scene)
         assert whole.attrs["nodata_input_pixels"] == mask.sum() + (cube == "cube.nc")
         for block_rows in (4, 6):
             store = MemoryStore()
-            simulate_cube(rt, scene, store=store, block_rows=block_rows)
+            simulate_image(rt, scene, store=store, block_rows=block_rows)
             blocks = store.dataset()
             assert set(blocks.data_vars) == set(whole.data_vars)
             for name in whole.data_vars:

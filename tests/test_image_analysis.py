@@ -13,11 +13,18 @@ import pytest
 import xarray as xr
 
 from s2cl.app.analysis import analysis_design, pixel_results, retrieve_pixels
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.app.checks import check_simulate
-from s2cl.app.image_analysis import CommonGrid, analyse_image, common_grid, pure_pixels, truth_on_grid
+from s2cl.app.image_analysis import (
+    CommonGrid,
+    StreamedAnalysis,
+    analyse_image,
+    common_grid,
+    pure_pixels,
+    truth_on_grid,
+)
+from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.errors import InputError
-from s2cl.forward.cube import load_scene_cube, simulate_cube
-from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.io.image_store import MemoryStore
 from s2cl.libraries.fields import CLASSES, fields_image, fields_shape
@@ -48,9 +55,9 @@ def _scene(cube: str = "builtin:fields:40x48", *, noise: bool = True, psf: str =
 def _run(rt, scene: Scene, block_rows: int | None = None) -> tuple[xr.Dataset, dict, object, MemoryStore]:
     """Simulate and analyse ``scene`` in memory, ``block_rows`` input rows at a time (the analysis: half as many)."""
     checked = check_simulate(scene)
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     store = MemoryStore()
-    simulate_cube(rt, scene, cube=cube, store=store, block_rows=block_rows)
+    simulate_image(rt, scene, cube=cube, store=store, block_rows=block_rows)
     a = analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis,
                       block_rows=None if block_rows is None else block_rows // 2)
     return store.dataset(), a, cube, store
@@ -90,7 +97,7 @@ def test_uniform_parcels_give_the_library_pixels_own_retrieval(rt) -> None:
     scene = _scene(noise=False)
     ds, _, cube, _ = _run(rt, scene)
     lib = fields_image(scene.grid, 40, 48, scene.run.seed).library
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    sim = scene_simulator(rt, scene, atmosphere=scene_atmosphere(scene))
     own = pixel_results(rt, scene, sim.run_library(lib, copies=1, seed=scene.run.seed))
     labels = cube.labels.reshape(40, 48)[::2, ::2][:20, :24]  # the spectrum of each 20 m pixel's first input pixel
     pure = pure_pixels(cube.parcels, 2, 24)
@@ -153,9 +160,9 @@ def test_non_finite_reflectance_is_invalid_and_leaves_neighbours(rt) -> None:
     assert np.all(r.status[[0, 2, 3, 5]] == r.status[0]) and np.all(np.isfinite(r.index[[0, 2, 3, 5]]))
     # in an image: one NaN input pixel spoils its own 20 m box only
     checked = check_simulate(scene)
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     store = MemoryStore()
-    simulate_cube(rt, scene, cube=cube, store=store)
+    simulate_image(rt, scene, cube=cube, store=store)
     store.read("reflectance_B4", slice(None))[5, 7] = np.nan
     analyse_image(rt, scene, store, cube, checked.analysis_bands, checked.analysis)
     ds = store.dataset()
@@ -543,3 +550,32 @@ def test_the_calibration_refits_without_the_fits_on_a_bound() -> None:
     assert out["calibration_pixels"] == 4
     assert out["calibration_rms"] == pytest.approx(np.sqrt(np.mean(resid**2)), rel=1e-9) and out["calibration_rms"] > 1
     assert out["calibration_rms_unbounded"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_analysis_of_simulate_is_fed_as_it_writes_and_reads_nothing_back(rt, monkeypatch) -> None:
+    """``s2cl simulate``'s analysis takes the analysis bands' reflectance and flags rows as the simulation writes them
+    (:class:`StreamedAnalysis`): in blocks of 12 input rows, with nothing read back from the store, it writes the
+    variables and returns the figures that the analysis of the image read back gives."""
+    scene = _scene("builtin:fields:58x44", psf="gaussian")
+    reference, ref_figures, _, _ = _run(rt, scene, block_rows=12)
+    checked = check_simulate(scene)
+    cube = scene_cube(scene)
+    store, reads = MemoryStore(), []
+    read = MemoryStore.read
+
+    def counted(self, name, rows):
+        reads.append(name)
+        return read(self, name, rows)
+
+    monkeypatch.setattr(MemoryStore, "read", counted)
+    streamed = StreamedAnalysis(rt, checked.scene, list(checked.analysis_bands), checked.analysis, cube.rows,
+                                cube.cols)
+    simulate_image(rt, scene, cube=cube, store=streamed.tee(store), block_rows=12)
+    figures = streamed.finish(store, cube, 6)
+    assert not [n for n in reads if n.startswith(("reflectance_", "flags_"))]
+    ds = store.dataset()
+    assert set(ds.data_vars) == set(reference.data_vars) and "cab_error" in ds
+    for name in reference.data_vars:
+        np.testing.assert_array_equal(ds[name].values, reference[name].values, err_msg=name)
+        assert ds[name].attrs.keys() == reference[name].attrs.keys()
+    assert json.dumps(figures, sort_keys=True) == json.dumps(ref_figures, sort_keys=True)

@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
+from s2cl.app.chain_parts import chain_parts, scene_instrument, scene_simulator
+from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.errors import InputError
 from s2cl.forward import cube as cube_module
 from s2cl.forward import instrument as inst
-from s2cl.forward.cube import aggregate, load_scene_cube, simulate_cube
+from s2cl.forward.cube import aggregate
 from s2cl.forward.instrument import (
     Instrument,
     Smile,
@@ -26,7 +28,6 @@ from s2cl.forward.instrument import (
     spatial_twin,
 )
 from s2cl.forward.resample import Resampler
-from s2cl.forward.simulate import Simulator
 from s2cl.grid import DEFAULT_GRID
 from s2cl.scene.instrument_schema import BOX_MTF_NYQUIST
 from s2cl.scene.scene import Scene
@@ -165,7 +166,7 @@ def test_instrument_passes_each_band_its_own_psf_and_shift_in_input_pixels() -> 
     band pixel) with its own MTF at Nyquist (0.3) and shift; a 10 m band with the scene's MTF (0.15)."""
     scene = _scene({"mtf": True, "mtf_nyquist_bands": {"B5": 0.3}, "coregistration": True,
                     "coregistration_shifts": {"B5": [0.4, -0.25], "B4": [0.0, 0.5]}})
-    a = Instrument.of(scene)
+    a = scene_instrument(scene)
     b5, b4 = a.band_names.index("B5"), a.band_names.index("B4")
     sigma_b5 = math.sqrt(-2.0 * math.log(0.3 * math.pi / 2.0)) / math.pi  # exp(-2π²σ²/4)·2/π = 0.3
     sigma_b4 = math.sqrt(-2.0 * math.log(0.15 * math.pi / 2.0)) / math.pi
@@ -177,14 +178,14 @@ def test_instrument_passes_each_band_its_own_psf_and_shift_in_input_pixels() -> 
 
 
 def test_shifts_from_seed_have_the_given_magnitude() -> None:
-    a = Instrument.of(_scene({"coregistration": True}))
+    a = scene_instrument(_scene({"coregistration": True}))
     shifts = [a.shift(k) for k in range(len(a.band_names))]
     assert all(math.hypot(*s) == pytest.approx(0.15) for s in shifts)
     assert len({round(s[0], 9) for s in shifts}) == len(shifts)  # a direction per band
-    assert shifts == [Instrument.of(_scene({"coregistration": True})).shift(k) for k in range(len(shifts))]
-    other = Instrument.of(_scene({"coregistration": True}, effects={"seed": 4}))
+    assert shifts == [scene_instrument(_scene({"coregistration": True})).shift(k) for k in range(len(shifts))]
+    other = scene_instrument(_scene({"coregistration": True}, effects={"seed": 4}))
     assert other.shift(0) != shifts[0]
-    given = Instrument.of(_scene({"coregistration": True, "coregistration_shifts": {"B5": [0.1, -0.2]}}))
+    given = scene_instrument(_scene({"coregistration": True, "coregistration_shifts": {"B5": [0.1, -0.2]}}))
     assert given.shift(given.band_names.index("B5")) == (0.1, -0.2)
 
 
@@ -194,8 +195,8 @@ def test_shifted_band_in_the_cube(rt) -> None:
     pixels, ``moved(y, x) = ideal(y - dy, x - dx)``, away from the borders the filter mirrors."""
     cube = _cube()
     off = {"noise": False, "quantise": False, "calibrate": False}
-    ideal = simulate_cube(rt, _scene(effects=off), cube)
-    moved = simulate_cube(rt, _scene({"coregistration": True, "coregistration_shifts": {
+    ideal = simulate_image(rt, _scene(effects=off), cube)
+    moved = simulate_image(rt, _scene({"coregistration": True, "coregistration_shifts": {
         "B4": [1.0, 0.0], "B5": [1.0, -1.0], "B1": [-1.0, 0.0]}}, effects=off), cube)
     assert moved["radiance_B4"].attrs["shift_x_px"] == 1.0 and "shift_x_px" not in ideal["radiance_B4"].attrs
     a, b = ideal["radiance_B4"].values, moved["radiance_B4"].values
@@ -214,7 +215,7 @@ def test_smile_per_column_by_hand() -> None:
     """Column positions x = 2 (i + 1/2) / cols - 1 (4 columns: -0.75, -0.25, 0.25, 0.75), Δλ = 1 + 0·x + 2x² nm,
     width change 5·x %."""
     scene = _scene({"smile": True, "smile_centre_nm": [1.0, 0.0, 2.0], "smile_width_pct": [0.0, 5.0]})
-    smile = Smile.of(Instrument.of(scene).smile_spec, 4)
+    smile = Smile.of(scene_instrument(scene).smile_spec, 4)
     np.testing.assert_allclose(smile.shift_nm, [2.125, 1.125, 1.125, 2.125], rtol=1e-15)
     np.testing.assert_allclose(smile.width_factor, [0.9625, 0.9875, 1.0125, 1.0375], rtol=1e-15)
 
@@ -264,10 +265,11 @@ def test_smile_against_per_column_twin(rt, spec, tol) -> None:
     slightly rough function of the shift), where the smile itself changes the bands by 10-40 %."""
     scene = _scene({"smile": True, **spec}, compute={"precision": "float64"})
     cube = _cube(6, 40)
-    prepared = load_scene_cube(scene, cube, None)
-    ours = inst.smile_radiance(rt, scene, prepared.spectra, 6, 40, None)
-    twin = smile_twin(scene, prepared.spectra, 6, 40)
-    nominal = Simulator.for_scene(rt, scene).band_radiance(prepared.spectra).reshape(twin.shape)
+    prepared = scene_cube(scene, cube, None)
+    parts = chain_parts(scene, atmosphere=None)
+    ours = inst.smile_radiance(rt, parts, prepared.spectra, 6, 40)
+    twin = smile_twin(parts, prepared.spectra, 6, 40)
+    nominal = scene_simulator(rt, scene).band_radiance(prepared.spectra).reshape(twin.shape)
     err = np.abs(ours - twin) / np.abs(twin)
     assert err.max() < tol
     assert np.max(np.abs(nominal - twin) / np.abs(twin)) > 1e3 * tol  # the smile itself is far above that
@@ -279,8 +281,8 @@ def test_smile_in_the_cube_against_per_column_twin(rt) -> None:
     scene = _scene({"smile": True}, sensor={"bands": ["B4", "B5"]}, compute={"precision": "float64"},
                    effects={"noise": False, "quantise": False, "calibrate": False})
     cube = _cube(6, 40)
-    ds = simulate_cube(rt, scene, cube, block_rows=2)
-    twin = smile_twin(scene, load_scene_cube(scene, cube, None).spectra, 6, 40)
+    ds = simulate_image(rt, scene, cube, block_rows=2)
+    twin = smile_twin(chain_parts(scene), scene_cube(scene, cube, None).spectra, 6, 40)
     np.testing.assert_allclose(ds["radiance_B4"].values, twin[0], rtol=1e-6)
     np.testing.assert_allclose(ds["radiance_B5"].values, twin[1].reshape(3, 2, 20, 2).mean(axis=(1, 3)), rtol=1e-6)
 
@@ -297,12 +299,12 @@ def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
 
     monkeypatch.setattr(Resampler, "__init__", spy)
     cube = _cube(12, 12)
-    simulate_cube(rt, _scene(), cube)
+    simulate_image(rt, _scene(), cube)
     assert sources and not any("smile" in s for s in sources)
     sources.clear()
-    simulate_cube(rt, _scene({"smile": True}), cube)
+    simulate_image(rt, _scene({"smile": True}), cube)
     assert any("B4~smile3" in s for s in sources)
-    smile = Smile.of(Instrument.of(_scene({"smile": True})).smile_spec, 12)
+    smile = Smile.of(scene_instrument(_scene({"smile": True})).smile_spec, 12)
     assert smile.node_grid()[0].size == inst.SMILE_NODES and smile.node_grid()[1].size == 1
 
 
@@ -310,14 +312,14 @@ def test_smile_is_absent_from_the_kernel_when_off(rt, monkeypatch) -> None:
 
 def test_nonuniformity_columns_from_seed() -> None:
     scene = _scene({"nonuniformity": True, "residual_gain_pct": 1.0, "residual_offset_pct": 0.0})
-    a = Instrument.of(scene)
+    a = scene_instrument(scene)
     gain, offset = a.column_response(3, 5000)
     assert np.std(1.0 / gain - 1.0) == pytest.approx(0.01, rel=0.05)
     assert np.all(offset == 0.0)
-    again = Instrument.of(_scene({"nonuniformity": True, "residual_gain_pct": 1.0, "residual_offset_pct": 0.0}))
+    again = scene_instrument(_scene({"nonuniformity": True, "residual_gain_pct": 1.0, "residual_offset_pct": 0.0}))
     assert np.array_equal(again.column_response(3, 5000)[0], gain)
     assert not np.array_equal(a.column_response(4, 5000)[0], gain)
-    raw = Instrument.of(_scene({"nonuniformity": True, "equalised": False, "gain_pct": 3.0}))
+    raw = scene_instrument(_scene({"nonuniformity": True, "equalised": False, "gain_pct": 3.0}))
     g, o = raw.column_response(3, 5000)
     assert np.std(g) == pytest.approx(0.03, rel=0.05)
     assert np.std(o) == pytest.approx(0.005 * scene.sensor.bands[3].lref, rel=0.05)
@@ -329,7 +331,7 @@ def test_nonuniformity_columns_from_seed() -> None:
     eps, delta = 0.002 * z[2], 0.0005 * lref * z[3]
     L = np.linspace(10, 100, 50)
     expect = (gr * L + orw - (orw + delta)) / (gr * (1 + eps))
-    gain, offset = Instrument.of(s).column_response(3, 50)
+    gain, offset = scene_instrument(s).column_response(3, 50)
     assert np.allclose(gain * L + offset, expect, rtol=1e-12)
 
 
@@ -340,8 +342,8 @@ def test_nonuniformity_stripes_columns_in_the_cube(rt) -> None:
     cube = np.broadcast_to(_cube(1, 1), (24, 24, DEFAULT_GRID.size)).copy()
     off = {"noise": False, "quantise": False, "calibrate": False}
     scene = _scene({"nonuniformity": True}, effects=off)
-    ds = simulate_cube(rt, scene, cube)
-    ideal = simulate_cube(rt, _scene(effects=off), cube)
+    ds = simulate_image(rt, scene, cube)
+    ideal = simulate_image(rt, _scene(effects=off), cube)
     img = ds["radiance_B4"].values
     assert np.allclose(img, img[0:1, :], rtol=1e-6)  # constant down each column
     assert np.std(img[0]) / img[0].mean() > 5e-4  # but varying across
@@ -361,7 +363,7 @@ def test_host_effects_are_skipped_when_off(rt, monkeypatch) -> None:
     """An ideal instrument runs no FFT and no column response: the functions are made to fail and the cube still
     simulates, to the same bits as before."""
     cube = _cube(12, 12)
-    before = simulate_cube(rt, _scene(), cube)
+    before = simulate_image(rt, _scene(), cube)
 
     def fail(*a, **k):
         raise AssertionError("instrument effect ran while off")
@@ -369,7 +371,7 @@ def test_host_effects_are_skipped_when_off(rt, monkeypatch) -> None:
     monkeypatch.setattr(inst, "spatial_response", fail)
     monkeypatch.setattr(Instrument, "column_response", fail)
     monkeypatch.setattr(cube_module, "SmileResampler", fail)
-    after = simulate_cube(rt, _scene(), cube)
+    after = simulate_image(rt, _scene(), cube)
     assert after.attrs["instrument"] == "ideal"
     for name in before.data_vars:
         assert np.array_equal(before[name].values, after[name].values)
@@ -431,9 +433,9 @@ def test_effect_costs_ignores_the_scenes_switches(rt) -> None:
 
     s = _scene({"mtf": True, "mtf_nyquist": 0.3, "smile": True})
     ideal = with_effects(s, effect_settings(s))
-    assert Instrument.of(ideal).describe() == "ideal" and ideal.spec.effects.psf.mtf_nyquist == 0.3
+    assert scene_instrument(ideal).describe() == "ideal" and ideal.spec.effects.psf.mtf_nyquist == 0.3
     only = with_effects(s, effect_settings(s, "psf"))
-    assert Instrument.of(only).describe() == "psf" and Instrument.of(only).psf.mtf_nyquist == 0.3
+    assert scene_instrument(only).describe() == "psf" and scene_instrument(only).psf.mtf_nyquist == 0.3
 
 
 # -- row blocks and no-data ----------------------------------------------------------------------------------
@@ -443,8 +445,8 @@ def test_row_blocks_match_the_whole_image(rt) -> None:
     same variables, bit for bit, and the same band attributes."""
     cube = _cube(48, 48)
     scene = _scene({"mtf": True, "coregistration": True, "smile": True, "nonuniformity": True})
-    whole = simulate_cube(rt, scene, cube)
-    blocks = simulate_cube(rt, scene, cube, block_rows=12)
+    whole = simulate_image(rt, scene, cube)
+    blocks = simulate_image(rt, scene, cube, block_rows=12)
     assert set(whole.data_vars) == set(blocks.data_vars)
     for name in whole.data_vars:
         np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
@@ -458,17 +460,18 @@ def test_row_blocks_with_a_shift_and_a_psf_read_both_reaches(rt) -> None:
     2.548 input pixels, taper round(8 exp(-π² σ² / 2)) = 0: ⌈9 + 4 σ + 0 + 1⌉ - 1 = 20 rows, ⌈4 σ + 1⌉ - 1 = 11
     columns): blocks of 6 rows give the whole image's bands bit for bit, and a NaN pixel's footprint is that
     reach."""
-    from s2cl.forward.reach import cube_halo, spatial_reach
+    from s2cl.forward.reach import band_groups, cube_halo
 
     scene = _scene({"coregistration": True, "coregistration_shifts": {"B1": [0.0, 1.5], "B9": [0.0, 1.5],
                                                                       "B10": [0.0, 1.5]}},
                    spatial={"psf": "gaussian", "psf_fwhm": 1.0})
     b1 = [scene.sensor.band_names.index(n) for n in ("B1", "B9", "B10")]
-    assert spatial_reach(scene, b1, 6) == (20, 11) and cube_halo(scene) == 20
+    inst = scene_instrument(scene)
+    assert inst.reach(b1, 6) == (20, 11) and cube_halo(inst, band_groups(scene.sensor, 10.0)) == 20
     cube = _cube(72, 24)
     cube[40, 7, :] = np.nan
-    whole = simulate_cube(rt, scene, cube)
-    blocks = simulate_cube(rt, scene, cube, block_rows=6)
+    whole = simulate_image(rt, scene, cube)
+    blocks = simulate_image(rt, scene, cube, block_rows=6)
     for name in whole.data_vars:
         np.testing.assert_array_equal(whole[name].values, blocks[name].values, err_msg=name)
     # B1 (12 × 4): rows whose box [6i, 6i + 5] lies within 20 rows of row 40, columns within 11 of column 7
@@ -509,7 +512,7 @@ def test_valid_pixels_near_a_hole_equal_the_hole_free_cube(rt) -> None:
     holed, other = cube.copy(), cube.copy()
     holed[20, 20, :] = np.nan
     other[20, 20, :] *= 3.0
-    ref, ds, changed = (simulate_cube(rt, scene, c) for c in (cube, holed, other))
+    ref, ds, changed = (simulate_image(rt, scene, c) for c in (cube, holed, other))
     for band, (factor, rows, cols) in HOLE_REACH.items():
         nodata = _footprint((20, 20), ds[f"radiance_{band}"].shape, factor, rows, cols)
         assert np.array_equal((ds[f"flags_{band}"].values & PixelFlag.NODATA) != 0, nodata), band

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from s2cl.app.analysis import analysis_design, pixel_results
+from s2cl.app.library_simulation import simulate
 from s2cl.app.plan import plan_sweep
 from s2cl.errors import InputError
-from s2cl.forward.simulate import simulate
 from s2cl.reference import stages as ref
 from s2cl.reference.sweep import evaluate
 from s2cl.retrieve.index_kernel import IndexKernel, normalised_difference

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from s2cl.app.analysis import pixel_results
+from s2cl.app.library_simulation import simulate
 from s2cl.app.plan import plan_sweep
 from s2cl.errors import InputError
-from s2cl.forward.simulate import simulate
 from s2cl.retrieve.design import design_problem
 from s2cl.scene.scene import Scene
 from s2cl.status import Status

@@ -265,7 +265,7 @@ def _scene(tmp_path: Path, cube: str, **surface):
 def test_a_cube_covering_less_than_the_grid_gives_the_grid_its_coverage(tmp_path) -> None:
     """EnMAP covers 418.42–2445.53 nm: the default 400–2500 nm grid becomes 419–2445 nm (1 nm steps inside the
     coverage), said in one line; the GSD comes from the product's 30 m pixels."""
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
 
     folder, _ = pf.write_enmap(tmp_path)
     scene, notes = resolve_product_scene(_scene(tmp_path, folder.name))
@@ -277,7 +277,7 @@ def test_a_cube_covering_less_than_the_grid_gives_the_grid_its_coverage(tmp_path
 
 
 def test_a_gsd_other_than_the_products_pixels_is_kept_and_said(tmp_path) -> None:
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
 
     folder, _ = pf.write_enmap(tmp_path)
     scene, notes = resolve_product_scene(_scene(tmp_path, folder.name, gsd_m=10.0))
@@ -287,7 +287,7 @@ def test_a_gsd_other_than_the_products_pixels_is_kept_and_said(tmp_path) -> None
 
 
 def test_a_geographic_product_needs_a_gsd(tmp_path) -> None:
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
 
     path, _ = pf.write_emit(tmp_path)
     with pytest.raises(InputError, match=r"surface\.gsd_m: an image cube needs surface\.gsd_m .* EMIT L2A "
@@ -297,7 +297,7 @@ def test_a_geographic_product_needs_a_gsd(tmp_path) -> None:
 
 def test_a_product_whose_wavelengths_miss_a_bands_support_is_refused(tmp_path) -> None:
     """A cube from 450 nm: B1 (443 nm, FWHM 20: support 423–463 nm) leaves it."""
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
 
     path, _ = pf.write_geotiff(tmp_path)
     import rasterio as rio
@@ -312,7 +312,7 @@ def test_a_product_whose_wavelengths_miss_a_bands_support_is_refused(tmp_path) -
 
 
 def test_a_product_of_reflectance_needs_a_reflectance_scene(tmp_path) -> None:
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
     from s2cl.scene.scene import Scene
 
     path, _ = pf.write_prisma(tmp_path)
@@ -325,7 +325,7 @@ def test_a_product_of_reflectance_needs_a_reflectance_scene(tmp_path) -> None:
 def test_a_cube_without_georeference_needs_a_gsd(tmp_path) -> None:
     import xarray as xr
 
-    from s2cl.forward.product_scene import resolve_product_scene
+    from s2cl.app.product_scene import resolve_product_scene
 
     wl = np.arange(400.0, 2501.0, 100.0)
     xr.Dataset({"r": (("y", "x", "wavelength"), np.full((2, 2, wl.size), 0.3, np.float32))},

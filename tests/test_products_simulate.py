@@ -21,9 +21,9 @@ rasterio = pytest.importorskip("rasterio", reason="the geo extra (rasterio, pypr
 sys.path.insert(0, str(Path(__file__).parent))
 import product_fixtures as pf  # noqa: E402
 
+from s2cl.app.image_simulation import scene_cube, simulate_image  # noqa: E402
+from s2cl.app.product_scene import resolve_product_scene  # noqa: E402
 from s2cl.app.simulate_scene import simulate_scene  # noqa: E402
-from s2cl.forward.cube import simulate_cube  # noqa: E402
-from s2cl.forward.product_scene import resolve_product_scene  # noqa: E402
 from s2cl.scene.scene import Scene  # noqa: E402
 
 #: (writer, the name the scene gives, surface.gsd_m: None to take the product's)
@@ -83,7 +83,7 @@ def test_a_product_through_simulate_keeps_its_values_and_its_georeference(rt, tm
                                                                                     engine="h5netcdf")
     plain = _scene_dict("plain.nc", gsd_in, grid={"start_nm": resolved.grid.start_nm,
                                                   "stop_nm": resolved.grid.stop_nm})
-    reference = simulate_cube(rt, Scene.from_dict(plain, base_dir=tmp_path))
+    reference = simulate_image(rt, Scene.from_dict(plain, base_dir=tmp_path))
     with xr.open_dataset(run.folder / "simulation.nc", engine="h5netcdf", decode_coords="all") as ds:
         for band in ("B2", "B4", "B5", "B8a", "B12", "B1"):
             np.testing.assert_allclose(ds[f"radiance_{band}"].values, reference[f"radiance_{band}"].values,
@@ -119,7 +119,7 @@ def test_a_cube_without_georeference_says_so(rt, tmp_path) -> None:
     cube = pf.reflectance(wl, 12, 12).astype(np.float32)
     xr.Dataset({"reflectance": (("y", "x", "wavelength"), cube)}, coords={"wavelength": wl}).to_netcdf(
         tmp_path / "c.nc", engine="h5netcdf")
-    ds = simulate_cube(rt, Scene.from_dict(_scene_dict("c.nc", 10.0), base_dir=tmp_path))
+    ds = simulate_image(rt, Scene.from_dict(_scene_dict("c.nc", 10.0), base_dir=tmp_path))
     assert ds.attrs["georeference"] == NO_GEOREFERENCE
     assert "grid_mapping" not in ds["radiance_B5"].attrs
     np.testing.assert_allclose(ds["x_20m"].values, [10, 30, 50, 70, 90, 110])
@@ -130,15 +130,14 @@ def test_a_cube_without_georeference_says_so(rt, tmp_path) -> None:
 def test_a_product_in_row_blocks_gives_the_whole_image(rt, tmp_path, name: str) -> None:
     """Blocks of 6 input rows (each read from the product alone, EMIT's through its lookup table) give the image
     simulated at once, bit for bit."""
-    from s2cl.forward.cube import load_scene_cube
     from s2cl.io.image_store import MemoryStore
 
     writer, cube_name, gsd = PRODUCTS[name]
     path, _ = writer(tmp_path)
     scene = Scene.from_dict(_scene_dict(cube_name(path), gsd), base_dir=tmp_path)
-    whole = simulate_cube(rt, scene)
+    whole = simulate_image(rt, scene)
     store = MemoryStore()
-    simulate_cube(rt, scene, load_scene_cube(scene), store=store, block_rows=6)
+    simulate_image(rt, scene, scene_cube(scene), store=store, block_rows=6)
     blocks = store.dataset()
     for var in ("radiance_B2", "noisy_B5", "dn_B1", "reflectance_B12", "flags_B4"):
         np.testing.assert_array_equal(blocks[var].values, whole[var].values, err_msg=f"{name} {var}")
@@ -245,3 +244,33 @@ def test_cog_of_a_library_scene_is_refused_before_anything_is_written(tmp_path) 
     assert str(r.exception).endswith("default.toml: output.format: 'cog' writes GeoTIFFs of an image; a library "
                                      "scene has none (simulation.nc holds its pixels)")
     assert not (tmp_path / "o").exists()
+
+
+def test_a_products_metadata_is_opened_once_per_simulate(tmp_path, monkeypatch) -> None:
+    """``s2cl simulate`` of an EnMAP product opens its reader and parses its XML once (the checks open it; the memory
+    rules, the block size and the engines take what they opened): counted by wrapping the reader and the parser. It
+    was 6 times before the scene was resolved once (issue 34)."""
+    import xml.etree.ElementTree as ET
+
+    import s2cl.io.products.enmap as enmap
+
+    folder, _ = pf.write_enmap(tmp_path)
+    opened: list[Path] = []
+    parsed: list[str] = []
+    open_enmap, parse = enmap.open_enmap, ET.parse
+
+    def counted_open(p: Path):
+        opened.append(p)
+        return open_enmap(p)
+
+    def counted_parse(source, *args, **kwargs):
+        if str(source).upper().endswith("METADATA.XML"):
+            parsed.append(str(source))
+        return parse(source, *args, **kwargs)
+
+    monkeypatch.setattr(enmap, "open_enmap", counted_open)
+    monkeypatch.setattr(ET, "parse", counted_parse)
+    scene = Scene.from_dict(_scene_dict(folder.name, 10.0), base_dir=tmp_path)
+    run = simulate_scene(scene, tmp_path / "out")
+    assert (tmp_path / "out" / "simulation.nc") in run.written
+    assert len(opened) == 1 and len(parsed) == 1

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from s2cl.app.chain_parts import scene_simulator
+from s2cl.app.image_simulation import scene_cube
 from s2cl.errors import InputError
 from s2cl.forward.grid_interpolation import GridInterpolation
 from s2cl.forward.resample import ResamplePlan, Resampler
@@ -147,9 +149,7 @@ def test_a_product_through_the_chain_matches_the_oracle(rt, real_t: str, tmp_pat
     sys.path.insert(0, str(Path(__file__).parent))
     import product_fixtures as pf
 
-    from s2cl.forward.cube import load_scene_cube
-    from s2cl.forward.product_scene import resolve_product_scene
-    from s2cl.forward.simulate import Simulator
+    from s2cl.app.product_scene import resolve_product_scene
     from s2cl.scene.scene import Scene
     from s2cl.scene.terms import scene_atmosphere
 
@@ -158,7 +158,7 @@ def test_a_product_through_the_chain_matches_the_oracle(rt, real_t: str, tmp_pat
     scene = Scene.from_dict({"scene": {"name": "p"}, "compute": {"precision": real_t},
                              "surface": {"cube": path.name, "quantity": "reflectance", "gsd_m": 10.0},
                              "effects": {"atmosphere": True}}, base_dir=tmp_path)
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     scene = resolve_product_scene(scene)[0]  # the grid taken from the product's coverage
     assert cube.interpolation is not None
     order = [i for i in np.argsort(truth.wavelengths_nm, kind="stable") if truth.good[i]]
@@ -174,7 +174,7 @@ def test_a_product_through_the_chain_matches_the_oracle(rt, real_t: str, tmp_pat
     assert (block[empty] == 0).all()  # NODATA pixels zero; the others the stored values (read as float32)
     np.testing.assert_allclose(block[~empty], stored[~empty], rtol=2e-7)
     atmosphere = scene_atmosphere(scene)
-    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere, interpolation=cube.interpolation)
+    sim = scene_simulator(rt, scene, atmosphere=atmosphere, interpolation=cube.interpolation)
     out = sim.band_radiance(block)
     expected = _oracle(block, native, scene.grid, sim.plan, atmosphere)  # the values read, as the kernel got them
     _check(out, expected, real_t)

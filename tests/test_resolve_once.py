@@ -62,10 +62,11 @@ def test_a_band_addition_needs_no_terms_of_its_own(counted: dict[str, list]) -> 
 
 #: modules whose functions receive the scene or the resolved object through ``plan_sweep`` of the default scene
 #: (``python tools/follow_scene.py``: a dynamic trace): 13 before the scene was resolved once (sweep.tables,
-#: sweep.space, sweep.addition, retrieve.analysis and retrieve.family took it), 8 after
-MAX_SCENE_MODULES = 8
-#: the engine modules that still take the scene on this path (the caveats of the chain's stages)
-SCENE_ENGINES = {"s2cl.forward.stages"}
+#: sweep.space, sweep.addition, retrieve.analysis, retrieve.family and forward.stages took it), 7 after: the
+#: application and scene layers only
+MAX_SCENE_MODULES = 7
+#: the engine modules that still take the scene on this path: none
+SCENE_ENGINES: set[str] = set()
 
 
 def test_the_scene_through_plan_sweep_visits_few_modules_and_nothing_reloads() -> None:
@@ -77,3 +78,15 @@ def test_the_scene_through_plan_sweep_visits_few_modules_and_nothing_reloads() -
     assert {m for m in trace.modules if m.startswith(ENGINES)} <= SCENE_ENGINES, sorted(trace.modules)
     assert counts["climbs"] == 0, sorted(trace.climbs)
     assert counts["library_loads"] == 1 and counts["terms_computed"] == 2
+
+
+def test_simulate_computes_the_terms_once(tmp_path: Path, counted: dict[str, list]) -> None:
+    """``s2cl simulate`` of the default library scene and of a generated image: the checks compute each state's terms,
+    and the chain takes them from there (before: computed again for the chain)."""
+    from s2cl.app.simulate_scene import simulate_scene
+
+    simulate_scene(Scene.load("default"), tmp_path / "lib")
+    assert counted["terms"] == ["atmosphere", "correction"]
+    counted["terms"].clear()
+    simulate_scene(Scene.load("cube-fields"), tmp_path / "cube")
+    assert counted["terms"] == ["atmosphere", "correction"]

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from s2cl.app.library_simulation import simulate
 from s2cl.errors import InputError
 from s2cl.forward.dataset import image_layout
 from s2cl.forward.sense import Radiometry
-from s2cl.forward.simulate import simulate
 from s2cl.grid import DEFAULT_GRID
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.reference import forward as ref

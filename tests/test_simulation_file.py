@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import s2cl
+from s2cl.app.library_simulation import simulate
 from s2cl.app.simulate_scene import simulate_scene
 from s2cl.cl.runtime import get_runtime
-from s2cl.forward.simulate import simulate
 from s2cl.io.simulation_file import simulation_file
 from s2cl.scene.scene import Scene
 

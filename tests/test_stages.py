@@ -13,8 +13,9 @@ import pytest
 import xarray as xr
 from scipy.ndimage import gaussian_filter
 
-from s2cl.forward.instrument import Instrument, fir_radius
-from s2cl.forward.reach import cube_halo, spatial_reach
+from s2cl.app.chain_parts import scene_instrument
+from s2cl.forward.instrument import fir_radius
+from s2cl.forward.reach import band_groups, cube_halo
 from s2cl.forward.stages import STAGES, chain, image_only, segments, stage
 from s2cl.scene.effects import SWITCHES, EffectSet
 from s2cl.scene.scene import Scene
@@ -68,7 +69,7 @@ def test_deprecated_sections_are_read_with_one_note_per_key(caplog) -> None:
     new = Scene.from_dict(home)
     assert old.spec.effects == new.spec.effects and old.effects == new.effects
     assert old.effects.describe() == "resample, psf, coregistration, noise, quantise, calibrate"
-    a, b = Instrument.of(old), Instrument.of(new)
+    a, b = scene_instrument(old), scene_instrument(new)
     assert [a.response(k, 2) for k in range(13)] == [b.response(k, 2) for k in range(13)]
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="s2cl"):
@@ -94,7 +95,7 @@ def test_the_fwhm_psf_is_the_gaussian_of_that_fwhm(fwhm: float) -> None:
     image, inside where neither border rule reaches, it is scipy's sampled Gaussian (the former [spatial] PSF) to
     5e-4 of the image's range (the two differ by the sampled Gaussian's aliasing: most on fine detail)."""
     scene = Scene.from_dict({**CUBE, "effects": {"psf": {"fwhm": fwhm}}})
-    inst = Instrument.of(scene)
+    inst = scene_instrument(scene)
     k = scene.sensor.band_names.index("B5")  # 20 m over 10 m: 2 input pixels per band pixel
     sigma = fwhm * 2 / (2.0 * math.sqrt(2.0 * math.log(2.0)))
     assert inst.response(k, 2) == pytest.approx((sigma, 0.0, 0.0), rel=1e-12)
@@ -114,8 +115,8 @@ def test_one_reach_rule_for_the_footprint_the_halo_and_memory() -> None:
     scene = Scene.from_dict({**CUBE, "effects": {"psf": {"fwhm": 1.5}, "coregistration": {
         "px": 0.0, "shifts": {"B1": [0.0, 0.5], "B9": [0.0, 0.5], "B10": [0.0, 0.5]}}}})
     ids = [scene.sensor.band_names.index(b) for b in ("B1", "B9", "B10")]
-    assert spatial_reach(scene, ids, 6) == (19, 16)
-    assert cube_halo(scene) == 19
+    assert scene_instrument(scene).reach(ids, 6) == (19, 16)
+    assert cube_halo(scene_instrument(scene), band_groups(scene.sensor, scene.spec.surface.gsd_m)) == 19
 
 
 # -- image-only stages where they cannot run ------------------------------------------------------------------------
@@ -125,7 +126,7 @@ def test_image_only_stages_in_a_library_scene_are_named_in_one_line(tmp_path, ca
 
     scene = Scene.from_dict({**LIBRARY, "effects": {**LIBRARY["effects"], "psf": True, "smile": {"width_pct": [1.0]},
                                                     "nonuniformity": {"on": False}}})
-    (caveat,) = image_only(scene)
+    (caveat,) = _image_only(scene)
     line = ("effects.smile, effects.psf: image-only stages, not run on this library scene (they act on image cubes: "
             "surface.cube)")
     assert str(caveat) == line
@@ -136,8 +137,12 @@ def test_image_only_stages_in_a_library_scene_are_named_in_one_line(tmp_path, ca
     assert line in written["warnings"]
     with xr.open_dataset(tmp_path / "out" / "simulation.nc") as ds:  # the stages run: neither psf nor smile
         assert ds.attrs["effects"] == "atmosphere, resample, noise, quantise, calibrate, correct"
-    assert image_only(Scene.from_dict(LIBRARY)) == []
-    assert image_only(Scene.from_dict({**CUBE, "effects": {"psf": True}})) == []
+    assert _image_only(Scene.from_dict(LIBRARY)) == []
+    assert _image_only(Scene.from_dict({**CUBE, "effects": {"psf": True}})) == []
+
+
+def _image_only(scene: Scene) -> list:
+    return image_only(scene.effects, image=scene.spec.surface.cube is not None, sweep=scene.spec.sweep is not None)
 
 
 def test_image_only_stages_in_a_sweep_scene_are_named_in_its_caveats() -> None:

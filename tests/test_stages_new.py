@@ -14,10 +14,12 @@ import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 from test_families import _code_words, _product_files
 
+from s2cl.app.chain_parts import scene_simulator
+from s2cl.app.image_simulation import simulate_image
+from s2cl.app.library_simulation import simulate
 from s2cl.atmos.correction import BandAtmosphere, correct
 from s2cl.errors import InputError
 from s2cl.forward.radiometry import Radiometry
-from s2cl.forward.simulate import Simulator, simulate
 from s2cl.forward.stages import STAGES, stage
 from s2cl.reference import forward as ref
 from s2cl.scene.scene import Scene
@@ -147,7 +149,7 @@ def test_hard_radiance_stays_finite_or_flagged(rt, real_t: str) -> None:
                              "effects": {"seed": 2, "crosstalk": {"coefficient": 0.01},
                                          "calibration_error": {"error": 0.04}},
                              "compute": {"precision": real_t}})
-    sim = Simulator.for_scene(rt, scene)
+    sim = scene_simulator(rt, scene)
     radiance = np.array([[np.nan, 0.0, -5.0, 1e4, 50.0, np.inf], [30.0, 0.0, -5.0, 1e4, 60.0, 20.0],
                          [5.0, 0.0, -5.0, 1e4, 3.0, 2.0]])
     out = sim.sense(radiance.astype(real_t), seed=2)
@@ -246,7 +248,6 @@ def test_sweeps_and_searches_see_both_stages(tmp_path) -> None:
 def test_an_image_cube_runs_both_stages(rt) -> None:
     """On a cube the bands of one GSD share their pixels: crosstalk among them; each variable names the band's
     calibration error and what it gains from which band."""
-    from s2cl.forward.cube import simulate_cube
 
     base = {"scene": {"name": "cube"}, "surface": {"cube": "builtin:fields:12x12", "gsd_m": 10.0,
                                                    "quantity": "reflectance"},
@@ -255,7 +256,7 @@ def test_an_image_cube_runs_both_stages(rt) -> None:
                                                "crosstalk": {"coefficient": 0.01},
                                                "calibration_error": {"bands": {"B4": 0.03}}}})
     ideal = Scene.from_dict({**base, "effects": {"atmosphere": True, "correct": True, "seed": 1, "noise": False}})
-    ds, ref_ds = simulate_cube(rt, new), simulate_cube(rt, ideal)
+    ds, ref_ds = simulate_image(rt, new), simulate_image(rt, ideal)
     assert ds["calibrated_B4"].attrs["calibration_error"] == 0.03
     assert ds["calibrated_B4"].attrs["crosstalk_from"] == "B2 0.01"  # the 10 m bands: B2 and B4
     assert ds["calibrated_B5"].attrs["crosstalk_from"] == "B6 0.01" and ds["dn_B11"].attrs["crosstalk_from"] == "none"

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from s2cl.app.chain_parts import scene_simulator
 from s2cl.cl.templates import render
 from s2cl.cl.vectypes import VecTypes
 from s2cl.errors import InputError, RenderError
@@ -101,7 +102,7 @@ def test_every_builtin_scene_renders_and_builds(rt, name: str) -> None:
     scene = Scene.load(name)
     from s2cl.scene.terms import scene_atmosphere
 
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    sim = scene_simulator(rt, scene, atmosphere=scene_atmosphere(scene))
     assert sim.resampler.kernel is not None
     assert (sim.sensing is not None) == senses(scene.effects)
 

@@ -18,7 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
+from s2cl.app.product_scene import resolve_cube
 from s2cl.errors import InputError, errors_in, token
+from s2cl.forward.parts import ResolvedCube
 from s2cl.forward.resample import AtmosphereArrays
 from s2cl.forward.stages import caveats as stage_caveats
 from s2cl.grid import SpectralGrid
@@ -60,6 +62,8 @@ class Checked:
     #: the sensor a sweep's tables see: the scene's, with a band-addition sweep's added band appended
     #: (:func:`s2cl.sweep.space.with_added_band`); the scene's own for ``simulate``
     sensor: Sensor | None = None
+    #: an image scene's cube, its file's metadata opened once (``scene`` is completed from it: GSD, grid)
+    cube: ResolvedCube | None = None
 
     @property
     def source(self) -> str:
@@ -77,7 +81,9 @@ class Checked:
 
 def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
     """Everything ``s2cl simulate`` needs, checked (its analysis runs on ``analysis_bands``); a library file is
-    sized from its metadata against ``budget`` before it is read."""
+    sized from its metadata against ``budget`` before it is read; a cube file's metadata is opened once, and the scene
+    completed from it (:func:`s2cl.app.product_scene.resolve_cube`)."""
+    scene, cube = resolve_cube(scene)
     library, space = _surface(scene, budget), _space(scene)
     analysis, bands = None, []
     if scene.spec.analysis is not None:
@@ -90,8 +96,9 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
     truth, assumed = _atmosphere(scene)
-    caveats = _caveats(scene, space, list(scene.sensor.band_names))
-    return Checked(scene, library, space, analysis, bands, caveats, truth=truth, assumed=assumed, sensor=scene.sensor)
+    caveats = [*(cube.caveats if cube else ()), *_caveats(scene, space, list(scene.sensor.band_names))]
+    return Checked(scene, library, space, analysis, bands, caveats, truth=truth, assumed=assumed, sensor=scene.sensor,
+                   cube=cube)
 
 
 def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
@@ -177,7 +184,9 @@ def _caveats(scene: Scene, space: SweepSpace | None, bands: list[str]) -> list[C
     if space is not None:
         for r in space.ranges:
             widths[r.band] = min(widths.get(r.band, float("inf")), r.extent()[2])
-    return grid_caveats(scene, widths) + stage_caveats(scene, bands)
+    return grid_caveats(scene, widths) + stage_caveats(scene.sensor, scene.effects, bands,
+                                                       image=scene.spec.surface.cube is not None,
+                                                       sweep=scene.spec.sweep is not None)
 
 
 def check_sweep_sections(scene: Scene) -> None:

@@ -111,42 +111,149 @@ def pure_pixels(parcels: np.ndarray, factor: int, nx: int) -> np.ndarray:
 
 def analyse_image(rt: Runtime, scene: Scene, store: ImageStore, cube: SceneCube, bands: list[str],
                   settings: AnalysisSettings, *, block_rows: int | None = None) -> dict[str, Any]:
-    """Run the scene's analysis on the image in ``store`` (:func:`s2cl.forward.cube.simulate_cube`), ``block_rows``
-    rows of the common grid at a time (default: all); add its map, status, flags (and, with a truth, the parameter,
-    truth and error maps) to ``store``; return the metrics and the fit accounting (``simulation.json``'s analysis)."""
+    """Run the scene's analysis on the image already in ``store`` (:func:`s2cl.forward.cube.simulate_cube`),
+    ``block_rows`` rows of the common grid at a time (default: all), reading the analysis bands' reflectance back; add
+    its map, status, flags (and, with a truth, the parameter, truth and error maps) to ``store``; return the metrics
+    and the fit accounting (``simulation.json``'s analysis). ``s2cl simulate`` reads nothing back: it feeds the
+    analysis as it writes (:class:`StreamedAnalysis`)."""
     grid = CommonGrid.of(store, scene, bands)
-    dims, step = grid.dims, block_rows or grid.ny
-    index = np.empty((grid.ny, grid.nx), np.float32)
-    status = np.empty((grid.ny, grid.nx), np.uint8)
-    bounds = np.empty((grid.ny, grid.nx), np.uint8)
+    step = block_rows or grid.ny
+    retrieval = _Retrieval(rt, scene, grid, bands, settings)
     flagged = any(f"flags_{b}" in store for b in grid.bands)
-    store.create("analysis_index", dims, np.float32,
-                 {"long_name": f"{settings.kind} retrieval on {' '.join(bands)} (igrm: inflection wavelength lp in "
-                  "nm; an index or formula: its value)", "analysis_kind": settings.kind})
-    store.create("analysis_status", dims, np.uint8, dict(STATUS_ATTRS))
-    store.create("analysis_bounds", dims, np.uint8, {"long_name": "fit on a parameter bound (IGRM), 0: no"})
-    if flagged:
-        store.create("analysis_flags", dims, np.uint8, {**_flag_attrs(store), "long_name": "OR of the radiometric "
-                                                         "flags of the analysis bands' pixels in each box"})
     for r0 in range(0, grid.ny, step):
         rows = slice(r0, min(grid.ny, r0 + step))
-        refl = grid.reflectance(store, rows)
-        r = retrieve_pixels(rt, scene, bands, settings, refl.reshape(len(bands), -1))
+        retrieval.add(rows, grid.reflectance(store, rows), grid.flags(store, rows) if flagged else None)
+    return retrieval.finish(store, cube, step)
+
+
+class StreamedAnalysis:
+    """The scene's analysis fed by the simulation as it writes (``s2cl simulate``): :meth:`tee` wraps the store the
+    simulation writes into, and the analysis bands' reflectance and flags rows are kept as they are written, until
+    every band holds whole rows of the common grid, which are retrieved then and let go; nothing is read back from the
+    file. The rows held are at most a block's (the memory rule's analysis share,
+    :data:`s2cl.app.simulate_scene.CUBE_BYTES_PER_BAND`); the map, status, bounds and flags are held whole, as the
+    memory rule counts them (:data:`s2cl.app.simulate_scene.CUBE_BYTES_FILE`), and written when it finishes."""
+
+    def __init__(self, rt: Runtime, scene: Scene, bands: list[str], settings: AnalysisSettings, rows: int,
+                 cols: int):
+        shapes = [scene.sensor.band(b) for b in bands]
+        gsd, gsd_in = max(b.gsd_m for b in shapes), scene.spec.surface.gsd_m or 1.0
+        factors = [round(gsd / b.gsd_m) for b in shapes]
+        sizes = [(rows // round(b.gsd_m / gsd_in), cols // round(b.gsd_m / gsd_in)) for b in shapes]
+        self.grid = CommonGrid([b.name for b in shapes], factors, gsd,
+                               min(s[0] // f for s, f in zip(sizes, factors, strict=True)),
+                               min(s[1] // f for s, f in zip(sizes, factors, strict=True)))
+        self.retrieval = _Retrieval(rt, scene, self.grid, bands, settings)
+        self._held: dict[str, list[np.ndarray]] = {f"{k}_{b}": [] for b in self.grid.bands for k in ("reflectance",
+                                                                                                     "flags")}
+        self._received = dict.fromkeys(self._held, 0)
+        self._done = 0
+
+    def tee(self, store: ImageStore) -> ImageStore:
+        """``store``, each row block written into it also handed to this analysis."""
+        return _Tee(store, self)  # type: ignore[return-value]
+
+    def written(self, name: str, rows: slice, data: np.ndarray) -> None:
+        """Rows ``rows`` of variable ``name`` were written: keep an analysis band's, and retrieve the common grid's
+        rows that every band now holds whole."""
+        if name not in self._held:
+            return
+        assert rows.start == self._received[name], f"{name}: rows out of order"
+        self._held[name].append(data)
+        self._received[name] = rows.stop
+        g = self.grid
+        ready = min(g.ny, *(self._received[f"reflectance_{b}"] // f for b, f in zip(g.bands, g.factors, strict=True)))
+        if ready <= self._done:
+            return
+        rows_now, refl, flags = slice(self._done, ready), [], None
+        for b, f in zip(g.bands, g.factors, strict=True):
+            refl.append(box_mean(self._take(f"reflectance_{b}", (ready - self._done) * f), f)[:, : g.nx])
+            if self._received[f"flags_{b}"]:
+                x = _box_or(self._take(f"flags_{b}", (ready - self._done) * f), f)[:, : g.nx]
+                flags = x if flags is None else flags | x
+        self.retrieval.add(rows_now, np.stack(refl), flags)
+        self._done = ready
+
+    def _take(self, name: str, n: int) -> np.ndarray:
+        """The first ``n`` rows held of ``name``, let go."""
+        held = self._held[name]
+        data = held[0] if len(held) == 1 else np.concatenate(held)
+        self._held[name] = [data[n:]] if data.shape[0] > n else []
+        return data[:n]
+
+    def finish(self, store: ImageStore, cube: SceneCube, step: int | None) -> dict[str, Any]:
+        """Write the analysis into ``store`` (:func:`analyse_image`'s variables and attributes) and return its
+        figures; ``step``: common-grid rows the truth maps are made at a time (default: all)."""
+        assert self._done == self.grid.ny, "the simulation did not write every row"
+        return self.retrieval.finish(store, cube, step or self.grid.ny)
+
+
+class _Tee:
+    """An image store whose writes are also handed to a :class:`StreamedAnalysis`."""
+
+    def __init__(self, store: ImageStore, analysis: StreamedAnalysis):
+        self._store, self._analysis = store, analysis
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._store, name)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._store
+
+    def write(self, name: str, rows: slice, data: np.ndarray) -> None:
+        self._store.write(name, rows, data)
+        self._analysis.written(name, rows, data)
+
+
+class _Retrieval:
+    """The analysis's per-pixel results on the common grid, retrieved a band of rows at a time, written into the
+    store once all are in."""
+
+    def __init__(self, rt: Runtime, scene: Scene, grid: CommonGrid, bands: list[str], settings: AnalysisSettings):
+        self.rt, self.scene, self.grid, self.bands, self.settings = rt, scene, grid, bands, settings
+        self.index = np.empty((grid.ny, grid.nx), np.float32)
+        self.status = np.empty((grid.ny, grid.nx), np.uint8)
+        self.bounds = np.empty((grid.ny, grid.nx), np.uint8)
+        self.flags: np.ndarray | None = None
+
+    def add(self, rows: slice, refl: np.ndarray, flags: np.ndarray | None) -> None:
+        """Common-grid ``rows``: the bands' reflectance ``(n_bands, n_rows, nx)`` and the OR of their flags (None:
+        the chain writes none)."""
+        r = retrieve_pixels(self.rt, self.scene, self.bands, self.settings, refl.reshape(refl.shape[0], -1))
         shape = refl.shape[1:]
-        index[rows], status[rows], bounds[rows] = (r.index.reshape(shape), r.status.reshape(shape),
-                                                   r.bounds.reshape(shape))
-        for name, arr in (("analysis_index", index), ("analysis_status", status), ("analysis_bounds", bounds)):
-            store.write(name, rows, arr[rows])
-        if flagged:
-            store.write("analysis_flags", rows, grid.flags(store, rows))
-    store.attrs.update(analysis_kind=settings.kind, analysis_bands=" ".join(bands), analysis_gsd_m=grid.gsd_m,
-                       analysis_grid=GRID_RULE)
-    out: dict[str, Any] = {"kind": settings.kind, "bands": bands, "map": "analysis_index", "gsd_m": grid.gsd_m,
-                           "grid": GRID_RULE, "pixels": int(grid.ny * grid.nx),
-                           **_accounting(status.reshape(-1), bounds.reshape(-1))}
-    if cube.knows(settings.parameter or "") and cube.parcels is not None:
-        out.update(_against_truth(store, scene, cube, (index, status, bounds), grid, settings, step))
-    return out
+        self.index[rows], self.status[rows], self.bounds[rows] = (r.index.reshape(shape), r.status.reshape(shape),
+                                                                  r.bounds.reshape(shape))
+        if flags is not None:
+            if self.flags is None:
+                self.flags = np.zeros((self.grid.ny, self.grid.nx), np.uint8)
+            self.flags[rows] = flags
+
+    def finish(self, store: ImageStore, cube: SceneCube, step: int) -> dict[str, Any]:
+        grid, settings, bands = self.grid, self.settings, self.bands
+        dims = grid.dims
+        store.create("analysis_index", dims, np.float32,
+                     {"long_name": f"{settings.kind} retrieval on {' '.join(bands)} (igrm: inflection wavelength lp "
+                      "in nm; an index or formula: its value)", "analysis_kind": settings.kind})
+        store.create("analysis_status", dims, np.uint8, dict(STATUS_ATTRS))
+        store.create("analysis_bounds", dims, np.uint8, {"long_name": "fit on a parameter bound (IGRM), 0: no"})
+        if self.flags is not None:
+            store.create("analysis_flags", dims, np.uint8, {**_flag_attrs(store), "long_name": "OR of the "
+                                                             "radiometric flags of the analysis bands' pixels in each "
+                                                             "box"})
+        everything = slice(0, grid.ny)
+        for name, arr in (("analysis_index", self.index), ("analysis_status", self.status),
+                          ("analysis_bounds", self.bounds), ("analysis_flags", self.flags)):
+            if arr is not None:
+                store.write(name, everything, arr)
+        store.attrs.update(analysis_kind=settings.kind, analysis_bands=" ".join(bands), analysis_gsd_m=grid.gsd_m,
+                           analysis_grid=GRID_RULE)
+        out: dict[str, Any] = {"kind": settings.kind, "bands": bands, "map": "analysis_index", "gsd_m": grid.gsd_m,
+                               "grid": GRID_RULE, "pixels": int(grid.ny * grid.nx),
+                               **_accounting(self.status.reshape(-1), self.bounds.reshape(-1))}
+        if cube.knows(settings.parameter or "") and cube.parcels is not None:
+            fit = (self.index, self.status, self.bounds)
+            out.update(_against_truth(store, self.scene, cube, fit, grid, settings, step))
+        return out
 
 
 def _flag_attrs(store: ImageStore) -> dict[str, Any]:

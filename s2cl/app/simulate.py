@@ -28,6 +28,7 @@ from s2cl.forward.sense import SenseResult
 if TYPE_CHECKING:
     from s2cl.cl.runtime import Runtime
     from s2cl.scene.scene import Scene
+from s2cl.app.chain_parts import checked_parts
 from s2cl.app.checks import Checked
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.resample import resample_buffers
@@ -46,7 +47,6 @@ from s2cl.io.budget import (
     require_disk,
 )
 from s2cl.io.simulation_file import simulation_file
-from s2cl.scene.terms import scene_atmosphere
 
 Progress = Callable[[int], None]
 
@@ -140,11 +140,12 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     assert lib is not None
     r = scene.run
     rt = get_runtime(device or r.device)
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
+    parts = checked_parts(checked)
+    sim = Simulator.of(rt, parts)
     t0 = time.perf_counter()
     band_radiance = sim.band_radiance(lib.spectra)
     seconds = {"resample": time.perf_counter() - t0}
-    attrs = run_attrs(scene, rt.name, image=False)
+    attrs = run_attrs(parts, rt.name, image=False)
     writer = _ImageWriter(scene, lib.size, r.copies)
     stats = BandSummary(scene.sensor, band_radiance, r.copies)
     picked = _AnalysisBands(checked, lib.size * r.copies)

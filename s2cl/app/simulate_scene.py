@@ -6,19 +6,19 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from s2cl.app.checks import check_simulate
-from s2cl.app.image_analysis import analyse_image
+from s2cl.app.chain_parts import checked_parts, scene_instrument
+from s2cl.app.checks import Checked, check_simulate
+from s2cl.app.image_analysis import StreamedAnalysis
 from s2cl.app.image_quicklook import write_quicklook
 from s2cl.app.optimise import output_folder
 from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
 from s2cl.cl.runtime import get_runtime
-from s2cl.errors import InputError
-from s2cl.forward.cube import load_scene_cube, scene_cube_shape, scene_cube_size, simulate_cube
-from s2cl.forward.product_scene import interpolates_cube, resolve_product_scene
+from s2cl.errors import InputError, errors_in
+from s2cl.forward.cube import open_scene_cube, simulate_cube
 from s2cl.forward.reach import band_groups, cube_halo
 from s2cl.io.budget import BASELINE_BYTES, Budget
 from s2cl.io.cog import write_cogs
@@ -73,13 +73,10 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
     cog = _cog_format(sc, fmt)
-    product_caveats: tuple = ()
-    if sc.spec.surface.cube is not None:  # what the cube file's metadata completes (GSD, grid), before the checks
-        sc, product_caveats = resolve_product_scene(sc)
-    checked = check_simulate(sc, budget=budget)
+    checked = check_simulate(sc, budget=budget)  # a cube file's metadata opened once: the scene completed from it
+    sc = checked.scene
     check_output_dir(folder, where=where)
-    if sc.spec.surface.cube is not None:
-        checked = replace(checked, caveats=[*product_caveats, *checked.caveats])
+    if checked.cube is not None:
         return _simulate_cube(checked, folder, device, budget, progress, on_start, cog)
     simulate_memory(checked, budget)
     require_netcdf_disk(checked, folder)
@@ -121,7 +118,7 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
     ``surface.cube`` when not even one block of rows fits. ``interpolated``: the resampling kernel puts the file's
-    own bands on the grid (:func:`s2cl.forward.product_scene.interpolates_cube`), so no spectra on the grid are held.
+    own bands on the grid (:attr:`s2cl.forward.parts.ResolvedCube.interpolates`), so no spectra on the grid are held.
 
     What does not stream (:func:`cube_whole_bytes`): a generated cube's labels and parcel ids, and the map's index,
     status and bounds (a cube file's NODATA mask streams: each block's own, found as it is read). What does: per
@@ -133,8 +130,10 @@ def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: i
     grid = 0 if interpolated else CUBE_BYTES_PER_GRID * sc.grid.size
     spectra = CUBE_BYTES_PER_INPUT * wavelengths + grid if wavelengths else 0
     per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
-    factors = [factor for factor, _ in band_groups(sc)]
-    halo = cube_halo(sc)
+    with errors_in(sc.source):
+        groups = band_groups(sc.sensor, sc.spec.surface.gsd_m)
+        halo = cube_halo(scene_instrument(sc), groups)
+    factors = [factor for factor, _ in groups]
     unit = math.lcm(*factors)
     fixed = BASELINE_BYTES + cube_whole_bytes(sc, rows * cols, wavelengths)
     if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:
@@ -151,23 +150,27 @@ def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
     return pixels * (CUBE_BYTES_FILE if wavelengths else CUBE_BYTES_GENERATED)
 
 
-def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
+def _simulate_cube(checked: Checked, folder: Path, device: str | None, budget: Any,
                    progress: Callable[[int], None] | None,
                    on_start: Callable[[str, int], None] | None, cog: bool = False) -> SimulationRun:
     """Simulate the scene's image cube (sized from its metadata, checked before the folder is made) into
     ``simulation.nc``, row block by row block within ``budget`` (:func:`cube_block_rows`), and ``simulation.json``;
     with an [analysis], its map goes into ``simulation.nc`` and a quicklook into ``quicklook.png``
     (:mod:`s2cl.app.image_analysis`); with ``cog``, the GSD groups and the maps as COGs (:mod:`s2cl.io.cog`)."""
-    sc = checked.scene
-    pixels, wavelengths = scene_cube_size(sc)  # a cube's whole part must fit before its file is read
+    sc, resolved = checked.scene, checked.cube
+    assert resolved is not None
+    pixels, wavelengths = resolved.pixels, resolved.wavelengths  # from the metadata the checks opened
     budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
                    f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
-                   fits="crop the cube or coarsen grid.step_nm")
-    rows, cols, wavelengths = scene_cube_shape(sc)  # and one block of rows must fit before it is read
-    block_rows = cube_block_rows(sc, budget, rows, cols, wavelengths, interpolates_cube(sc))
+                   fits="crop the cube or coarsen grid.step_nm")  # a cube's whole part must fit before it is read
+    # and one block of rows must fit before it is read
+    block_rows = cube_block_rows(sc, budget, resolved.rows, resolved.cols, wavelengths, resolved.interpolates)
     rt = get_runtime(device or sc.run.device)
     require_device_launches(rt, sc)
-    cube = load_scene_cube(sc)
+    with errors_in(sc.source):
+        parts = checked_parts(checked)
+        cube = open_scene_cube(resolved, parts)
+        groups = band_groups(sc.sensor, resolved.gsd_m)
     per_band = CUBE_DISK_BYTES_PER_BAND + (2 * COG_BYTES_PER_BAND if cog else 0)  # a COG and its strips, at once
     require_free(folder / SIMULATION_NC, 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)
     warnings = report(checked.caveats)
@@ -178,14 +181,20 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
         if on_start:
             on_start(f"{sc.name}: cube", cube.rows * cube.cols)
         with simulation_file(nc) as store:
-            simulate_cube(rt, sc, cube=cube, progress=progress, store=store, block_rows=block_rows)
-            analysis = None
+            streamed = None  # the analysis is fed the rows as they are written: nothing is read back
             if checked.analysis is not None:
-                analysis = _analyse_cube(rt, checked, store, cube, block_rows)
+                streamed = StreamedAnalysis(rt, sc, list(checked.analysis_bands), checked.analysis, cube.rows,
+                                            cube.cols)
+            with errors_in(sc.source):
+                simulate_cube(rt, parts, cube, progress=progress, store=store if streamed is None else
+                              streamed.tee(store), block_rows=block_rows)
+            analysis = None
+            if streamed is not None:
+                analysis = streamed.finish(store, cube, _analysis_step(checked, block_rows))
                 written.append(folder / "quicklook.png")
                 write_quicklook(store, written[-1], analysis["map"])
             if cog:
-                written += write_cogs(store, folder, sc, cube.georef, analysis, band_groups(sc))
+                written += write_cogs(store, folder, sc, cube.georef, analysis, groups)
             attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in store.attrs.items()}
         seconds = time.perf_counter() - t0
         write_json(folder / SIMULATION_JSON, {"scene": sc.name, "attrs": attrs, "pixels": cube.rows * cube.cols,
@@ -195,9 +204,8 @@ def _simulate_cube(checked: Any, folder: Path, device: str | None, budget: Any,
                          pixels=cube.rows * cube.cols, seconds=seconds)
 
 
-def _analyse_cube(rt: Any, checked: Any, store: Any, cube: Any, block_rows: int | None) -> dict[str, Any]:
-    """The scene's [analysis] on the image in ``store``, by blocks of as many input rows as the simulation's."""
+def _analysis_step(checked: Checked, block_rows: int | None) -> int | None:
+    """Rows of the analysis's common grid in as many input rows as a block of the simulation (None: all)."""
     sc, bands = checked.scene, list(checked.analysis_bands)
     factor = max(sc.sensor.band(b).gsd_m for b in bands) / (sc.spec.surface.gsd_m or 1.0)
-    step = None if block_rows is None else max(1, int(block_rows // factor))
-    return analyse_image(rt, sc, store, cube, bands, checked.analysis, block_rows=step)
+    return None if block_rows is None else max(1, int(block_rows // factor))

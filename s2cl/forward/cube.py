@@ -41,9 +41,9 @@ from s2cl.forward.dataset import CONVENTIONS, PIXEL_VARIABLES, RADIANCE_UNITS, b
 from s2cl.forward.grid_interpolation import GridInterpolation, on_grid
 from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument, SmileResampler, spatial_response
 from s2cl.forward.nodata import check_bad_band_gaps, footprint_nodata, gap_weights, nodata_rows
-from s2cl.forward.product_scene import resolve_product_scene, scene_reader
+from s2cl.forward.parts import ChainParts, ResolvedCube
 from s2cl.forward.radiometry import Radiometry
-from s2cl.forward.reach import band_groups, cube_halo, gsd_factor, spatial_reach
+from s2cl.forward.reach import band_groups, cube_halo, gsd_factor
 from s2cl.forward.row_blocks import RowBlock, box_mean, row_blocks
 from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import Sensing
@@ -54,17 +54,16 @@ from s2cl.grid import SpectralGrid, check_wavelengths
 from s2cl.io.cubes import CubeReader, cube_size, load_cube
 from s2cl.io.georef import GeoRef, georef_attrs, grid_dimensions, product_attrs
 from s2cl.io.image_store import ImageStore, MemoryStore, NetcdfStore
-from s2cl.libraries.fields import fields_image, fields_shape, is_builtin_cube
+from s2cl.libraries.fields import fields_image
 from s2cl.libraries.library import resample_to_grid
-from s2cl.scene.scene import Scene
-from s2cl.scene.terms import scene_atmosphere
+from s2cl.sensor.sensor import Sensor
 from s2cl.status import PixelFlag
 
-__all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_size", "load_cube", "load_scene_cube", "simulate_cube",
-           "to_grid"]
+__all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_in_memory", "cube_size", "load_cube", "open_scene_cube",
+           "simulate_cube", "to_grid"]
 
 
-def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str, *,
+def to_grid(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, source: str | None, *,
             owned: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The cube's spectra ``(rows·cols, grid.size)`` on the grid (interpolated if needed), finite, and the
     NODATA mask ``(rows·cols,)`` of the pixels with any non-finite sample (their spectra set to 0).
@@ -138,6 +137,8 @@ class SceneCube:
     product: dict[str, Any] = field(default_factory=dict)
     #: :meth:`block`'s spectra are at the file's wavelengths, and this table puts them on the grid (None: on the grid)
     interpolation: GridInterpolation | None = None
+    #: the cube's ground sampling distance (m)
+    gsd_m: float | None = None
 
     def block(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """Spectra ``((stop-start)·cols, grid.size)`` of rows ``start … stop-1`` (a file's, read now; zero at NODATA
@@ -161,85 +162,55 @@ class SceneCube:
         return self.truth_params[name][self.labels.reshape(self.rows, self.cols)[rows]]
 
 
-def scene_cube_size(scene: Scene) -> tuple[int, int]:
-    """(pixels, wavelengths held per pixel) of the scene's cube from its metadata only: a generated cube holds
-    no spectrum per pixel (0)."""
-    cube = scene.spec.surface.cube
-    assert cube is not None
-    if is_builtin_cube(cube):
-        rows, cols = fields_shape(cube, source=scene.source)
-        return rows * cols, 0
-    if scene.spec.surface.geometry != "map":
-        reader = scene_reader(scene)
-        assert reader is not None
-        return reader.rows * reader.cols, reader.bands_read
-    return cube_size(scene.resolve(cube))
+def open_scene_cube(cube: ResolvedCube, parts: ChainParts) -> SceneCube:
+    """A scene's cube resolved from its metadata (:class:`~s2cl.forward.parts.ResolvedCube`: a file opened, or a
+    generated cube) made ready for :func:`simulate_cube`, with every check done before anything is written: a file's
+    bad bands against the bands' SRFs, a first pixel read, and the cube larger than one block of each GSD group. A
+    file's rows are read later, block by block (:meth:`SceneCube.block`)."""
+    sensor, grid = parts.sensor, parts.grid
+    reader = cube.reader
+    if reader is None:
+        assert cube.builtin is not None
+        generated = fields_image(grid, cube.rows, cube.cols, parts.run.seed)
+        _check_blocks(cube.rows, cube.cols, sensor, cube.gsd_m, cube.source)
+        lib = generated.library
+        return SceneCube(lib.spectra, cube.rows, cube.cols, cube.source, labels=generated.labels.reshape(-1),
+                         truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels,
+                         gsd_m=cube.gsd_m)
+    source = cube.source
+    if reader.bad_nm.size:
+        weights = [b.weights(grid, parts.run.support) for b in sensor.bands]
+        check_bad_band_gaps([b.name for b in sensor.bands],
+                            gap_weights(weights, grid, reader.wavelengths_nm, reader.bad_nm), cube.quantity, source)
+    to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, grid, source)  # it reads, before any output
+    _check_blocks(reader.rows, reader.cols, sensor, cube.gsd_m, source)
+    interpolation = GridInterpolation.covering(reader.wavelengths_nm, grid, source) if cube.interpolates else None
+    return SceneCube(None, reader.rows, reader.cols, source, georef=reader.georef, product=product_attrs(reader),
+                     read_rows=_file_rows(reader, grid, source, interpolation), interpolation=interpolation,
+                     gsd_m=cube.gsd_m)
 
 
-def scene_cube_shape(scene: Scene) -> tuple[int, int, int]:
-    """(rows, cols, wavelengths held per pixel in its file) of the scene's cube from its metadata only (a generated
-    cube: 0 wavelengths)."""
-    cube = scene.spec.surface.cube
-    assert cube is not None
-    if is_builtin_cube(cube):
-        return (*fields_shape(cube, source=scene.source), 0)
-    reader = scene_reader(scene)
-    assert reader is not None
-    return reader.rows, reader.cols, reader.bands_read
+def cube_in_memory(cube: np.ndarray, wavelengths_nm: np.ndarray | None, grid: SpectralGrid, sensor: Sensor,
+                   gsd_m: float | None) -> SceneCube:
+    """A cube ``(rows, cols, wavelengths)`` given in memory (NaN marks no data; ``wavelengths_nm`` None: the grid's)
+    put on ``grid``, checked as :func:`open_scene_cube` checks a file's (errors name the key, not a file)."""
+    rows, cols = np.asarray(cube).shape[:2]
+    spectra, nodata = to_grid(cube, wavelengths_nm, grid, None)
+    if gsd_m is None:
+        raise InputError("an image cube needs surface.gsd_m", key="surface.gsd_m")
+    _check_blocks(rows, cols, sensor, gsd_m, None)
+    return SceneCube(spectra, rows, cols, "", nodata if nodata.any() else None, gsd_m=gsd_m)
 
 
-def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
-                    wavelengths_nm: np.ndarray | None = None) -> SceneCube:
-    """The scene's ``surface.cube`` file (or ``cube`` given in memory: NaN marks no data) loaded onto the
-    scene's grid, with every check of :func:`simulate_cube` done: ``s2cl simulate`` calls it before it
-    creates the folder."""
-    if cube is None:
-        scene = resolve_product_scene(scene)[0]
-    s = scene.spec
-    source = scene.source
-    generated, reader, nodata = None, None, None
-    if cube is None:
-        if s.surface.cube is None:
-            raise InputError("the scene has no surface.cube", source=source, key="surface.cube")
-        if is_builtin_cube(s.surface.cube):
-            rows, cols = fields_shape(s.surface.cube, source=source)
-            generated = fields_image(scene.grid, rows, cols, scene.run.seed)
-        else:
-            source = str(scene.resolve(s.surface.cube))
-            reader = scene_reader(scene)
-            assert reader is not None
-            if reader.bad_nm.size:
-                weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
-                check_bad_band_gaps([b.name for b in scene.sensor.bands],
-                                    gap_weights(weights, scene.grid, reader.wavelengths_nm, reader.bad_nm),
-                                    s.surface.quantity, source)
-            rows, cols = reader.rows, reader.cols
-            to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, scene.grid, source)  # it reads, before any output
-    if generated is not None:
-        spectra = generated.library.spectra
-    elif reader is None:
-        rows, cols = np.asarray(cube).shape[:2]
-        spectra, nodata = to_grid(cube, wavelengths_nm, scene.grid, source)
-    gsd_in = s.surface.gsd_m
-    if gsd_in is None:
-        raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
-    bands = scene.sensor.bands
+def _check_blocks(rows: int, cols: int, sensor: Sensor, gsd_in: float, source: str | None) -> None:
+    """Refuse a cube smaller than one band pixel of a GSD group (or with a GSD that is no whole fraction of a
+    band's)."""
+    bands = sensor.bands
     for gsd in sorted({b.gsd_m for b in bands}):
-        factor = gsd_factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd], scene.source)
+        factor = gsd_factor(gsd, gsd_in, [b.name for b in bands if b.gsd_m == gsd])
         if factor > 1 and (rows < factor or cols < factor):
             raise InputError(f"cube of {rows}×{cols} pixels is smaller than one {factor}×{factor} block of the "
                              f"{gsd:g} m bands", source=source, key="surface.gsd_m")
-    if generated is not None:
-        lib = generated.library
-        return SceneCube(spectra, rows, cols, source, labels=generated.labels.reshape(-1),
-                         truth_params={k: lib.params[k] for k in ("cab", "lai")}, parcels=generated.parcels)
-    nodata = nodata if nodata is not None and nodata.any() else None
-    if reader is not None:
-        interpolation = None if on_grid(reader.wavelengths_nm, scene.grid) else GridInterpolation.covering(
-            reader.wavelengths_nm, scene.grid, source)
-        return SceneCube(None, rows, cols, source, georef=reader.georef, product=product_attrs(reader),
-                         read_rows=_file_rows(reader, scene.grid, source, interpolation), interpolation=interpolation)
-    return SceneCube(spectra, rows, cols, source, nodata)
 
 
 def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str,
@@ -255,36 +226,30 @@ def _file_rows(reader: CubeReader, grid: SpectralGrid, source: str,
     return read_rows
 
 
-def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None = None,
-                  wavelengths_nm: np.ndarray | None = None, *, progress: Progress | None = None,
+def simulate_cube(rt: Runtime, parts: ChainParts, cube: SceneCube, *, progress: Progress | None = None,
                   store: ImageStore | None = None, block_rows: int | None = None) -> xr.Dataset | None:
-    """Simulate an image cube (the scene's ``surface.cube`` file, ``cube`` given in memory, or a cube
-    already loaded by :func:`load_scene_cube`) on ``rt``: a Dataset, or (``store`` given) nothing, its variables
-    written into ``store``. ``block_rows``: input rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`;
-    default all), read with the spatial filters' halo (:func:`s2cl.forward.reach.cube_halo`), so the result does
-    not depend on it."""
-    if not isinstance(cube, np.ndarray):  # a cube file: the scene completed from its metadata, as it was loaded
-        scene = resolve_product_scene(scene)[0]
-    s = scene.spec
-    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(scene, cube, wavelengths_nm)
+    """Simulate an image cube (:func:`open_scene_cube`, :func:`cube_in_memory`) through the chain's ``parts`` on
+    ``rt``: a Dataset, or (``store`` given) nothing, its variables written into ``store``. ``block_rows``: input
+    rows simulated at a time (:func:`s2cl.forward.row_blocks.row_blocks`; default all), read with the spatial
+    filters' halo (:func:`s2cl.forward.reach.cube_halo`), so the result does not depend on it."""
+    prepared = cube
     rows, cols = prepared.rows, prepared.cols
-    gsd_in = s.surface.gsd_m
+    gsd_in = prepared.gsd_m
     assert gsd_in is not None
-    atmosphere = scene_atmosphere(scene)
-    sim = Simulator.for_scene(rt, scene, atmosphere=atmosphere, interpolation=prepared.interpolation)
-    instrument = Instrument.of(scene)
-    smile = (SmileResampler(sim.rt, scene, cols, atmosphere, prepared.interpolation)
+    sim = Simulator.of(rt, parts, interpolation=prepared.interpolation)
+    instrument = Instrument.of(parts.settings, parts.run.seed, parts.sensor.bands)
+    smile = (SmileResampler(sim.rt, parts, cols, prepared.interpolation)
              if instrument.smile_spec is not None else None)
     band_values = smile.nodes if smile is not None else sim.band_radiance  # per band (or smile node), per pixel
     out = store if store is not None else MemoryStore()
-    out.attrs.update({**CONVENTIONS, **run_attrs(scene, sim.rt.name, image=True), "input_gsd_m": gsd_in,
+    out.attrs.update({**CONVENTIONS, **run_attrs(parts, sim.rt.name, image=True), "input_gsd_m": gsd_in,
                       "psf": "none" if instrument.psf is None else "gaussian",
                       "nodata_input_pixels": 0, "instrument": instrument.describe()})  # counted as read
     out.attrs.update(georef_attrs(prepared.georef, prepared.product))
-    groups = [_Group(scene, sim, factor, ids, rows, cols, out, instrument, prepared.georef)
-              for factor, ids in band_groups(scene)]
+    by_gsd = band_groups(parts.sensor, gsd_in)
+    groups = [_Group(parts, sim, factor, ids, rows, cols, out, instrument, prepared.georef) for factor, ids in by_gsd]
     nodata_pixels = 0
-    halo = cube_halo(scene)
+    halo = cube_halo(instrument, by_gsd)
     distinct = band_values(prepared.spectra) if prepared.labels is not None else None
     labels = None if prepared.labels is None else prepared.labels.reshape(rows, cols)
     for block in row_blocks(rows, [g.factor for g in groups], block_rows, halo):
@@ -313,30 +278,30 @@ def simulate_cube(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None
 class _Group:
     """The bands of one GSD: their dimensions, compiled radiometric stage and variables, filled block by block."""
 
-    def __init__(self, scene: Scene, sim: Simulator, factor: int, ids: list[int], rows: int, cols: int,
+    def __init__(self, parts: ChainParts, sim: Simulator, factor: int, ids: list[int], rows: int, cols: int,
                  store: MemoryStore | NetcdfStore, instrument: Instrument, georef: GeoRef | None = None):
-        bands = scene.sensor.bands
+        bands = parts.sensor.bands
         gsd = bands[ids[0]].gsd_m
-        self.scene, self.store, self.gsd, self.instrument = scene, store, gsd, instrument
+        self.parts, self.store, self.gsd, self.instrument = parts, store, gsd, instrument
         self.ids, self.factor = ids, factor
         ny, nx = rows // self.factor, cols // self.factor
         self.nx = nx
         self.dims = (f"y_{gsd:g}m", f"x_{gsd:g}m")
         grid_dimensions(store, self.dims, georef, factor, gsd, ny, nx)  # x/y and the CF grid mapping
         self.sensing = None
-        if senses(scene.effects):
+        if senses(parts.effects):
             correction = None
             if sim.correction is not None:
                 c, i = sim.correction, self.ids
                 correction = BandAtmosphere(c.path_radiance[i], c.ground_term[i], c.spherical_albedo[i])
-            radiometry = Radiometry.of([bands[k] for k in self.ids], scene.sensor.bits, self.ids,
-                                       correction=correction, settings=scene.spec.effects, seed=scene.run.seed)
-            self.sensing = Sensing(sim.rt, radiometry, scene.effects, sim.precision)
+            radiometry = Radiometry.of([bands[k] for k in self.ids], parts.sensor.bits, self.ids,
+                                       correction=correction, settings=parts.settings, seed=parts.run.seed)
+            self.sensing = Sensing(sim.rt, radiometry, parts.effects, sim.precision)
         #: what the per-pixel stages did to each band (attributes of its variables)
         self.stage_attrs = [stage_attrs(self.sensing.stages, self.sensing.radiometry, j) if self.sensing else {}
                             for j in range(len(ids))]
-        #: input pixels on each side that the spatial filters reach (:func:`s2cl.forward.reach.spatial_reach`)
-        self.reach = spatial_reach(scene, self.ids, self.factor)
+        #: input pixels on each side that the spatial filters reach (:meth:`Instrument.reach`)
+        self.reach = instrument.reach(self.ids, self.factor)
         #: pixels below Lmin, above Lmax (no-data pixels apart) and NODATA, per band
         self.counts = np.zeros((3, len(self.ids)), np.int64)
 
@@ -357,8 +322,8 @@ class _Group:
         images[:, nodata] = np.nan
         result = None
         if self.sensing is not None:
-            result = self.sensing(images.reshape(len(self.ids), -1), seed=self.scene.run.seed,
-                                  frame=self.scene.run.frame, pixel_offset=out_rows.start * self.nx)
+            result = self.sensing(images.reshape(len(self.ids), -1), seed=self.parts.run.seed,
+                                  frame=self.parts.run.frame, pixel_offset=out_rows.start * self.nx)
         flags = result.flags if result is not None and result.flags is not None else None
         if flags is not None:
             self.counts[0] += np.count_nonzero(flags & PixelFlag.LOW, axis=1)
@@ -366,9 +331,9 @@ class _Group:
         else:  # no radiometric stage: the flags say NODATA alone
             flags = np.where(nodata.reshape(1, -1), np.uint8(PixelFlag.NODATA), np.uint8(0)).repeat(len(self.ids), 0)
         self.counts[2] += np.count_nonzero(flags & PixelFlag.NODATA, axis=1)
-        bands = self.scene.sensor.bands
+        bands = self.parts.sensor.bands
         for j, k in enumerate(self.ids):
-            attrs = {**band_attrs(bands[k], self.scene.sensor.bits), **self.stage_attrs[j]}
+            attrs = {**band_attrs(bands[k], self.parts.sensor.bits), **self.stage_attrs[j]}
             name = bands[k].name
             self._put(f"radiance_{name}", out_rows, images[j],
                       {**attrs, **pixel_attrs("radiance", RADIANCE_UNITS, "noise-free band radiance")})
@@ -395,4 +360,4 @@ class _Group:
             counts: dict = {"nodata_pixels": int(self.counts[2, j]), **self.instrument.band_attrs(k)}
             if flagged:
                 counts.update(clipped_below_lmin=int(self.counts[0, j]), clipped_above_lmax=int(self.counts[1, j]))
-            self.store.update_attrs(f"radiance_{self.scene.sensor.bands[k].name}", counts)
+            self.store.update_attrs(f"radiance_{self.parts.sensor.bands[k].name}", counts)

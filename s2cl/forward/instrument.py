@@ -37,7 +37,8 @@ from scipy.ndimage import correlate1d
 
 from s2cl.cl.runtime import Runtime
 from s2cl.forward.grid_interpolation import GridInterpolation
-from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
+from s2cl.forward.parts import ChainParts
+from s2cl.forward.resample import ResamplePlan, Resampler
 from s2cl.grid import SpectralGrid
 from s2cl.scene.instrument_schema import (
     BOX_MTF_NYQUIST,
@@ -47,7 +48,6 @@ from s2cl.scene.instrument_schema import (
     SmileSpec,
     setting,
 )
-from s2cl.scene.scene import Scene
 from s2cl.sensor.sensor import Band
 from s2cl.sensor.srf import BandWeights, TabulatedResponse, band_weights
 
@@ -206,15 +206,15 @@ class Smile:
         """(centre-shift nodes, width-factor nodes)."""
         return _nodes(self.shift_nm), _nodes(self.width_factor)
 
-    def plan(self, scene: Scene) -> ResamplePlan:
-        """Every band at every node SRF (band-major, then centre node, then width node), named ``B4~smile3``."""
+    def plan(self, bands: tuple[Band, ...], grid: SpectralGrid, support: float) -> ResamplePlan:
+        """Every band at every node SRF on ``grid`` (band-major, then centre node, then width node): ``B4~smile3``."""
         cn, wn = self.node_grid()
         names, weights = [], []
-        for band in scene.sensor.bands:
+        for band in bands:
             for i, (c, w) in enumerate((c, w) for c in cn for w in wn):
                 names.append(f"{band.name}~smile{i}")
-                weights.append(moved_weights(band, scene.grid, c, w, scene.run.support, scene.source))
-        return ResamplePlan(tuple(names), tuple(weights), scene.grid.size)
+                weights.append(moved_weights(band, grid, c, w, support))
+        return ResamplePlan(tuple(names), tuple(weights), grid.size)
 
     def combine(self, nodes: np.ndarray, n_bands: int, rows: int, cols: int) -> np.ndarray:
         """Band radiance ``(n_bands, rows, cols)`` from the node values ``(n_bands · n_nodes, rows · cols)``."""
@@ -229,11 +229,11 @@ class SmileResampler:
     """The smile's node bands compiled once for an image ``cols`` wide: :meth:`nodes` resamples spectra to every
     band's node values, :meth:`combine` interpolates each column's bands from them."""
 
-    def __init__(self, rt: Runtime, scene: Scene, cols: int, atmosphere: AtmosphereArrays | None,
-                 table: GridInterpolation | None = None):
-        self.smile = Smile.of(Instrument.of(scene).smile_spec, cols)
-        self.n_bands, self.cols = scene.sensor.size, cols
-        self.resampler = Resampler(rt, self.smile.plan(scene), scene.run.precision, atmosphere, interpolation=table)
+    def __init__(self, rt: Runtime, parts: ChainParts, cols: int, table: GridInterpolation | None = None):
+        self.smile = Smile.of(Instrument.of(parts.settings, parts.run.seed, parts.sensor.bands).smile_spec, cols)
+        self.n_bands, self.cols = parts.sensor.size, cols
+        plan = self.smile.plan(parts.sensor.bands, parts.grid, parts.run.support)
+        self.resampler = Resampler(rt, plan, parts.run.precision, parts.atmosphere, interpolation=table)
 
     def nodes(self, spectra: np.ndarray) -> np.ndarray:
         """Node band values ``(n_bands · n_nodes, n)`` of spectra on the grid (at the native wavelengths: ``table``)."""
@@ -246,31 +246,31 @@ class SmileResampler:
         return self.smile.combine(nodes.reshape(nodes.shape[0], rows * self.cols), self.n_bands, rows, self.cols)
 
 
-def smile_radiance(rt: Runtime, scene: Scene, spectra: np.ndarray, rows: int, cols: int,
-                   atmosphere: AtmosphereArrays | None) -> np.ndarray:
-    """Band radiance ``(n_bands, rows, cols)`` of the spectra ``(rows · cols, n_wavelengths)`` with the scene's
-    smile: one resampling pass over the node SRFs, then per-column interpolation."""
-    smile = SmileResampler(rt, scene, cols, atmosphere)
+def smile_radiance(rt: Runtime, parts: ChainParts, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """Band radiance ``(n_bands, rows, cols)`` of the spectra ``(rows · cols, n_wavelengths)`` with the chain's
+    smile (and its atmosphere, :attr:`ChainParts.atmosphere`): one resampling pass over the node SRFs, then
+    per-column interpolation."""
+    smile = SmileResampler(rt, parts, cols)
     return smile.combine(smile.nodes(spectra))
 
 
-def smile_twin(scene: Scene, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
+def smile_twin(parts: ChainParts, spectra: np.ndarray, rows: int, cols: int) -> np.ndarray:
     """float64 numpy twin of :func:`smile_radiance` (spectra already radiance): each column integrated over its
     own moved SRF, no interpolation."""
-    smile = Smile.of(Instrument.of(scene).smile_spec, cols)
+    smile = Smile.of(Instrument.of(parts.settings, parts.run.seed, parts.sensor.bands).smile_spec, cols)
     cube = np.asarray(spectra, dtype=np.float64).reshape(rows, cols, -1)
-    out = np.empty((scene.sensor.size, rows, cols))
-    for k, band in enumerate(scene.sensor.bands):
+    out = np.empty((parts.sensor.size, rows, cols))
+    for k, band in enumerate(parts.sensor.bands):
         for c in range(cols):
-            w = moved_weights(band, scene.grid, smile.shift_nm[c], smile.width_factor[c], scene.run.support)
+            w = moved_weights(band, parts.grid, smile.shift_nm[c], smile.width_factor[c], parts.run.support)
             out[k, :, c] = w.apply(cube[:, c, :])
     return out
 
 
 @dataclass(frozen=True)
 class Instrument:
-    """The scene's image effects (``[effects]`` psf, coregistration, smile, nonuniformity), resolved per band (band
-    order of the scene's sensor)."""
+    """The image effects (a scene's ``[effects]`` psf, coregistration, smile, nonuniformity), resolved per band
+    (band order of the sensor)."""
 
     effects: Any
     seed: int
@@ -278,9 +278,9 @@ class Instrument:
     lref: tuple[float, ...]
 
     @classmethod
-    def of(cls, scene: Scene) -> Instrument:
-        bands = scene.sensor.bands
-        return cls(scene.spec.effects, scene.run.seed, tuple(b.name for b in bands), tuple(b.lref for b in bands))
+    def of(cls, settings: Any, seed: int, bands: tuple[Band, ...] | list[Band]) -> Instrument:
+        """The effects of the ``[effects]`` section ``settings`` on ``bands``, drawn from the noise ``seed``."""
+        return cls(settings, seed, tuple(b.name for b in bands), tuple(b.lref for b in bands))
 
     @property
     def psf(self) -> PsfSpec | None:

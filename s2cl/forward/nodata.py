@@ -4,7 +4,7 @@ bands draw on wavelengths a bad band list dropped.
 **Rule.** An input pixel is NODATA when any of its spectral samples is NaN (the file readers of
 :mod:`s2cl.io.cubes` turn every marked no-data value into NaN). An output pixel of a band is NODATA when
 any input pixel inside its footprint is: the ``factor × factor`` box it averages, widened on each side by
-the reach of the spatial filters that run before the box average (:func:`s2cl.forward.reach.spatial_reach`:
+the reach of the spatial filters that run before the box average (:meth:`s2cl.forward.instrument.Instrument.reach`:
 the Gaussian PSF's kernel radius, as ``scipy.ndimage.gaussian_filter`` truncates it, and the finite filter of
 the [instrument] MTF and shift, :func:`s2cl.forward.instrument.fir_radius`). Every one of these filters has a
 finite support, and the footprint is exactly that support: no input pixel beyond it enters the output pixel.

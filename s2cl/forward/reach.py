@@ -12,45 +12,42 @@ from __future__ import annotations
 
 from s2cl.errors import InputError
 from s2cl.forward.instrument import FWHM_TO_SIGMA, Instrument
-from s2cl.scene.scene import Scene
+from s2cl.sensor.sensor import Sensor
 
-__all__ = ["FWHM_TO_SIGMA", "band_groups", "cube_halo", "gsd_factor", "spatial_reach"]
+__all__ = ["FWHM_TO_SIGMA", "BandGroups", "band_groups", "cube_halo", "gsd_factor"]
+
+#: the bands by GSD, finest first: ``(factor, band indices)``, ``factor`` the cube's pixels per band pixel
+BandGroups = list[tuple[int, list[int]]]
 
 
-def gsd_factor(gsd: float, gsd_in: float, names: list[str], source: str) -> int:
+def gsd_factor(gsd: float, gsd_in: float, names: list[str]) -> int:
     """Input pixels per band pixel of the bands ``names`` of ``gsd`` m over a cube of ``gsd_in`` m: an
-    :class:`InputError` when it is not a whole number."""
+    :class:`InputError` naming ``surface.gsd_m`` when it is not a whole number."""
     ratio = gsd / gsd_in
     factor = round(ratio)
     if factor < 1 or abs(ratio - factor) > 1e-6:
         raise InputError(f"band GSD {gsd:g} m is not a whole multiple of the cube's GSD {gsd_in:g} m "
-                         f"(bands {', '.join(names)})", source=source, key="surface.gsd_m")
+                         f"(bands {', '.join(names)})", key="surface.gsd_m")
     return factor
 
 
-def band_groups(scene: Scene) -> list[tuple[int, list[int]]]:
-    """The scene's bands by GSD, finest first: ``(factor, band indices)``, ``factor`` the cube's pixels per band
-    pixel (an :class:`InputError` when a band's GSD is not a whole multiple of the cube's)."""
-    bands, gsd_in = scene.sensor.bands, scene.spec.surface.gsd_m
+def band_groups(sensor: Sensor, gsd_in: float | None) -> BandGroups:
+    """The sensor's bands by GSD over a cube of ``gsd_in`` m, finest first: ``(factor, band indices)``, ``factor``
+    the cube's pixels per band pixel (an :class:`InputError` when a band's GSD is not a whole multiple of the
+    cube's, or the cube has none)."""
+    bands = sensor.bands
     if gsd_in is None:
-        raise InputError("an image cube needs surface.gsd_m", source=scene.source, key="surface.gsd_m")
+        raise InputError("an image cube needs surface.gsd_m", key="surface.gsd_m")
     out = []
     for gsd in sorted({b.gsd_m for b in bands}):
         ids = [k for k, b in enumerate(bands) if b.gsd_m == gsd]
-        out.append((gsd_factor(gsd, gsd_in, [bands[k].name for k in ids], scene.source), ids))
+        out.append((gsd_factor(gsd, gsd_in, [bands[k].name for k in ids]), ids))
     return out
 
 
-def spatial_reach(scene: Scene, ids: list[int], factor: int) -> tuple[int, int]:
-    """Input pixels ``(rows, cols)`` on each side that the spatial filter of bands ``ids`` (``factor`` input pixels
-    per band pixel) reaches: each band's PSF and shift in one finite filter
-    (:meth:`s2cl.forward.instrument.Instrument.reach`). No input pixel farther from an output pixel's box enters it:
-    this is the NODATA footprint's widening, and its row count the halo of a block of rows (:func:`cube_halo`)."""
-    return Instrument.of(scene).reach(ids, factor)
-
-
-def cube_halo(scene: Scene) -> int:
-    """Input rows a block of rows is read with on each side (the longest row reach of :func:`spatial_reach` over
-    the band groups), so that its output rows equal those of the whole image: the block reader of
-    :func:`s2cl.forward.cube.simulate_cube` and the memory rule of ``s2cl simulate`` both take it from here."""
-    return max(spatial_reach(scene, ids, factor)[0] for factor, ids in band_groups(scene))
+def cube_halo(instrument: Instrument, groups: BandGroups) -> int:
+    """Input rows a block of rows is read with on each side (the longest row reach of the instrument's spatial
+    filters, :meth:`~s2cl.forward.instrument.Instrument.reach`, over the band ``groups``), so that its output rows
+    equal those of the whole image: the block reader of :func:`s2cl.forward.cube.simulate_cube` and the memory rule
+    of ``s2cl simulate`` both take it from here."""
+    return max(instrument.reach(ids, factor)[0] for factor, ids in groups)

@@ -5,19 +5,20 @@ from __future__ import annotations
 
 from typing import Any
 
+from s2cl.forward.parts import ChainParts
 from s2cl.forward.stages import image_stage_names
 from s2cl.version import __version__
 
 
-def run_attrs(scene: Any, device: str, *, image: bool) -> dict[str, Any]:
+def run_attrs(parts: ChainParts, device: str, *, image: bool) -> dict[str, Any]:
     """What ran: the scene's name and file (``""`` for a scene built in memory), the s2cl version, the OpenCL
     ``device``'s name, the precision, the stages that ran (an image runs them all; a library scene not the image-only
     ones, :func:`s2cl.forward.stages.image_stage_names`) and the noise seed; a library scene (``image`` False) adds its
     image layout."""
-    r = scene.run
-    attrs: dict[str, Any] = dict(scene=scene.name, scene_file=str(scene.path or ""), s2cl_version=__version__,
+    r = parts.run
+    attrs: dict[str, Any] = dict(scene=parts.name, scene_file=parts.scene_file, s2cl_version=__version__,
                                  device=device, precision=r.precision,
-                                 effects=scene.effects.describe(frozenset() if image else image_stage_names()),
+                                 effects=parts.effects.describe(frozenset() if image else image_stage_names()),
                                  seed=r.seed)
     if not image:
         attrs["layout"] = r.layout

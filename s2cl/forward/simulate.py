@@ -6,28 +6,22 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from s2cl.atmos.correction import BandAtmosphere
-from s2cl.cl.runtime import Runtime, get_runtime
+from s2cl.cl.runtime import Runtime
 from s2cl.errors import InputError
 from s2cl.forward.grid_interpolation import GridInterpolation
+from s2cl.forward.parts import ChainParts
 from s2cl.forward.radiometry import Radiometry
 from s2cl.forward.resample import AtmosphereArrays, ResamplePlan, Resampler
-from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import SenseResult, Sensing, clipped_counts
 from s2cl.forward.stages import ALL_OUTPUTS, band_attrs, senses
-from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.effects import EffectSet
-from s2cl.scene.library import scene_library
-from s2cl.scene.scene import Scene
-from s2cl.scene.terms import correction_terms, scene_atmosphere
 from s2cl.sensor.sensor import Sensor
-from s2cl.sensor.srf import point_weights
 from s2cl.status import PixelFlag
 
 Progress = Callable[[int], None]
@@ -152,7 +146,8 @@ class BandSummary:
 
 
 class Simulator:
-    """Compiled chain for one scene (or sensor + effects) on ``rt``'s device, reusable across inputs."""
+    """Compiled chain (a scene's :class:`~s2cl.forward.parts.ChainParts`, or sensor + effects) on ``rt``'s device,
+    reusable across inputs."""
 
     def __init__(self, rt: Runtime, sensor: Sensor, grid_size: int, weights: list, effects: EffectSet, *,
                  precision: str = "float32", atmosphere: AtmosphereArrays | None = None,
@@ -167,21 +162,13 @@ class Simulator:
         self.sensing = Sensing(self.rt, radiometry, effects, precision) if senses(effects) else None
 
     @classmethod
-    def for_scene(cls, rt: Runtime, scene: Scene, *, atmosphere: AtmosphereArrays | None = None,
-                  interpolation: GridInterpolation | None = None) -> Simulator:
-        """The scene's chain; ``interpolation``: spectra come at a cube's native wavelengths and the resampling kernel
-        puts them on the scene's grid (:class:`~s2cl.forward.grid_interpolation.GridInterpolation`)."""
-        weights = [
-            b.weights(scene.grid, scene.run.support, scene.source)
-            if scene.effects.resample else point_weights(scene.grid, b.centre_nm, b.name, scene.source)
-            for b in scene.sensor.bands
-        ]
-        correction = None
-        if scene.effects.correct:
-            correction = BandAtmosphere.of(correction_terms(scene), weights)
-        return cls(rt, scene.sensor, scene.grid.size, weights, scene.effects, precision=scene.run.precision,
-                   atmosphere=atmosphere, correction=correction, settings=scene.spec.effects, seed=scene.run.seed,
-                   interpolation=interpolation)
+    def of(cls, rt: Runtime, parts: ChainParts, *, interpolation: GridInterpolation | None = None) -> Simulator:
+        """The chain of ``parts`` (resolved from a scene by :func:`s2cl.app.chain_parts.chain_parts`);
+        ``interpolation``: spectra come at a cube's native wavelengths and the resampling kernel puts them on the
+        grid (:class:`~s2cl.forward.grid_interpolation.GridInterpolation`)."""
+        return cls(rt, parts.sensor, parts.grid.size, list(parts.weights), parts.effects,
+                   precision=parts.run.precision, atmosphere=parts.atmosphere, correction=parts.correction,
+                   settings=parts.settings, seed=parts.run.seed, interpolation=interpolation)
 
     def stage_values(self) -> dict[str, list[Any]]:
         """What the per-pixel stages do to each band (:func:`s2cl.forward.stages.band_attrs`): per attribute, a value
@@ -202,7 +189,7 @@ class Simulator:
         return self.sensing(radiance, seed=seed, frame=frame, pixel_offset=pixel_offset)
 
     def run_library(self, library: SpectralLibrary, *, copies: int, seed: int, frame: int = 0,
-                    scene: str = "", progress: Progress | None = None) -> LibrarySimulation:
+                    scene_name: str = "", progress: Progress | None = None) -> LibrarySimulation:
         """Simulate every spectrum ``copies`` times. Spectra are resampled once (copies share the
         noise-free band radiance); pixel ``s · copies + c`` keys the noise of copy ``c`` of spectrum ``s``."""
         if copies < 1:
@@ -210,7 +197,7 @@ class Simulator:
         t0 = time.perf_counter()
         band_radiance = self.band_radiance(library.spectra)
         seconds = {"resample": time.perf_counter() - t0}
-        result = LibrarySimulation(scene, self.sensor, library, copies, self.effects, band_radiance,
+        result = LibrarySimulation(scene_name, self.sensor, library, copies, self.effects, band_radiance,
                                    seconds=seconds, stage_values=self.stage_values())
         if progress:
             progress(0)
@@ -238,36 +225,3 @@ class Simulator:
                 progress((hi - lo) * c)
         if "flags" in result.outputs:
             result.clipped = clipped_counts(result.outputs["flags"].reshape(nb, -1))
-
-
-def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,
-             library: SpectralLibrary | None = None) -> LibrarySimulation:
-    """Simulate a library scene (see :class:`Scene`); ``library`` overrides the scene's surface."""
-    if not isinstance(scene, Scene):
-        scene = Scene.load(scene)
-    if scene.spec.surface.cube is not None:
-        raise InputError("this scene holds an image cube: use s2cl.forward.cube.simulate_cube", source=scene.source)
-    lib = library if library is not None else scene_library(scene)
-    _require_memory(scene, lib)
-    rt = get_runtime(device or scene.run.device)
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene))
-    r = scene.run
-    result = sim.run_library(lib, copies=r.copies, seed=r.seed, frame=r.frame, scene=scene.name, progress=progress)
-    result.attrs.update(run_attrs(scene, rt.name, image=False))
-    return result
-
-
-#: bytes per pixel and band of an in-memory simulation: float32 noisy/calibrated/reflectance and uint16 DN,
-#: and the copies :meth:`LibrarySimulation.to_dataset` makes of them
-IN_MEMORY_BYTES_PER_PIXEL_BAND = 48
-
-
-def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
-    """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
-    copies, nb = scene.run.copies, scene.sensor.size
-    per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
-    budget = Budget.of()
-    budget.require(BASELINE_BYTES + copies * per_copy, what=f"an in-memory simulation of {lib.size:,} spectra × "
-                   f"{copies:,} copies", key="surface.copies", source=scene.source,
-                   fits=f"at most {largest_fitting(budget.memory_bytes, BASELINE_BYTES, per_copy):,} copies fit; "
-                        "`s2cl simulate` writes any number of copies in bounded memory")

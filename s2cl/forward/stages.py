@@ -36,6 +36,7 @@ from s2cl.scene.caveats import Caveat
 from s2cl.scene.effects import EffectSet
 from s2cl.scene.schema import CalibrationErrorSpec, CrosstalkSpec
 from s2cl.sensor.noise_model import noise_sigma
+from s2cl.sensor.sensor import Sensor
 
 Acts = Literal["spectrum", "image", "bands", "band"]
 Varies = Literal["band", "variant", "pixel", "scalar", "pairs"]
@@ -101,8 +102,8 @@ class Stage:
     deviates: bool = False
     #: it degrades the signal: an ideal instrument leaves it out (:mod:`s2cl.studies.instrument_costs`)
     degrades: bool = False
-    #: warnings about a scene's bands with this stage on (scene, band names) -> caveats
-    caveats: Callable[[Any, list[str]], list[Caveat]] | None = None
+    #: warnings about a sensor's bands with this stage on (sensor, band names) -> caveats
+    caveats: Callable[[Sensor, list[str]], list[Caveat]] | None = None
 
     @property
     def per_pixel(self) -> bool:
@@ -199,12 +200,12 @@ def _crosstalk_attrs(ctx: Radiometry, k: int) -> dict[str, Any]:
     return {"crosstalk_from": ", ".join(f"{ctx.names[j]} {c:g}" for j, c in enumerate(row) if c != 0.0) or "none"}
 
 
-def _quantisation_caveats(scene: Any, bands: list[str]) -> list[Caveat]:
+def _quantisation_caveats(sensor: Sensor, bands: list[str]) -> list[Caveat]:
     """Bands of ``bands`` whose quantisation noise (step / √12) exceeds their sensor noise at Lref."""
-    bits = scene.sensor.bits
+    bits = sensor.bits
     coarse = []
     for name in bands:
-        b = scene.sensor.band(name)
+        b = sensor.band(name)
         step = (b.lmax - b.lmin) / (2**bits - 1)
         if step / math.sqrt(12) > b.lref / float(b.noise.snr(b.lref)):
             coarse.append(b.name)
@@ -343,21 +344,21 @@ def image_stage_names() -> frozenset[str]:
     return frozenset(s.name for s in STAGES if s.acts == "image")
 
 
-def image_only(scene: Any) -> list[Caveat]:
-    """One line naming the image-only stages a scene without an image cube (a library, a sweep) switches on: they
-    do not run there, and are never dropped silently."""
-    if scene.spec.surface.cube is not None:
+def image_only(effects: EffectSet, *, image: bool, sweep: bool) -> list[Caveat]:
+    """One line naming the image-only stages of ``effects`` that a scene without an image cube (``image`` False: a
+    library, with a sweep or not) switches on: they do not run there, and are never dropped silently."""
+    if image:
         return []
-    on = [s.key for s in STAGES if s.acts == "image" and scene.effects.on(s.name)]
+    on = [s.key for s in STAGES if s.acts == "image" and effects.on(s.name)]
     if not on:
         return []
-    where = "this library scene or its sweep" if scene.spec.sweep is not None else "this library scene"
+    where = "this library scene or its sweep" if sweep else "this library scene"
     return [Caveat(", ".join(on), f"image-only stage{'s' if len(on) > 1 else ''}, not run on {where} (they act on "
                                   "image cubes: surface.cube)")]
 
 
-def caveats(scene: Any, bands: list[str]) -> list[Caveat]:
-    """The caveats of the stages the scene switches on, for ``bands``: image-only stages without an image, and each
-    per-pixel stage's own."""
-    own = [c for s in chain(scene.effects) if s.caveats is not None for c in s.caveats(scene, bands)]
-    return image_only(scene) + own
+def caveats(sensor: Sensor, effects: EffectSet, bands: list[str], *, image: bool, sweep: bool) -> list[Caveat]:
+    """The caveats of the stages ``effects`` switches on, for ``bands`` of ``sensor``: image-only stages without an
+    image (:func:`image_only`), and each per-pixel stage's own."""
+    own = [c for s in chain(effects) if s.caveats is not None for c in s.caveats(sensor, bands)]
+    return image_only(effects, image=image, sweep=sweep) + own

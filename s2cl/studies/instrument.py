@@ -20,11 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from s2cl.app.chain_parts import scene_instrument, scene_simulator
+from s2cl.app.image_simulation import scene_cube
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError
-from s2cl.forward.cube import load_scene_cube
-from s2cl.forward.instrument import Instrument
-from s2cl.forward.simulate import Simulator
 from s2cl.libraries.fields import is_builtin_cube
 from s2cl.scene.scene import Scene
 from s2cl.scene.terms import scene_atmosphere
@@ -56,7 +55,7 @@ def cube_scene(scene: Scene, image_px: int = 0) -> Scene:
 def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
     """Seconds of the spatial step alone (every band's PSF and shift on the input grid) with ``effect`` on, on
     an input image of ``size``."""
-    inst = Instrument.of(with_effects(scene, effect_settings(scene, effect)))
+    inst = scene_instrument(with_effects(scene, effect_settings(scene, effect)))
     gsd = float(scene.spec.surface.gsd_m or 10.0)
     image = np.random.default_rng(0).random(size).astype(np.float32)
     t0 = time.perf_counter()
@@ -68,7 +67,7 @@ def spatial_seconds(scene: Scene, size: tuple[int, int], effect: str) -> float:
 def resample_seconds(rt: Any, scene: Scene, cube: Any, sample: int = 8192) -> float:
     """Seconds the resampling kernel would take over every pixel of the image, as for a cube read from a file
     (a generated cube resamples its distinct spectra only): timed on ``sample`` pixels' spectra, scaled."""
-    sim = Simulator.for_scene(rt, scene, atmosphere=scene_atmosphere(scene), interpolation=cube.interpolation)
+    sim = scene_simulator(rt, scene, atmosphere=scene_atmosphere(scene), interpolation=cube.interpolation)
     pixels = cube.rows * cube.cols
     take = np.arange(min(sample, pixels))
     spectra = (cube.spectra[cube.labels[take]] if cube.labels is not None
@@ -89,7 +88,7 @@ def run(setup: StudySetup) -> StudyResult:
     scene = cube_scene(setup.scene, study.image_px)
     rt = get_runtime(scene.run.device)
     names = scene.sensor.band_names
-    cube = load_scene_cube(scene)
+    cube = scene_cube(scene)
     load_before = _load()
     rows = effect_costs(rt, scene, cube, score=analysis_score(rt), repeats=2)
     spatial = {e: spatial_seconds(scene, (cube.rows, cube.cols), e) for e in ("psf", "coregistration")}

@@ -24,8 +24,9 @@ import xarray as xr
 
 from s2cl.app.checks import check_simulate
 from s2cl.app.image_analysis import analyse_image
+from s2cl.app.image_simulation import scene_cube, simulate_image
 from s2cl.cl.runtime import Runtime
-from s2cl.forward.cube import SceneCube, load_scene_cube, simulate_cube
+from s2cl.forward.cube import SceneCube
 from s2cl.forward.stages import STAGES, outputs
 from s2cl.io.image_store import MemoryStore
 from s2cl.scene.instrument_schema import IMAGE_EFFECTS, SOURCES, magnitudes
@@ -100,11 +101,11 @@ def _timed(rt: Runtime, scene: Scene, cube: SceneCube, repeats: int) -> tuple[Me
     """The product's store and the best wall time of ``repeats`` runs after one warm-up (kernel builds
     excluded)."""
     best, store = float("inf"), MemoryStore()
-    simulate_cube(rt, scene, cube, store=store)
+    simulate_image(rt, scene, cube, store=store)
     for _ in range(repeats):
         store = MemoryStore()
         t0 = time.perf_counter()
-        simulate_cube(rt, scene, cube, store=store)
+        simulate_image(rt, scene, cube, store=store)
         best = min(best, time.perf_counter() - t0)
     return store, best
 
@@ -131,23 +132,23 @@ def effect_costs(rt: Runtime, scene: Scene, cube: np.ndarray | SceneCube | None 
                  *, effects: tuple[str, ...] = EFFECTS, score: Score | None = None,
                  repeats: int = 1) -> list[EffectCost]:
     """The ideal instrument and each of ``effects`` alone, on ``scene``'s cube (or ``cube`` in memory, or already
-    loaded by :func:`s2cl.forward.cube.load_scene_cube`): one
+    made ready by :func:`s2cl.app.image_simulation.scene_cube`): one
     :class:`EffectCost` per instrument, the ideal first. The scene's own [effects] settings set each effect's
     magnitude (its on/off switches are ignored)."""
     base = effect_settings(scene)
     ideal_scene = with_effects(scene, base)
-    prepared = cube if isinstance(cube, SceneCube) else load_scene_cube(ideal_scene, cube, wavelengths_nm)
+    prepared = cube if isinstance(cube, SceneCube) else scene_cube(ideal_scene, cube, wavelengths_nm)
     names = ideal_scene.sensor.band_names
     product = product_variable(ideal_scene)
     clean = "reflectance" if ideal_scene.effects.correct else "radiance"
-    truth = simulate_cube(rt, with_effects(scene, {**base, **CLEAN}), prepared)
+    truth = simulate_image(rt, with_effects(scene, {**base, **CLEAN}), prepared)
     rows = []
     for name in ("ideal", *effects):
         spec = base if name == "ideal" else effect_settings(scene, name)
         variant = with_effects(scene, spec)
         store, seconds = _timed(rt, variant, prepared, repeats)
         figures = score(variant, store, prepared) if score else {}
-        own = truth if name == "ideal" else simulate_cube(rt, with_effects(scene, {**spec, **CLEAN}), prepared)
+        own = truth if name == "ideal" else simulate_image(rt, with_effects(scene, {**spec, **CLEAN}), prepared)
         source = "no instrument effect (noise and quantisation only)" if name == "ideal" else SOURCES[name]
         rows.append(EffectCost(name, source, seconds, band_rms(own, truth, names, clean, clean),
                                band_rms(store.dataset(), truth, names, product, clean), figures))

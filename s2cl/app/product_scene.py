@@ -11,6 +11,11 @@ says that the scene left open.
   band whose support leaves the cube's coverage is refused, naming the band and the file.
 - **Quantity**: a product that states what it holds (the L2A products hold surface reflectance) must agree with
   ``surface.quantity``.
+
+The file's metadata is opened once per run: :func:`resolve_cube` (called by the checks,
+:func:`s2cl.app.checks.check_simulate`) returns the completed scene and the cube resolved from it
+(:class:`s2cl.forward.parts.ResolvedCube`: the reader, its shape, the GSD, the grid, the caveats and whether the
+resampling kernel interpolates the file's wavelengths), which the memory rules and the engines take.
 """
 
 from __future__ import annotations
@@ -21,10 +26,11 @@ from functools import lru_cache
 
 from s2cl.errors import InputError
 from s2cl.forward.grid_interpolation import on_grid
+from s2cl.forward.parts import ResolvedCube
 from s2cl.grid import SpectralGrid
 from s2cl.io.cubes import CubeReader, open_cube
 from s2cl.io.inputs import input_file
-from s2cl.libraries.fields import is_builtin_cube
+from s2cl.libraries.fields import fields_shape, is_builtin_cube
 from s2cl.scene.caveats import Caveat
 from s2cl.scene.scene import Scene
 from s2cl.sensor.srf import point_weights
@@ -44,22 +50,22 @@ def scene_reader(scene: Scene) -> CubeReader | None:
     return open_cube(path, s.variable, geometry=s.geometry)
 
 
-def interpolates_cube(scene: Scene) -> bool:
-    """Whether the resampling kernel puts the scene's cube file on the grid itself (the file's wavelengths are not
-    the grid's: its own bands stream in, no spectra on the grid are held), from the file's metadata only."""
-    reader = scene_reader(scene)
-    return reader is not None and not on_grid(reader.wavelengths_nm, resolve_product_scene(scene)[0].grid)
-
-
 @lru_cache(maxsize=8)
-def resolve_product_scene(scene: Scene) -> tuple[Scene, tuple[Caveat, ...]]:
-    """``scene`` with its GSD and spectral grid completed from its cube file's metadata (the module docstring), and
-    the warnings that say what was taken; ``scene`` itself when there is nothing to complete. The same scene object
-    always gives the same result (cached), so each step of a run sees one scene."""
-    reader = scene_reader(scene)
-    if reader is None:
-        return scene, ()
+def resolve_cube(scene: Scene) -> tuple[Scene, ResolvedCube | None]:
+    """``scene`` with its GSD and spectral grid completed from its cube file's metadata (the module docstring) and
+    its cube resolved (:class:`~s2cl.forward.parts.ResolvedCube`: the file opened once, its shape, the caveats that
+    say what was taken); ``(scene, None)`` for a library scene. The same scene object always gives the same result
+    (cached), so each step of a run sees one scene and the file's metadata is read once."""
     s = scene.spec.surface
+    if s.cube is None:
+        return scene, None
+    if is_builtin_cube(s.cube):
+        rows, cols = fields_shape(s.cube, source=scene.source)
+        assert s.gsd_m is not None  # a generated cube's GSD is checked with the scene
+        return scene, ResolvedCube(None, s.cube, rows, cols, 0, s.gsd_m, scene.grid, False, scene.source,
+                                   s.quantity)
+    reader = scene_reader(scene)
+    assert reader is not None
     source = str(reader.path)
     if reader.quantity is not None and reader.quantity != s.quantity:
         raise InputError(f"{reader.product} holds surface {reader.quantity}; set surface.quantity = "
@@ -84,8 +90,20 @@ def resolve_product_scene(scene: Scene) -> tuple[Scene, tuple[Caveat, ...]]:
     grid, note = _coverage_grid(scene, reader, source)
     if note:
         caveats.append(note)
-    spec = scene.spec.model_copy(update={"surface": s.model_copy(update={"gsd_m": gsd})})
-    return replace(scene, spec=spec, grid=grid), tuple(caveats)
+    if gsd != s.gsd_m or grid is not scene.grid:
+        spec = scene.spec.model_copy(update={"surface": s.model_copy(update={"gsd_m": gsd})})
+        scene = replace(scene, spec=spec, grid=grid)
+    cube = ResolvedCube(reader, None, reader.rows, reader.cols, reader.bands_read, gsd, grid,
+                        not on_grid(reader.wavelengths_nm, grid), str(scene.resolve(s.cube)), s.quantity,
+                        tuple(caveats))
+    return scene, cube
+
+
+def resolve_product_scene(scene: Scene) -> tuple[Scene, tuple[Caveat, ...]]:
+    """``scene`` completed from its cube file's metadata (:func:`resolve_cube`), and the warnings that say what was
+    taken; ``scene`` itself when there is nothing to complete."""
+    resolved, cube = resolve_cube(scene)
+    return resolved, () if cube is None else cube.caveats
 
 
 def _pixel_metres(reader: CubeReader) -> float | None:
