@@ -99,21 +99,16 @@ def test_packages_import_only_those_below_them() -> None:
 #: the engines: they take the parts the checks resolved (sensor, grid, run, terms, library or cube reader, ...), never
 #: the whole scene (:mod:`s2cl.app.checks` resolves it once)
 ENGINES = ("s2cl.forward", "s2cl.sweep", "s2cl.retrieve")
-#: engine modules that still take the scene, to be emptied; a fixed one must leave this list (the test says so)
-KNOWN_SCENE_TAKERS: set[str] = set()
 
 
 def test_engines_never_import_the_scene() -> None:
+    """Counting imports under ``TYPE_CHECKING`` and inside functions (:func:`_imports`)."""
     takers = {m for m, deps in _graph().items() if _package_of(m) in ENGINES and "s2cl.scene.scene" in deps}
-    assert not takers - KNOWN_SCENE_TAKERS, f"engines importing s2cl.scene.scene: {sorted(takers - KNOWN_SCENE_TAKERS)}"
-    assert not KNOWN_SCENE_TAKERS - takers, f"fixed, remove: {sorted(KNOWN_SCENE_TAKERS - takers)}"
-
-
-#: engine functions that still take a ``scene`` (typed or not), to be emptied with KNOWN_SCENE_TAKERS
-KNOWN_SCENE_PARAMETERS: set[str] = set()
+    assert not takers, f"engines importing s2cl.scene.scene: {sorted(takers)}"
 
 
 def test_engine_functions_take_parts_not_the_scene() -> None:
+    """No engine function has a ``scene`` parameter, typed or not (a duck-typed scene is still the scene)."""
     takers = set()
     for module, path in _modules().items():
         if _package_of(module) not in ENGINES:
@@ -122,8 +117,7 @@ def test_engine_functions_take_parts_not_the_scene() -> None:
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 if "scene" in [a.arg for a in node.args.args + node.args.kwonlyargs + node.args.posonlyargs]:
                     takers.add(f"{module}:{node.name}")
-    assert not takers - KNOWN_SCENE_PARAMETERS, f"engines taking a scene: {sorted(takers - KNOWN_SCENE_PARAMETERS)}"
-    assert not KNOWN_SCENE_PARAMETERS - takers, f"fixed, remove: {sorted(KNOWN_SCENE_PARAMETERS - takers)}"
+    assert not takers, f"engine functions taking a scene: {sorted(takers)}"
 
 
 def test_no_subpackage_imports_the_top_package() -> None:
