@@ -212,7 +212,7 @@ def load_scene_cube(scene: Scene, cube: np.ndarray | None = None,
                 weights = [b.weights(scene.grid, scene.run.support, scene.source) for b in scene.sensor.bands]
                 check_bad_band_gaps([b.name for b in scene.sensor.bands],
                                     gap_weights(weights, scene.grid, reader.wavelengths_nm, reader.bad_nm),
-                                    s.surface.quantity, source)
+                                    s.surface.quantity, source, reader.bad_bands_by)
             rows, cols = reader.rows, reader.cols
             to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, scene.grid, source)  # it reads, before any output
     if generated is not None:
