@@ -716,7 +716,9 @@ def product_throughput() -> str:
     loads = (m["load_average"][0], r["load_average_after"][0])
     busy = loads[0] > 0.5 * m["cores"]  # before the runs (after them, the load is mostly the benchmark's own)
     return (md_table(("run", "s", "pixels/s", "share of end to end"), rows)
-            + f"\n\nEnd to end is **{r['ratio_to_read_plus_kernel']:.1f}×** (a) + (b) (the goal was within 2×). "
+            + f"\n\nEnd to end is **{r['ratio_to_read_plus_kernel']:.1f}×** (a) + (b) (the goal was within 2×)"
+            + (f"; each time is the median of {r['repeats']} runs in turn, whose own ratios were "
+               + ", ".join(f"{x:.2f}" for x in r["ratios"]) if r.get("repeats", 1) > 1 else "") + ". "
             f"Peak memory (max RSS of the run's process): **{r['max_rss_bytes'] / 1e9:.2f} GB** under "
             f"`--max-memory {r['max_memory']}`, in blocks of {r['block_rows']} input rows.\n\n" + where
             + f"\n\nThe product: {r['size']} × {r['size']} pixels × {r['bands']} bands, {r['dtype']} "
