@@ -13,8 +13,11 @@ pytest.importorskip("rasterio", reason="the geo extra (rasterio, pyproj) reads G
 def test_a_tiny_product_runs_end_to_end_against_the_read_and_the_kernel(bench_path: None) -> None:
     from bench.bench_product import STEPS, bench
 
-    r = bench(24, "1G", None)
+    r = bench(24, "1G", None, repeat=3)
     assert r["pixels"] == 24 * 24 and r["bands"] == 224
+    for key in ("end_to_end_s", "read_alone_s", "kernel_alone_s"):  # the median of the three runs of each
+        assert len(r["samples"][key]) == 3 and r[key] == sorted(r["samples"][key])[1]
+    assert r["ratios"] == pytest.approx([e / (a + b) for e, a, b in zip(*r["samples"].values(), strict=True)])
     assert {"end_to_end", "read_alone", "kernel_alone"} <= set(r["pixels_per_s"])
     assert r["end_to_end_s"] > 0 and r["read_alone_s"] > 0 and r["kernel_alone_s"] > 0
     assert r["ratio_to_read_plus_kernel"] == pytest.approx(r["end_to_end_s"] / (r["read_alone_s"]

@@ -3,6 +3,8 @@ stretch stated on the figure."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from s2cl.app import image_quicklook
@@ -56,7 +58,7 @@ def test_the_stretch_is_stated_on_the_figure(tmp_path, monkeypatch) -> None:
     """What write_quicklook hands to the PNG writer: the true-colour panel's title names the bands and the stretch."""
     seen = {}
 
-    def capture(fig, path, dpi=100):
+    def capture(fig, path, **options):
         seen["titles"] = [ax.get_title() for ax in fig.axes]
         return path
 
@@ -64,3 +66,42 @@ def test_the_stretch_is_stated_on_the_figure(tmp_path, monkeypatch) -> None:
     red = np.arange(100.0).reshape(10, 10) / 100
     write_quicklook(_store(red, red, red), tmp_path / "q.png")
     assert seen["titles"][0] == "true colour (B4 B3 B2)\nL2 reflectance, each channel stretched 2–98 %"
+
+
+def test_the_hand_layout_keeps_every_text_inside_the_figure_and_the_panels_apart(tmp_path, monkeypatch) -> None:
+    """The panels laid out without a layout engine, drawn: every title, tick label and colorbar label inside the
+    figure, and each panel (its image, colorbar and their texts) left of the next one; the map on a long unit."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    seen = {}
+
+    def capture(fig, path, **options):
+        seen["fig"] = fig
+        return path
+
+    monkeypatch.setattr(image_quicklook, "save_png", capture)
+    red = np.arange(400.0).reshape(20, 20) / 400
+    store = _store(red, red, red)
+    for name, units in (("analysis_map", "µg cm-2"), ("analysis_truth", "µg cm-2"), ("analysis_error", "µg cm-2")):
+        store.create(name, ("y_20m", "x_20m"), np.float32, {"units": units})
+        store.write(name, slice(0, 10), np.linspace(-40.0, 80.0, 100).reshape(10, 10).astype(np.float32))
+    write_quicklook(store, tmp_path / "q.png", "analysis_map")
+    fig = seen["fig"]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    width, height = fig.bbox.width, fig.bbox.height
+    texts = [t for t in fig.findobj(lambda a: hasattr(a, "get_text") and a.get_text() and a.get_visible())]
+    assert len(texts) > 20
+    for t in texts:
+        box = t.get_window_extent(renderer)
+        assert box.x0 >= 0 and box.x1 <= width and box.y0 >= 0 and box.y1 <= height, (t.get_text(), box)
+    images = [ax for ax in fig.axes if ax.images]  # the panels' image axes, left to right (colorbars draw no image)
+    assert [ax.get_title() for ax in images] == [image_quicklook.TRUE_COLOUR_TITLE, "analysis map", "status",
+                                                 "analysis error"]
+    extents = []
+    for i, ax in enumerate(images):
+        after = images[i + 1].get_position().x0 if i + 1 < len(images) else 1.0
+        own = [a for a in fig.axes if ax.get_position().x0 <= a.get_position().x0 < after]
+        extents.append((min(a.get_tightbbox(renderer).x0 for a in own), max(a.get_tightbbox(renderer).x1 for a in own)))
+    for (_, right), (left, _) in itertools.pairwise(extents):
+        assert right < left

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError
-from s2cl.sensor.noise_model import fit_noise_model
+from s2cl.sensor.noise_model import fit_noise_model, nnls_two
 from s2cl.sensor.sensor import SENSOR_COLUMNS, Sensor
 
 
@@ -34,6 +34,99 @@ def test_noise_model_is_shot_noise_affine() -> None:
     one = fit_noise_model([(6.0, 50.0)], 30.0)
     assert one.a == 0.0
     assert float(one.snr(24.0)) == pytest.approx(100.0)  # SNR ∝ √L with one point
+
+
+def _weighted(points: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """The noise model's least-squares problem, written out again: rows (1, L) / σ², target σ² / σ²."""
+    L = np.array([p[0] for p in points])
+    var = (L / np.array([p[1] for p in points])) ** 2
+    return np.stack([1 / var, L / var], axis=1), var / var
+
+
+def _kkt(D: np.ndarray, y: np.ndarray, x: tuple[float, float]) -> None:
+    """The optimality conditions of non-negative least squares, checked at ``x``: feasible, the gradient
+    Dᵀ(Dx − y) zero along a positive coefficient and pointing into the quadrant (≥ 0) at one on its bound."""
+    x_ = np.array(x)
+    grad = D.T @ (D @ x_ - y)
+    scale = np.abs(D.T) @ (np.abs(D) @ np.abs(x_) + np.abs(y))  # the size of the terms the gradient sums
+    assert (x_ >= 0).all()
+    for k in range(2):
+        if x_[k] > 0:
+            assert abs(grad[k]) <= 1e-12 * scale[k], (k, grad, x)
+        else:
+            assert grad[k] >= -1e-12 * scale[k], (k, grad, x)
+
+
+@pytest.mark.parametrize("points, bound", [
+    ([(10.0, 10.0), (100.0, 50.0), (1000.0, 200.0)], None),  # both terms positive
+    ([(10.0, 10 / np.sqrt(0.5)), (100.0, 100 / np.sqrt(9.5))], "a"),  # the line through both: a = -0.5 < 0
+    ([(10.0, 5.0), (100.0, 100.0)], "b"),  # σ² falls with L: b < 0 unconstrained
+    ([(10.0, 5.0), (100.0, 100.0), (1000.0, 2000.0)], "b"),
+    ([(1.0, 1.0), (2.0, 100.0), (3.0, 1000.0)], "b"),
+])
+def test_nnls_two_against_scipy_and_the_optimality_conditions(points, bound) -> None:
+    """The exact two-unknown solver against an independent one (scipy's Lawson–Hanson active set) and the KKT
+    conditions, on fits inside the quadrant and with either coefficient at its bound (where the hand-made tables
+    put it: ``bound``)."""
+    from scipy.optimize import nnls
+
+    D, y = _weighted(points)
+    x = nnls_two(D, y)
+    want, _ = nnls(D, y)
+    np.testing.assert_allclose(x, want, rtol=1e-12, atol=1e-300)
+    _kkt(D, y, x)
+    if bound is not None:
+        assert x[0 if bound == "a" else 1] == 0.0 and x[1 if bound == "a" else 0] > 0
+    else:
+        assert min(x) > 0
+    model = fit_noise_model(points, 10.0)
+    np.testing.assert_allclose((model.a, model.b), x, rtol=1e-14, atol=1e-300)
+
+
+def test_nnls_two_on_random_tables() -> None:
+    """300 random tables of 2–5 points (SNR anywhere from 1 to 1000 at L from 0.1 to 1000): the same residual as scipy's
+    solver (to 1e-12 of the target's size) and the optimality conditions."""
+    from scipy.optimize import nnls
+
+    rng = np.random.default_rng(7)
+    at_bound = 0
+    for _ in range(300):
+        n = int(rng.integers(2, 6))
+        points = list(zip(10 ** rng.uniform(-1, 3, n), 10 ** rng.uniform(0, 3, n), strict=True))
+        D, y = _weighted(points)
+        x = nnls_two(D, y)
+        _, rnorm = nnls(D, y)
+        assert np.linalg.norm(D @ np.array(x) - y) <= rnorm + 1e-12 * np.linalg.norm(y)
+        _kkt(D, y, x)
+        at_bound += min(x) == 0
+    assert 30 < at_bound < 270  # both kinds of solution were tried
+
+
+def test_nnls_two_singular_tables_are_pure_shot_noise() -> None:
+    """Points at one radiance (the columns 1/σ² and L/σ² parallel): every split of the fit is as good, and the
+    solver takes the one-point rule's, a = 0 and b the weighted least-squares slope (by hand: Σ(L/σ²)·1 / Σ(L/σ²)²);
+    a zero design gives zero; a repeated point is the one point's model."""
+    points = [(50.0, 100.0), (50.0, 80.0), (50.0, 120.0)]
+    D, y = _weighted(points)
+    a, b = nnls_two(D, y)
+    col = D[:, 1]
+    assert a == 0.0 and b == pytest.approx(col.sum() / (col @ col), rel=1e-14)
+    assert nnls_two(np.zeros((3, 2)), np.ones(3)) == (0.0, 0.0)
+    twice = fit_noise_model([(6.0, 50.0), (6.0, 50.0)], 30.0)
+    once = fit_noise_model([(6.0, 50.0)], 30.0)
+    assert twice.a == 0.0 and twice.b == pytest.approx(once.b, rel=1e-14)
+
+
+def test_noise_model_of_table1_matches_scipy() -> None:
+    """Every Sentinel-2 band's (a, b) against scipy's solver on the same weighted problem (it was the solver before)."""
+    from scipy.optimize import nnls
+
+    for band in Sensor.sentinel2().bands:
+        if len(band.snr_points) < 2:
+            continue
+        D, y = _weighted(list(band.snr_points))
+        want, _ = nnls(D, y)
+        np.testing.assert_allclose((band.noise.a, band.noise.b), want, rtol=1e-14)
 
 
 def test_width_scaling_of_snr() -> None:

@@ -181,7 +181,8 @@ def open_scene_cube(cube: ResolvedCube, parts: ChainParts) -> SceneCube:
     if reader.bad_nm.size:
         weights = [b.weights(grid, parts.run.support) for b in sensor.bands]
         check_bad_band_gaps([b.name for b in sensor.bands],
-                            gap_weights(weights, grid, reader.wavelengths_nm, reader.bad_nm), cube.quantity, source)
+                            gap_weights(weights, grid, reader.wavelengths_nm, reader.bad_nm), cube.quantity, source,
+                            reader.bad_bands_by)
     to_grid(reader.read(0, 1)[:, :1], reader.wavelengths_nm, grid, source)  # it reads, before any output
     _check_blocks(reader.rows, reader.cols, sensor, cube.gsd_m, source)
     interpolation = GridInterpolation.covering(reader.wavelengths_nm, grid, source) if cube.interpolates else None

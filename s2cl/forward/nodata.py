@@ -25,6 +25,7 @@ from scipy.ndimage import maximum_filter
 
 from s2cl.errors import InputError
 from s2cl.grid import SpectralGrid
+from s2cl.io.cube_reader import BBL
 from s2cl.sensor.srf import BandWeights
 
 #: a band drawing more than this fraction of its SRF weight from a bad-band gap is reported
@@ -72,17 +73,20 @@ def gap_weights(weights: list[BandWeights], grid: SpectralGrid, kept_nm: np.ndar
     return np.array([float(w.weights[in_gap[w.start : w.stop]].sum()) for w in weights])
 
 
-def check_bad_band_gaps(names: list[str], fractions: np.ndarray, quantity: str, source: str) -> None:
+def check_bad_band_gaps(names: list[str], fractions: np.ndarray, quantity: str, source: str,
+                        marked_by: tuple[str, str] = BBL) -> None:
     """Bands that draw on a bad-band gap: interpolated over it (a reflectance cube: surface reflectance is
     smooth across the absorption windows cubes mark bad, and the atmosphere is simulated on top), with a
     warning naming them; an :class:`InputError` for a radiance cube, whose radiance in such a window is the
-    absorption itself and cannot be interpolated."""
+    absorption itself and cannot be interpolated. ``marked_by``: what marked the bad bands, (key, words)
+    (:attr:`s2cl.io.cube_reader.CubeReader.bad_bands_by`: ENVI's bad band list, or a product's own flags)."""
     hit = [(n, f) for n, f in zip(names, fractions, strict=True) if f > GAP_WEIGHT_REPORTED]
     if not hit:
         return
     listed = ", ".join(f"{n} {100 * f:.0f} %" for n, f in hit)
-    what = f"SRF weight on wavelengths the bad band list (bbl) dropped: {listed}"
+    key, words = marked_by
+    what = f"SRF weight on wavelengths {words} dropped: {listed}"
     if quantity == "radiance":
         raise InputError(f"{what}; a radiance cube cannot be interpolated over them: leave these bands out "
-                         "(sensor.bands)", source=source, key="bbl")
-    _log.warning("%s: bbl: %s; reflectance interpolated linearly over the gap", source, what)
+                         "(sensor.bands)", source=source, key=key)
+    _log.warning("%s: %s: %s; reflectance interpolated linearly over the gap", source, key, what)

@@ -16,6 +16,9 @@ from s2cl.io.georef import GeoRef
 _NANOMETRES = ("nanometers", "nanometer", "nanometres", "nanometre", "nm", "unknown", "")
 _MICROMETRES = ("micrometers", "micrometer", "micrometres", "micrometre", "microns", "micron", "um", "µm", "μm")
 
+#: what marked a cube's bad bands, as messages name it: (the metadata key, its words); ENVI's and GDAL's bad band list
+BBL = ("bbl", "the bad band list (bbl)")
+
 
 @dataclass(frozen=True)
 class CubeReader:
@@ -44,6 +47,8 @@ class CubeReader:
     notes: tuple[str, ...] = ()
     #: bands stored per pixel and read with each row (0: the kept and the bad bands), for the memory rule
     stored_bands: int = 0
+    #: what marked the bad bands (:data:`BBL`, or the product's own flags), for the messages about them
+    bad_bands_by: tuple[str, str] = BBL
 
     @property
     def bands_read(self) -> int:

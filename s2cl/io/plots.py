@@ -23,6 +23,13 @@ class _Figures:
         return fig, fig.subplots(nrows, ncols, **kwargs)
 
     @staticmethod
+    def figure(**kwargs: Any) -> Any:
+        """A :class:`matplotlib.figure.Figure` (``figsize``, ``dpi``, ...) that no pyplot state holds."""
+        from matplotlib.figure import Figure
+
+        return Figure(**kwargs)
+
+    @staticmethod
     def close(fig: Any) -> None:
         """Nothing to release: no pyplot state holds the figure."""
 
@@ -40,14 +47,16 @@ class _Figures:
 
 
 def pyplot() -> Any:
-    """What s2cl draws with (``subplots``, ``close``, ``get_cmap``, ``Rectangle``, as in ``matplotlib.pyplot``),
-    without pyplot's global figures or backend."""
+    """What s2cl draws with (``subplots``, ``figure``, ``close``, ``get_cmap``, ``Rectangle``, as in
+    ``matplotlib.pyplot``), without pyplot's global figures or backend."""
     return _Figures()
 
 
-def save_png(fig: Any, path: str | Path, dpi: float | None = None) -> Path:
-    """Write ``fig`` as PNG atomically (temporary file + rename) and close it."""
+def save_png(fig: Any, path: str | Path, dpi: float | None = None, compress_level: int | None = None) -> Path:
+    """Write ``fig`` as PNG atomically (temporary file + rename) and close it; ``compress_level``: zlib's level (1
+    fastest … 9 smallest; default Pillow's, 6)."""
+    extra = {} if compress_level is None else {"pil_kwargs": {"compress_level": compress_level}}
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
+        fig.savefig(tmp, format="png", dpi=dpi, **extra)
     pyplot().close(fig)
     return Path(path)

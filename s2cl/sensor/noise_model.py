@@ -5,7 +5,9 @@ Shot-noise model (as the paper assumes): the noise variance is affine in the sig
 ``b·L`` the photon shot noise. ``a`` and ``b`` are fitted to the given (L, SNR) points of a band:
 
 - three points (B1–B9): non-negative least squares on σ², each point weighted by 1/σ²ᵢ so that
-  every point's relative error counts equally (Table 1's points lie on such a line to < 1 %);
+  every point's relative error counts equally (Table 1's points lie on such a line to < 1 %), solved exactly
+  for its two unknowns by :func:`nnls_two` (no iterative solver: the unconstrained fit when both are
+  non-negative, else the better of the two one-coefficient fits);
 - two points (B11, B12): the line through both (still non-negative);
 - one point (B10: SNR 50 at Lref only): pure shot noise, ``a = 0``, ``b = σ²/L`` — the paper's
   "dominating shot noise" assumption, so SNR ∝ √L around the one given value.
@@ -70,7 +72,32 @@ def fit_noise_model(points: list[tuple[float, float]], fwhm_ref_nm: float, *, ba
         return NoiseModel(a=0.0, b=float(var[0] / L[0]), fwhm_ref_nm=fwhm_ref_nm)
     weight = 1.0 / var
     design = np.stack([np.ones_like(L), L], axis=1) * weight[:, None]
-    from scipy.optimize import nnls  # here, not at the top: scipy costs every CLI command ~0.4 s
+    a, b = nnls_two(design, var * weight)
+    return NoiseModel(a=a, b=b, fwhm_ref_nm=fwhm_ref_nm)
 
-    (a, b), _ = nnls(design, var * weight)
-    return NoiseModel(a=float(a), b=float(b), fwhm_ref_nm=fwhm_ref_nm)
+
+def nnls_two(design: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+    """The non-negative least-squares solution ``(x₀, x₁) ≥ 0`` minimising ``‖design · x − target‖₂`` for a design
+    ``(m, 2)`` (float64), exactly: the least-squares solution (:func:`numpy.linalg.lstsq`) when it has full rank and
+    both coefficients are non-negative; otherwise the minimum lies on a boundary of the quadrant (the problem is
+    convex), so it is the better of the two one-coefficient fits ``(0, x₁ ≥ 0)`` and ``(x₀ ≥ 0, 0)``, the first on a
+    tie, and the first alone when the two columns are parallel (rank 1: every split of the fit is as good; for the
+    noise model, pure shot noise, as with one point)."""
+    D = np.asarray(design, dtype=np.float64)
+    y = np.asarray(target, dtype=np.float64)
+    x, _, rank, _ = np.linalg.lstsq(D, y, rcond=None)
+    if rank == 2 and x[0] >= 0 and x[1] >= 0:
+        return float(x[0]), float(x[1])
+    best: tuple[float, float] = (0.0, 0.0)
+    best_norm = float(np.linalg.norm(y))
+    for k in (1, 0) if rank == 2 else (1,):  # (0, x₁) first: it wins a tie; alone when the columns are parallel
+        col = D[:, k]
+        norm2 = float(col @ col)
+        if norm2 == 0.0:
+            continue
+        c = max(0.0, float(col @ y) / norm2)
+        norm = float(np.linalg.norm(col * c - y))
+        if norm < best_norm:
+            best = (0.0, c) if k == 1 else (c, 0.0)
+            best_norm = norm
+    return best

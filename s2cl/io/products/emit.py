@@ -86,6 +86,7 @@ def open_emit(p: Path, geometry: str = "map", variable: str | None = None) -> An
     index = bands.index
     notes = [f"{bands.bad_nm.size} bands dropped (good_wavelengths = 0)"] if bands.bad_nm.size else []
     common = {"product": "EMIT L2A", "quantity": "reflectance", "stored_bands": nb,
+              "bad_bands_by": ("sensor_band_parameters/good_wavelengths", "good_wavelengths (0: a bad band)"),
               "fwhm_nm": None if fwhm is None else fwhm[index]}
     if glt_shape is None:
         def read_sensor(start: int, stop: int) -> np.ndarray:

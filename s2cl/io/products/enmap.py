@@ -115,6 +115,11 @@ def _band_table(root: ET.Element, xml: Path) -> dict[str, np.ndarray]:
     return table
 
 
+#: what marks EnMAP's bad bands (:attr:`s2cl.io.cube_reader.CubeReader.bad_bands_by`)
+BAD_BANDS_BY = ("expectedChannelsList",
+                "the XML's band quality (outside the expected channels, or filled with no data)")
+
+
 def _good(root: ET.Element, n: int, xml: Path) -> np.ndarray:
     """Bands in a detector's expected channels and not filled with no data (True: good)."""
     good = np.ones(n, bool)
@@ -205,4 +210,4 @@ def open_enmap(p: Path) -> Any:
     return CubeReader(image, rows, cols, bands.wavelengths_nm, bands.bad_nm,
                       row_reader(image, i, nodata[i], table["gain"][i], table["offset"][i]), georef=georef,
                       product="EnMAP L2A", quantity="reflectance", fwhm_nm=table["fwhm"][i], notes=tuple(notes),
-                      stored_bands=int(i.size))
+                      stored_bands=int(i.size), bad_bands_by=BAD_BANDS_BY)

@@ -114,7 +114,9 @@ def open_prisma(p: Path) -> Any:
         notes.append(f"{int((~good).sum())} bands dropped (flag 0 or wavelength 0)")
     return CubeReader(p, *georef[1], bands.wavelengths_nm, bands.bad_nm, read, georef=georef[0],
                       product="PRISMA L2D", quantity="reflectance", fwhm_nm=fwhm[bands.index], notes=tuple(notes),
-                      stored_bands=det["Vnir"]["bands"] + det["Swir"]["bands"])
+                      stored_bands=det["Vnir"]["bands"] + det["Swir"]["bands"],
+                      bad_bands_by=("List_Cw_Vnir_Flags", "the band flags (List_Cw_Vnir_Flags and List_Cw_Swir_Flags "
+                                    "0, or wavelength 0)"))
 
 
 def _georef(f: Any, p: Path, rows: int, cols: int) -> tuple[GeoRef, tuple[int, int]]:
