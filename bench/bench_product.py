@@ -139,7 +139,8 @@ STEPS = (
     ("s2cl.forward.cube", "_Group.add", "band images: box average, NODATA, store"),
     ("s2cl.forward.sense", "Sensing.__call__", "noise, DN, calibration, correction kernel"),
     ("s2cl.io.image_store", "NetcdfStore.write", "simulation.nc writes"),
-    ("s2cl.app.image_analysis", "analyse_image", "retrieval map (IGRM)"),
+    ("s2cl.app.image_analysis", "_Retrieval.add", "retrieval map (IGRM)"),  # by row blocks, as they are written
+    ("s2cl.app.image_analysis", "_Retrieval.finish", "retrieval map (IGRM)"),
     ("s2cl.app.image_quicklook", "write_quicklook", "quicklook"),
 )
 

@@ -24,7 +24,7 @@ def test_a_tiny_product_runs_end_to_end_against_the_read_and_the_kernel(bench_pa
                                                                                  + r["kernel_alone_s"]))
     names = {name for _, _, name in STEPS}
     assert set(r["steps_s"]) == names  # every step of the chain ran, and was timed
-    assert r["step_calls"]["retrieval map (IGRM)"] == 1
+    assert r["step_calls"]["retrieval map (IGRM)"] >= 2  # retrieved by row blocks as they are written, then written
     assert r["max_rss_bytes"] > 0 and r["written"] == ["simulation.nc", "simulation.json", "quicklook.png"]
 
 
