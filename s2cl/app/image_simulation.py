@@ -5,8 +5,9 @@ name the key). ``s2cl simulate`` (:mod:`s2cl.app.simulate_scene`) takes the same
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
 
 from s2cl.app.chain_parts import chain_parts
 from s2cl.app.product_scene import resolve_cube
@@ -17,6 +18,9 @@ from s2cl.forward.parts import ChainParts, ResolvedCube
 from s2cl.forward.simulate import Progress
 from s2cl.io.image_store import ImageStore
 from s2cl.scene.scene import Scene
+
+if TYPE_CHECKING:
+    import xarray as xr  # the in-memory result's type; xarray is imported where one is built
 
 
 def scene_cube(scene: Scene, cube: np.ndarray | None = None, wavelengths_nm: np.ndarray | None = None) -> SceneCube:

@@ -29,10 +29,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from s2cl.atmos.correction import BandAtmosphere
 from s2cl.cl.runtime import Runtime
@@ -58,6 +57,9 @@ from s2cl.libraries.fields import fields_image
 from s2cl.libraries.library import resample_to_grid
 from s2cl.sensor.sensor import Sensor
 from s2cl.status import PixelFlag
+
+if TYPE_CHECKING:
+    import xarray as xr  # the in-memory result's type; xarray is imported where one is built
 
 __all__ = ["FWHM_TO_SIGMA", "SceneCube", "aggregate", "cube_in_memory", "cube_size", "load_cube", "open_scene_cube",
            "simulate_cube", "to_grid"]

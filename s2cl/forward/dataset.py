@@ -4,14 +4,16 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from s2cl.errors import InputError
 from s2cl.forward.stages import ALL_OUTPUTS, RADIANCE_UNITS
 from s2cl.sensor.sensor import Band
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 #: global attribute of every NetCDF file s2cl writes
 CONVENTIONS = {"Conventions": "CF-1.10"}
@@ -73,6 +75,7 @@ PIXEL_SPECTRUM_ATTRS = {"long_name": "library spectrum of each pixel (-1: none)"
 
 def library_dataset(sim: Any, layout: str = "rows") -> xr.Dataset:
     """Dataset with ``band_radiance (band, spectrum)`` and per-pixel images ``(band, y, x)``."""
+
     lib = sim.library
     index = image_layout(lib.size, sim.copies, layout)
     valid = index >= 0
@@ -109,6 +112,8 @@ def header_dataset(sensor: Any, lib: Any, band_radiance: np.ndarray, copies: int
     """Everything of a library simulation's dataset but the per-pixel images: band and spectrum
     tables, noise-free band radiance, clipping counts, attributes; ``stage_values``: what the chain's stages did
     to each band (their attributes, :func:`s2cl.forward.stages.band_attrs`), as coordinates along ``band``."""
+    import xarray as xr  # ~0.35 s with pandas: only in-memory results need it, not s2cl simulate's streamed run
+
     coords = band_table(sensor.bands)
     for key, values in (stage_values or {}).items():
         coords[key] = ("band", np.asarray(values))
