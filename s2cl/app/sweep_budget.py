@@ -147,10 +147,10 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     need = host.need
     what = f"a sweep of {n_configs:,} configurations × {pixels:,} pixels"
     if need(1) > budget.memory_bytes:
-        if host.tables > need(1) - host.tables - BASELINE_BYTES:
+        none, one = footprint(0).need(1), footprint(1).need(1)  # linear in the copies
+        if none > budget.memory_bytes:  # not even without noisy copies: the band variants' tables are too many
             budget.require(need(1), what=what + f" ({variants:,} band variants)", key="sweep.step_nm",
                            source=scene.source, fits=f"the variant tables alone take {gb(host.tables)}")
-        none, one = footprint(0).need(1), footprint(1).need(1)  # linear in the copies
         most = largest_fitting(budget.memory_bytes, none, one - none)
         budget.require(need(1), what=what, key="surface.copies", source=scene.source,
                        fits=f"at most {most:,} copies fit" if most else "")
