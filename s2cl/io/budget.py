@@ -4,9 +4,9 @@ is allocated or written, against what the run may use.
 A run may use at most ``--max-memory`` (or ``$S2CL_MAX_MEMORY``; default 4 GB) and never more
 than 90 % of the memory available now (``psutil``). An estimate above that is a one-line
 :class:`~s2cl.errors.ResourceError` naming the scene key to lower and the largest value that fits.
-The byte counts per item below are what the arrays of each stage hold (float32 images, uint16 DN,
-float64 host work arrays), rounded up; they are upper bounds, checked against measured peaks in
-the tests and the README.
+Engines declare what they allocate as :class:`Allocation` lists (the sweep's
+:mod:`s2cl.sweep.host_footprint`, a library simulation's :mod:`s2cl.app.simulate_footprint`), from their
+kernels' argument declarations and their named host arrays; the tests measure them.
 """
 
 from __future__ import annotations
