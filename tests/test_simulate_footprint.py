@@ -132,3 +132,71 @@ def test_the_estimate_follows_the_pixels_not_the_chunk_rule(tmp_path: Path) -> N
     with pytest.raises(ResourceError, match=r"surface\.copies") as err:
         simulate_memory(large, budget)
     assert "\n" not in str(err.value)
+
+
+#: in a child process: ``s2cl.simulate`` of the scene and its Dataset once, then again with the peak resident set
+#: reset and numpy's allocations traced
+_IN_MEMORY_CHILD = r"""
+import json, sys, tracemalloc
+from s2cl.app.library_simulation import simulate
+from s2cl.scene.scene import Scene
+device, scene = sys.argv[1], Scene.load(sys.argv[2])
+simulate(scene, device=device).to_dataset()
+def status(key):
+    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")
+base = status("VmRSS:")
+tracemalloc.start()
+simulate(scene, device=device).to_dataset()
+traced = tracemalloc.get_traced_memory()[1]
+tracemalloc.stop()
+print(json.dumps({"rss": status("VmHWM:") - base, "traced": traced}))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="needs Linux's /proc peak resident set")
+@pytest.mark.parametrize("copies", [1000, 8000])
+def test_an_in_memory_run_allocates_what_its_footprint_declares(rt, tmp_path: Path, copies: int) -> None:
+    """``s2cl.simulate`` of 120 spectra × 1,000 and 8,000 copies (every pixel's outputs held) and its Dataset: the
+    growth in resident set within the declared peak (the library, loaded before, left out), at least 0.7 of it."""
+    from s2cl.app.simulate_footprint import in_memory_footprint
+    from s2cl.scene.scene import Scene
+
+    path = _scene(tmp_path, copies, False)
+    fp = in_memory_footprint(Scene.load(str(path)), 120, device_memory=rt.host_memory, baseline=False)
+    declared = fp.peak - next(a.fixed for a in fp.held if a.name == "library (float64)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+           "MALLOC_MMAP_THRESHOLD_": "131072"}
+    out = subprocess.run([sys.executable, "-c", _IN_MEMORY_CHILD, rt.info.spec, str(path)], capture_output=True,
+                         text=True, env=env, cwd=ROOT, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    measured = json.loads(out.stdout.strip().splitlines()[-1])
+    report = (f"in memory, {copies} copies on {rt.name}: resident {measured['rss'] / 1e6:.1f} MB, numpy "
+              f"{measured['traced'] / 1e6:.1f} MB, against {declared / 1e6:.1f} MB declared")
+    print(report)
+    assert measured["rss"] <= declared and measured["traced"] <= declared, report
+    if rt.host_memory:
+        assert measured["rss"] >= LOWEST * declared, report
+
+
+def test_an_in_memory_run_too_large_is_refused_with_the_copies_that_fit(tmp_path: Path, monkeypatch) -> None:
+    """Under a 200 MB limit 120 × 8,000 copies are refused in one line naming surface.copies and the most copies
+    that fit, whose footprint fits (and one more copy's does not)."""
+    from s2cl.app.library_simulation import simulate
+    from s2cl.app.simulate_footprint import in_memory_footprint
+    from s2cl.errors import ResourceError
+    from s2cl.io.budget import BASELINE_BYTES
+    from s2cl.scene.scene import Scene
+
+    limit = int(BASELINE_BYTES + 200e6)
+    monkeypatch.setenv("S2CL_MAX_MEMORY", str(limit))
+    path = _scene(tmp_path, 8000, False)
+    with pytest.raises(ResourceError, match=r"surface\.copies") as err:
+        simulate(path)
+    line = str(err.value)
+    assert "\n" not in line and "in bounded memory" in line
+    most = int(re.search(r"at most ([\d,]+) copies fit", line).group(1).replace(",", ""))
+    scene = Scene.load(str(path))
+    assert in_memory_footprint(scene, 120, copies=most).peak <= limit < in_memory_footprint(scene, 120,
+                                                                                          copies=most + 1).peak

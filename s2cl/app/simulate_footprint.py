@@ -23,6 +23,7 @@ from s2cl.forward.sense import launch_pixels, sense_args, sense_buffers
 from s2cl.forward.stages import chain
 from s2cl.io.budget import BASELINE_BYTES, SIMULATE_CHUNK_PIXELS, Allocation
 from s2cl.retrieve.metrics import ROW_BLOCK, block_work_bytes
+from s2cl.scene.scene import Scene
 
 #: bytes of the host's float64 work values (the band summary's, the library's reflectance, the regression target)
 F64 = np.dtype(np.float64).itemsize
@@ -83,12 +84,20 @@ def simulate_footprint(checked: Checked, *, copies: int | None = None, device_me
 
 
 def chunk_arrays(checked: Checked, pixels: int, *, device_memory: bool) -> list[Allocation]:
-    """A chunk of ``pixels`` at its peak (see the module's docstring)."""
-    scene = checked.scene
+    """A chunk of ``pixels`` of ``s2cl simulate`` at its peak (see the module's docstring)."""
+    analysed = len(checked.analysis_bands) if checked.analysis is not None else 0
+    return sense_chunk(checked.scene, pixels, device_memory=device_memory, summary=True, analysed=analysed)
+
+
+def sense_chunk(scene: Scene, pixels: int, *, device_memory: bool, summary: bool,
+                analysed: int = 0) -> list[Allocation]:
+    """A chunk of ``pixels`` through the sense kernel at its peak: the band radiance repeated and the stages' outputs
+    (their declared types), and the larger of one launch's arrays and what follows the launches one after the other
+    (with ``summary``, the band summary's float64 work; the clipping counts' masks; the gather of ``analysed``
+    bands)."""
     nb, real = scene.sensor.size, np.dtype(scene.run.precision).itemsize
     stages = chain(scene.effects)
-    outs = [a for a in sense_args(stages) if a.kind == "out"]
-    names = {a.name for a in outs}
+    names = {a.name for a in sense_args(stages) if a.kind == "out"}
     declared = sense_buffers(stages, nb, real)  # per pixel of a launch: the outputs' and the radiance's buffers
     held = [Allocation("band radiance repeated", real * nb * pixels),
             *[Allocation(b.name, b.per_unit * pixels) for b in declared if b.name in names]]
@@ -99,14 +108,42 @@ def chunk_arrays(checked: Checked, pixels: int, *, device_memory: bool) -> list[
     if device_memory:
         at_launch += [Allocation(f"{b.name} (device)", b.bytes(launch)) for b in declared]
     after = []
-    if names & {"noisy", "calibrated"}:  # the summary: a float64 copy and its deviation from the mean
+    if summary and names & {"noisy", "calibrated"}:  # the summary: a float64 copy and its deviation from the mean
         after.append(Allocation("summary work (float64)", 2 * F64 * nb * pixels))
     if "flags" in names:  # the clipping counts: a masked copy, its test, and the low and high masks
         after.append(Allocation("clipping masks", 4 * BYTE * nb * pixels))
-    if checked.analysis is not None and "reflectance" in names:
-        after.append(Allocation("analysed bands' gather", real * len(checked.analysis_bands) * pixels))
+    if analysed and "reflectance" in names:
+        after.append(Allocation("analysed bands' gather", real * analysed * pixels))
     after = [max(after, key=lambda a: a.fixed)] if after else []  # one after the other
     return [*held, *max([at_launch, after], key=total)]
+
+
+def in_memory_footprint(scene: Scene, n_spectra: int, *, copies: int | None = None, device_memory: bool = True,
+                        baseline: bool = True, dataset: bool = True) -> SimulateFootprint:
+    """The footprint of ``s2cl.simulate`` (:meth:`s2cl.forward.simulate.Simulator.run_library`) of ``n_spectra``
+    × ``copies`` (default the scene's): the library, its band radiance and every pixel's outputs held, a chunk as
+    ``s2cl simulate``'s (no summary) or the clipping counts' masks over every pixel; with ``dataset``, then
+    :meth:`~s2cl.forward.simulate.LibrarySimulation.to_dataset` (the outputs laid out again, one of them twice at
+    once, and four int64 maps of the image's pixels)."""
+    c = scene.run.copies if copies is None else copies
+    nb, grid, n = scene.sensor.size, scene.grid.size, n_spectra * c
+    real = np.dtype(scene.run.precision).itemsize
+    stages = chain(scene.effects)
+    names = {a.name for a in sense_args(stages) if a.kind == "out"}
+    outs = [b for b in sense_buffers(stages, nb, real) if b.name in names]
+    held = [Allocation("baseline", BASELINE_BYTES if baseline else 0.0),
+            Allocation("library (float64)", F64 * n_spectra * grid),
+            Allocation("library in the working precision", real * n_spectra * grid),
+            Allocation("band radiance", real * nb * n_spectra),
+            *[Allocation(f"{b.name} (every pixel)", b.per_unit * n) for b in outs]]
+    phases = [sense_chunk(scene, chunk_pixels(n_spectra, c), device_memory=device_memory, summary=False)]
+    if "flags" in names:
+        phases.append([Allocation("clipping masks (every pixel)", 4 * BYTE * nb * n)])
+    if dataset and outs:
+        phases.append([*[Allocation(f"{b.name} (dataset)", b.per_unit * n) for b in outs],
+                       Allocation("dataset's largest output again", max(b.per_unit for b in outs) * n),
+                       Allocation("image maps (int64)", 4 * F64 * n)])
+    return SimulateFootprint(held, max(phases, key=total), [])
 
 
 def analysis_arrays(checked: Checked, pixels: int, *, device_memory: bool) -> list[Allocation]:
