@@ -8,18 +8,15 @@ from __future__ import annotations
 from pathlib import Path
 
 from s2cl.app.chain_parts import chain_parts
+from s2cl.app.simulate_footprint import in_memory_footprint
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, errors_in
 from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.simulate import LibrarySimulation, Progress, Simulator
-from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
+from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.scene.library import scene_library
 from s2cl.scene.scene import Scene
-
-#: bytes per pixel and band of an in-memory simulation: float32 noisy/calibrated/reflectance and uint16 DN,
-#: and the copies :meth:`LibrarySimulation.to_dataset` makes of them
-IN_MEMORY_BYTES_PER_PIXEL_BAND = 48
 
 
 def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: Progress | None = None,
@@ -43,11 +40,20 @@ def simulate(scene: Scene | str | Path, *, device: str | None = None, progress: 
 
 
 def _require_memory(scene: Scene, lib: SpectralLibrary) -> None:
-    """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead)."""
-    copies, nb = scene.run.copies, scene.sensor.size
-    per_copy = lib.size * nb * IN_MEMORY_BYTES_PER_PIXEL_BAND
+    """Refuse an in-memory simulation larger than the memory budget (``s2cl simulate`` streams instead): what it
+    allocates, and its :meth:`~s2cl.forward.simulate.LibrarySimulation.to_dataset`
+    (:func:`s2cl.app.simulate_footprint.in_memory_footprint`)."""
     budget = Budget.of()
-    budget.require(BASELINE_BYTES + copies * per_copy, what=f"an in-memory simulation of {lib.size:,} spectra × "
-                   f"{copies:,} copies", key="surface.copies", source=scene.source,
-                   fits=f"at most {largest_fitting(budget.memory_bytes, BASELINE_BYTES, per_copy):,} copies fit; "
-                        "`s2cl simulate` writes any number of copies in bounded memory")
+
+    def need(copies: int) -> float:
+        return in_memory_footprint(scene, lib.size, copies=copies).peak
+
+    if need(scene.run.copies) <= budget.memory_bytes:
+        return
+    lo, hi = 0, scene.run.copies  # the most copies that fit, by bisection
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        lo, hi = (mid, hi) if need(mid) <= budget.memory_bytes else (lo, mid - 1)
+    budget.require(need(scene.run.copies), what=f"an in-memory simulation of {lib.size:,} spectra × "
+                   f"{scene.run.copies:,} copies", key="surface.copies", source=scene.source,
+                   fits=f"at most {lo:,} copies fit; `s2cl simulate` writes any number of copies in bounded memory")

@@ -30,22 +30,14 @@ if TYPE_CHECKING:
     from s2cl.scene.scene import Scene
 from s2cl.app.chain_parts import checked_parts
 from s2cl.app.checks import Checked
+from s2cl.app.simulate_footprint import chunk_spectra, simulate_footprint
 from s2cl.forward.dataset import PIXEL_SPECTRUM_ATTRS, PIXEL_VARIABLES, header_dataset, pixel_attrs
 from s2cl.forward.resample import resample_buffers
 from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import sense_buffers
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator
 from s2cl.forward.stages import chain, outputs
-from s2cl.io.budget import (
-    ANALYSIS_BYTES_PER_PIXEL,
-    ANALYSIS_BYTES_PER_PIXEL_BAND,
-    BASELINE_BYTES,
-    SIMULATE_BYTES_PER_PIXEL_BAND,
-    SIMULATE_CHUNK_PIXELS,
-    Budget,
-    largest_fitting,
-    require_disk,
-)
+from s2cl.io.budget import Budget, require_disk
 from s2cl.io.simulation_file import simulation_file
 
 Progress = Callable[[int], None]
@@ -63,28 +55,36 @@ class StreamedSimulation:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def chunk_spectra(copies: int) -> int:
-    """Spectra per chunk: about :data:`SIMULATE_CHUNK_PIXELS` pixels, at least one spectrum."""
-    return max(1, SIMULATE_CHUNK_PIXELS // copies)
-
-
-def simulate_memory(checked: Checked, budget: Budget) -> float:
-    """Peak memory (bytes) of :func:`simulate_to_netcdf` for ``checked``; :class:`ResourceError`
-    naming ``surface.copies`` (with the most copies that fit) when it exceeds ``budget``."""
+def simulate_memory(checked: Checked, budget: Budget, *, device_memory: bool = True) -> float:
+    """Peak memory (bytes) of :func:`simulate_to_netcdf` for ``checked``, from what it allocates
+    (:func:`s2cl.app.simulate_footprint.simulate_footprint`; ``device_memory``: the device's buffers are the host's);
+    :class:`ResourceError` naming ``surface.copies`` (with the most copies that fit, with an analysis, whose
+    arrays grow with the copies) when it exceeds ``budget``."""
     scene, lib = checked.scene, checked.library
     assert lib is not None
-    copies, nb = scene.run.copies, scene.sensor.size
-    fixed = BASELINE_BYTES + 24.0 * lib.size * scene.grid.size
-    chunk_pixels = chunk_spectra(copies) * copies
-    n_ab = len(checked.analysis_bands)
-    per_copy = lib.size * (ANALYSIS_BYTES_PER_PIXEL + ANALYSIS_BYTES_PER_PIXEL_BAND * n_ab) if checked.analysis else 0.0
-    need = fixed + chunk_pixels * nb * SIMULATE_BYTES_PER_PIXEL_BAND + copies * per_copy
-    most = largest_fitting(budget.memory_bytes, fixed + SIMULATE_CHUNK_PIXELS * nb * SIMULATE_BYTES_PER_PIXEL_BAND,
-                           per_copy) if per_copy else 0
-    what = f"simulating {lib.size:,} spectra × {copies:,} copies" + (" with the analysis" if per_copy else "")
-    budget.require(need, what=what, key="surface.copies", source=scene.source,
-                   fits=f"at most {most:,} copies fit (or remove [analysis])" if per_copy else "")
+    copies = scene.run.copies
+    need = simulate_footprint(checked, device_memory=device_memory).peak
+    analysis = checked.analysis is not None
+    what = f"simulating {lib.size:,} spectra × {copies:,} copies" + (" with the analysis" if analysis else "")
+    if need > budget.memory_bytes and analysis:
+        most = _most_copies(checked, budget, device_memory)
+        budget.require(need, what=what, key="surface.copies", source=scene.source,
+                       fits=f"at most {most:,} copies fit (or remove [analysis])")
+    budget.require(need, what=what, key="surface.copies", source=scene.source)
     return need
+
+
+def _most_copies(checked: Checked, budget: Budget, device_memory: bool) -> int:
+    """The most copies whose footprint fits ``budget`` (0: none), by bisection (a footprint grows with the copies,
+    but for a chunk's rounding to whole spectra)."""
+    def fits(c: int) -> bool:
+        return simulate_footprint(checked, copies=c, device_memory=device_memory).peak <= budget.memory_bytes
+
+    lo, hi = 0, checked.scene.run.copies
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid - 1)
+    return lo
 
 
 def require_device_launches(rt: Runtime, scene: Scene) -> None:
@@ -157,20 +157,28 @@ def simulate_to_netcdf(checked: Checked, path: Path, *, device: str | None = Non
     with simulation_file(path, header) as store:
         t1 = time.perf_counter()
         with writer.open(store.file) as images:
-            for lo, hi, out in _sensed_chunks(sim, band_radiance, r.copies, r.seed, r.frame):
-                c = r.copies
-                parts = {name: None if getattr(out, name) is None else
-                         getattr(out, name).reshape(scene.sensor.size, hi - lo, c) for name, _, _ in PIXEL_VARIABLES}
-                images.write(lo, hi, parts)
-                stats.add(lo, hi, parts["noisy"], parts["calibrated"], out.clipped, parts["flags"])
-                picked.add(lo * c, out.reflectance)
-                if progress:
-                    progress((hi - lo) * c)
+            _write_chunks(sim, band_radiance, checked, images, stats, picked, progress)
             if clipped is not None:
                 images.set_clipped(stats.clipped)
         seconds["sense_and_write"] = time.perf_counter() - t1
     analysis = picked.analyse(band_radiance, rt) if checked.analysis is not None else None
     return StreamedSimulation(path, stats.rows(), attrs, lib.size * r.copies, analysis, seconds)
+
+
+def _write_chunks(sim: Simulator, band_radiance: np.ndarray, checked: Checked, images: _OpenImages,
+                  stats: BandSummary, picked: _AnalysisBands, progress: Progress | None) -> None:
+    """Sense the library chunk by chunk into ``images``, ``stats`` and ``picked`` (a chunk's arrays are released
+    when it is written: none is left for the analysis, :mod:`s2cl.app.simulate_footprint`)."""
+    r, nb = checked.scene.run, checked.scene.sensor.size
+    c = r.copies
+    for lo, hi, out in _sensed_chunks(sim, band_radiance, c, r.seed, r.frame):
+        parts = {name: None if getattr(out, name) is None else
+                 getattr(out, name).reshape(nb, hi - lo, c) for name, _, _ in PIXEL_VARIABLES}
+        images.write(lo, hi, parts)
+        stats.add(lo, hi, parts["noisy"], parts["calibrated"], out.clipped, parts["flags"])
+        picked.add(lo * c, out.reflectance)
+        if progress:
+            progress((hi - lo) * c)
 
 
 def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed: int, frame: int):

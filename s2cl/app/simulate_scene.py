@@ -78,10 +78,12 @@ def simulate_scene(scene: str | Path | Scene = "default", out: str | Path | None
     check_output_dir(folder, where=where)
     if checked.cube is not None:
         return _simulate_cube(checked, folder, device, budget, progress, on_start, cog)
-    simulate_memory(checked, budget)
+    # a device that does not exist, or cannot hold one launch, is refused before the folder is made; its buffers are
+    # the host's memory where it works in it (PoCL's CPU devices)
+    rt = get_runtime(device or sc.run.device)
+    simulate_memory(checked, budget, device_memory=rt.host_memory)
     require_netcdf_disk(checked, folder)
-    # a device that does not exist, or cannot hold one launch, is refused before the folder is made
-    require_device_launches(get_runtime(device or sc.run.device), sc)
+    require_device_launches(rt, sc)
     warnings = report(checked.caveats)
     total = checked.library.size * sc.run.copies
     t0 = time.perf_counter()

@@ -20,7 +20,7 @@ from s2cl.forward.stages import ALL_OUTPUTS, Stage, Value, chain, compute, input
 from s2cl.scene.effects import EffectSet
 from s2cl.status import PixelFlag
 
-__all__ = ["MAX_PIXELS", "Radiometry", "SenseResult", "Sensing", "clipped_counts", "sense_args"]
+__all__ = ["MAX_PIXELS", "Radiometry", "SenseResult", "Sensing", "clipped_counts", "launch_pixels", "sense_args"]
 
 TEMPLATE = "sense.cl.mako"
 MAX_PIXELS = 2**32 - 1
@@ -118,6 +118,11 @@ def sense_args(stages: list[Stage]) -> list[Arg]:
     return [*args, Arg("n_pixels", "scalar", "uint")]
 
 
+def launch_pixels(n_bands: int) -> int:
+    """Pixels per launch of the sense kernel at most (before the device's own limit): 64 MiB of float64 per band."""
+    return max(1, (64 * 2**20) // (n_bands * 8))
+
+
 def sense_buffers(stages: list[Stage], n_bands: int, real_bytes: int) -> list[DeviceBuffer]:
     """The sense kernel's device buffers for ``stages``, from its argument declarations: fixed bytes and bytes per
     pixel of a launch."""
@@ -199,7 +204,7 @@ class Sensing:
         """Pixels per launch: 64 MiB of float64 per band at most, and no more than the device's memory holds
         (:meth:`device_buffers`); a one-line :class:`~s2cl.errors.ResourceError` when not even one pixel fits."""
         device, own = self.rt.memory, self.device_buffers()
-        fit = device.units_fitting(own, max(1, (64 * 2**20) // (self.radiometry.n_bands * 8)))
+        fit = device.units_fitting(own, launch_pixels(self.radiometry.n_bands))
         if not fit:
             device.require(own, 1, what=f"sensing {self.radiometry.n_bands} bands", key="compute.device", source=None,
                            fits="choose a device with more memory")

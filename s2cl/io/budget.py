@@ -4,9 +4,9 @@ is allocated or written, against what the run may use.
 A run may use at most ``--max-memory`` (or ``$S2CL_MAX_MEMORY``; default 4 GB) and never more
 than 90 % of the memory available now (``psutil``). An estimate above that is a one-line
 :class:`~s2cl.errors.ResourceError` naming the scene key to lower and the largest value that fits.
-The byte counts per item below are what the arrays of each stage hold (float32 images, uint16 DN,
-float64 host work arrays), rounded up; they are upper bounds, checked against measured peaks in
-the tests and the README.
+Engines declare what they allocate as :class:`Allocation` lists (the sweep's
+:mod:`s2cl.sweep.host_footprint`, a library simulation's :mod:`s2cl.app.simulate_footprint`), from their
+kernels' argument declarations and their named host arrays; the tests measure them.
 """
 
 from __future__ import annotations
@@ -24,14 +24,6 @@ DEFAULT_MAX_MEMORY = 4_000_000_000
 MAX_MEMORY_ENV = "S2CL_MAX_MEMORY"
 #: what every run holds before its own arrays: Python, numpy, pyopencl + PoCL, the LUT (bytes)
 BASELINE_BYTES = 350e6
-#: per pixel and band of a simulate chunk: float32 radiance in, noisy/calibrated/reflectance out
-#: (float32), DN (uint16), their device buffers and the NetCDF write staging
-SIMULATE_BYTES_PER_PIXEL_BAND = 56
-#: per pixel of the analysis in ``s2cl simulate``: the fit's outputs and device buffers and the float64
-#: work arrays of the metrics (regression residuals, medians) ...
-ANALYSIS_BYTES_PER_PIXEL = 96
-#: ... and per pixel and analysed band: the gathered reflectance (float32) and the fit's copy of it
-ANALYSIS_BYTES_PER_PIXEL_BAND = 8
 #: pixels per simulate chunk (all copies of whole spectra; at least one spectrum)
 SIMULATE_CHUNK_PIXELS = 1 << 20
 
