@@ -9,7 +9,6 @@ The margin: the declaration is an upper bound (measured ≤ declared) that is no
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tracemalloc
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from memory_probe import env as probe_env
 from sweep_fixtures import gvmi_scene
 
 from s2cl.io.budget import Budget
@@ -29,9 +29,11 @@ BIG = Budget(10**11, "test")
 #: CHUNKS configurations one after the other (a sweep's full chunks and its last, smaller one): the growth of the
 #: peak resident set (VmHWM reset) and numpy's traced peak
 _CHILD = r"""
-import json, sys, tracemalloc
+import json, sys
 device, copies, host = sys.argv[1], int(sys.argv[2]), sys.argv[4] == "host"
 chunks = [int(c) for c in sys.argv[3].split(",")]
+from memory_probe import peak
+from memory_probe import env as probe_env
 from sweep_fixtures import gvmi_scene
 from s2cl.app.plan import plan_sweep
 from s2cl.io.budget import Budget
@@ -41,23 +43,13 @@ if host:  # the numpy metrics, as on a device without float64 or on Dask workers
     kernel.metrics_on_device = lambda rt, **kw: False
 job = plan_sweep(gvmi_scene(copies), budget=Budget(10**11, "test"), device=device)
 evaluate_chunk(job, 0, 2, device)
-def status(key):
-    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
-with open("/proc/self/clear_refs", "w") as f:
-    f.write("5")
-base = status("VmRSS:")
-tracemalloc.start()
-for chunk in chunks:
-    evaluate_chunk(job, 0, chunk, device)
-traced = tracemalloc.get_traced_memory()[1]
-tracemalloc.stop()
-print(json.dumps({"rss": status("VmHWM:") - base, "traced": traced, "pixels": job.tables.n_pixels}))
+print(json.dumps({**peak(lambda: [evaluate_chunk(job, 0, chunk, device) for chunk in chunks]),
+                  "pixels": job.tables.n_pixels}))
 """
 
 
 def _measure(device: str, copies: int, chunks: str, where: str) -> dict[str, float]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests"),
-                                                        os.environ.get("PYTHONPATH", "")])}
+    env = probe_env()
     out = subprocess.run([sys.executable, "-c", _CHILD, device, str(copies), chunks, where], capture_output=True,
                          text=True, env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -128,6 +120,9 @@ def test_the_numpy_metrics_hold_one_row_block_whatever_the_chunk(pixels: int) ->
     from s2cl.retrieve.metrics import block_work_bytes, classification_metrics, regression_metrics
 
     rng = np.random.default_rng(3)
+    small = np.full((2, 8), 720.0, np.float32), np.zeros((2, 8), np.uint8)  # modules imported on first use (numpy.ma)
+    regression_metrics(small[0], small[1], small[1], np.zeros(8), condition=small[1])  # load before the measurement
+    classification_metrics(small[0] * 0, small[1], np.zeros(8, int), 5)
     for n in (32, 96):
         index = rng.normal(720.0, 5.0, (n, pixels)).astype(np.float32)
         status = rng.choice(np.array([0, 0, 0, 1, 2, 3], np.uint8), (n, pixels))
@@ -174,15 +169,12 @@ def test_the_device_buffers_count_in_the_host_memory_only_where_the_device_works
 _DIGEST_CHILD = r"""
 import json, sys
 import pandas, pyarrow.parquet
+from memory_probe import peak
 from s2cl.sweep.digest import Digest
 Digest.of_file(sys.argv[2], {"analysis": "igrm"})  # the modules a digest loads, before the measurement
-with open("/proc/self/clear_refs", "w") as f:
-    f.write("5")
-def status(key):
-    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
-base = status("VmRSS:")
-d = Digest.of_file(sys.argv[1], {"analysis": "igrm"})
-print(json.dumps({"rss": status("VmHWM:") - base, "variants": d.variants("B4") + d.variants("B5")}))
+held = []
+figures = peak(lambda: held.append(Digest.of_file(sys.argv[1], {"analysis": "igrm"})), traced=False)
+print(json.dumps({"rss": figures["rss"], "variants": held[0].variants("B4") + held[0].variants("B5")}))
 """
 
 
@@ -206,7 +198,7 @@ def test_the_report_digest_holds_what_it_declares_whatever_the_rows(tmp_path: Pa
     path, small = tmp_path / "results.parquet", tmp_path / "small.parquet"
     pq.write_table(pa.Table.from_pandas(df, preserve_index=False), path, row_group_size=BATCH_ROWS)
     pq.write_table(pa.Table.from_pandas(df.head(10), preserve_index=False), small)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    env = probe_env()
     out = subprocess.run([sys.executable, "-c", _DIGEST_CHILD, str(path), str(small)], capture_output=True, text=True,
                          env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]

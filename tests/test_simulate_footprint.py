@@ -11,13 +11,13 @@ and the C allocator kept would otherwise hide a run's own growth.
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from memory_probe import env as probe_env
 
 from s2cl.io.budget import Budget
 
@@ -28,8 +28,9 @@ BIG = Budget(10**11, "test")
 #: in a child process: simulate the warm-up scene (kernels built, modules loaded), then the scene with the peak resident
 #: set reset (VmHWM) and numpy's allocations traced
 _CHILD = r"""
-import json, sys, tempfile, tracemalloc
+import json, sys, tempfile
 from pathlib import Path
+from memory_probe import peak
 from s2cl.app.checks import check_simulate
 from s2cl.app.simulate import simulate_to_netcdf
 from s2cl.io.budget import Budget
@@ -38,16 +39,7 @@ device, scene, warm = sys.argv[1], sys.argv[2], sys.argv[3]
 checked = check_simulate(Scene.load(scene), budget=Budget(10**11, "test"))
 out = Path(tempfile.mkdtemp())
 simulate_to_netcdf(check_simulate(Scene.load(warm), budget=Budget(10**11, "test")), out / "warm.nc", device=device)
-def status(key):
-    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
-with open("/proc/self/clear_refs", "w") as f:
-    f.write("5")
-base = status("VmRSS:")
-tracemalloc.start()
-simulate_to_netcdf(checked, out / "run.nc", device=device)
-traced = tracemalloc.get_traced_memory()[1]
-tracemalloc.stop()
-print(json.dumps({"rss": status("VmHWM:") - base, "traced": traced}))
+print(json.dumps(peak(lambda: simulate_to_netcdf(checked, out / "run.nc", device=device))))
 """
 
 
@@ -65,8 +57,7 @@ def _scene(tmp_path: Path, copies: int, analysis: bool) -> Path:
 
 
 def _measure(device: str, scene: Path, warm: Path) -> dict[str, float]:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-           "MALLOC_MMAP_THRESHOLD_": "131072"}
+    env = probe_env(MALLOC_MMAP_THRESHOLD_="131072")
     out = subprocess.run([sys.executable, "-c", _CHILD, device, str(scene), str(warm)], capture_output=True,
                          text=True, env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -137,21 +128,13 @@ def test_the_estimate_follows_the_pixels_not_the_chunk_rule(tmp_path: Path) -> N
 #: in a child process: ``s2cl.simulate`` of the scene and its Dataset once, then again with the peak resident set
 #: reset and numpy's allocations traced
 _IN_MEMORY_CHILD = r"""
-import json, sys, tracemalloc
+import json, sys
+from memory_probe import peak
 from s2cl.app.library_simulation import simulate
 from s2cl.scene.scene import Scene
 device, scene = sys.argv[1], Scene.load(sys.argv[2])
 simulate(scene, device=device).to_dataset()
-def status(key):
-    return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith(key))
-with open("/proc/self/clear_refs", "w") as f:
-    f.write("5")
-base = status("VmRSS:")
-tracemalloc.start()
-simulate(scene, device=device).to_dataset()
-traced = tracemalloc.get_traced_memory()[1]
-tracemalloc.stop()
-print(json.dumps({"rss": status("VmHWM:") - base, "traced": traced}))
+print(json.dumps(peak(lambda: simulate(scene, device=device).to_dataset())))
 """
 
 
@@ -166,8 +149,7 @@ def test_an_in_memory_run_allocates_what_its_footprint_declares(rt, tmp_path: Pa
     path = _scene(tmp_path, copies, False)
     fp = in_memory_footprint(Scene.load(str(path)), 120, device_memory=rt.host_memory, baseline=False)
     declared = fp.peak - next(a.fixed for a in fp.held if a.name == "library (float64)")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-           "MALLOC_MMAP_THRESHOLD_": "131072"}
+    env = probe_env(MALLOC_MMAP_THRESHOLD_="131072")
     out = subprocess.run([sys.executable, "-c", _IN_MEMORY_CHILD, rt.info.spec, str(path)], capture_output=True,
                          text=True, env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
