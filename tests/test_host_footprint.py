@@ -206,3 +206,32 @@ def test_the_report_digest_holds_what_it_declares_whatever_the_rows(tmp_path: Pa
     declared = BATCH_BYTES_PER_COLUMN * len(df.columns) + BYTES_PER_VARIANT * measured["variants"]
     assert measured["variants"] == 4000
     assert LOWEST * declared <= measured["rss"] <= declared, (measured, declared)
+
+
+def test_a_sweep_refused_for_its_copies_names_the_most_that_fit(tmp_path: Path) -> None:
+    """The default scene at 10,000 copies under 1.5 GB is refused naming ``surface.copies`` and N copies: the same scene
+    at N copies is accepted and at N + 1 refused (the footprint is not a straight line in the copies: past some count
+    the chunk's part outgrows the report's, which a line through 0 and 1 copies missed by about 30×)."""
+    import re
+
+    from s2cl.app.checks import check_sweep
+    from s2cl.app.sweep_budget import sweep_resources
+    from s2cl.errors import ResourceError
+    from s2cl.scene.scene import Scene
+
+    text = (ROOT / "scenes" / "default.toml").read_text()
+    assert "copies = 100 " in text
+
+    def plan(copies: int) -> None:
+        path = tmp_path / f"c{copies}.toml"
+        path.write_text(text.replace("copies = 100 ", f"copies = {copies} ", 1))
+        sweep_resources(check_sweep(Scene.load(str(path))), budget=Budget(1.5e9, "test"))
+
+    with pytest.raises(ResourceError) as err:
+        plan(10_000)
+    assert "surface.copies" in str(err.value) and "\n" not in str(err.value)
+    most = int(re.search(r"at most ([\d,]+) copies fit", str(err.value)).group(1).replace(",", ""))
+    assert 0 < most < 10_000
+    plan(most)
+    with pytest.raises(ResourceError):
+        plan(most + 1)

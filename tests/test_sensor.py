@@ -204,3 +204,15 @@ def test_optional_numeric_columns_and_measured_noise_coefficients(tmp_path) -> N
     assert b4.with_shape(665, 60).noise_coefficients() == pytest.approx((0.0072, 0.002), rel=1e-15)
     fitted = fit_noise_model([(50.0, 117.0)], 15.0)
     assert (b5.noise.a, b5.noise.b) == (fitted.a, fitted.b)
+
+
+@pytest.mark.parametrize("design, want", [
+    ([[1.0, 0.0], [2.0, 0.0]], (1.0, 0.0)),  # the second column is zero: the first fits alone
+    ([[1.0, -1.0], [2.0, -2.0]], (1.0, 0.0)),  # parallel, the second pointing away from the target
+    ([[1.0, 1.0], [2.0, 2.0]], (0.0, 1.0)),  # parallel, both fit: the second alone (pure shot noise in the model)
+])
+def test_nnls_two_on_rank_one_designs(design, want) -> None:
+    """Rank-1 designs against ``y = (1, 2)``, by hand: the fit reaches y exactly, with the column that can (before:
+    (0, 0) for the first two, residual 2.24)."""
+    x = nnls_two(np.array(design), np.array([1.0, 2.0]))
+    np.testing.assert_allclose(x, want, rtol=1e-15, atol=1e-15)

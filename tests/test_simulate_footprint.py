@@ -158,8 +158,8 @@ def test_an_in_memory_run_allocates_what_its_footprint_declares(rt, tmp_path: Pa
               f"{measured['traced'] / 1e6:.1f} MB, against {declared / 1e6:.1f} MB declared")
     print(report)
     assert measured["rss"] <= declared and measured["traced"] <= declared, report
-    if rt.host_memory:
-        assert measured["rss"] >= LOWEST * declared, report
+    if rt.host_memory:  # the larger measure: with each chunk let go, freed pages keep the resident peak below numpy's
+        assert max(measured["rss"], measured["traced"]) >= LOWEST * declared, report
 
 
 def test_an_in_memory_run_too_large_is_refused_with_the_copies_that_fit(tmp_path: Path, monkeypatch) -> None:
@@ -182,3 +182,34 @@ def test_an_in_memory_run_too_large_is_refused_with_the_copies_that_fit(tmp_path
     scene = Scene.load(str(path))
     assert in_memory_footprint(scene, 120, copies=most).peak <= limit < in_memory_footprint(scene, 120,
                                                                                           copies=most + 1).peak
+
+
+def test_a_chunk_is_let_go_before_the_next_is_sensed(tmp_path: Path, monkeypatch) -> None:
+    """120 spectra × 1,000 copies in two chunks of 60 spectra: numpy's memory when the second chunk's sensing starts
+    equals the first's (within 1 MB; one chunk's outputs are 11.7 MB), so a chunk never overlaps the next, as the
+    footprint counts it (a chunk held by the loop or the generator overlapped the next before)."""
+    import tracemalloc
+
+    import s2cl.app.simulate as simulate_module
+    import s2cl.app.simulate_footprint as footprint_module
+    from s2cl.app.checks import check_simulate
+    from s2cl.forward.simulate import Simulator
+    from s2cl.scene.scene import Scene
+
+    checked = check_simulate(Scene.load(str(_scene(tmp_path, 1000, analysis=False))), budget=Budget(10**11, "test"))
+    monkeypatch.setattr(footprint_module, "SIMULATE_CHUNK_PIXELS", 60 * 1000)
+    at_entry: list[int] = []
+    real = Simulator.sense
+
+    def sense(self, radiance, **kwargs):
+        at_entry.append(tracemalloc.get_traced_memory()[0])
+        return real(self, radiance, **kwargs)
+
+    monkeypatch.setattr(Simulator, "sense", sense)
+    tracemalloc.start()
+    try:
+        simulate_module.simulate_to_netcdf(checked, tmp_path / "out.nc")
+    finally:
+        tracemalloc.stop()
+    assert len(at_entry) == 2
+    assert abs(at_entry[1] - at_entry[0]) < 1e6, at_entry

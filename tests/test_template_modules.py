@@ -55,3 +55,22 @@ def test_without_a_cache_folder_the_modules_stay_in_memory(fresh_lookup, monkeyp
     monkeypatch.setattr(templates, "cache_dir", refuse)
     assert "sense_bands" in _render()
     assert not fresh_lookup.exists()
+
+
+def test_a_cache_folder_that_cannot_be_written_leaves_the_modules_in_memory(fresh_lookup, monkeypatch) -> None:
+    """The folder exists (a read-only or shared home) but Mako cannot write a module into it: the templates render
+    the same, compiled in memory (before: every render failed)."""
+    import errno
+    import tempfile
+
+    expected = _render()
+    templates._lookup.cache_clear()
+    for module in fresh_lookup.glob("*.py"):
+        module.unlink()  # nothing to read back: every module must be written again
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", kwargs.get("dir"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)  # what an existing, non-writable folder does to Mako's writes
+    assert _render() == expected
+    assert not list(fresh_lookup.glob("*.py"))

@@ -37,7 +37,7 @@ from s2cl.forward.run_attrs import run_attrs
 from s2cl.forward.sense import sense_buffers
 from s2cl.forward.simulate import BandSummary, LibrarySimulation, Simulator
 from s2cl.forward.stages import chain, outputs
-from s2cl.io.budget import Budget, require_disk
+from s2cl.io.budget import Budget, most_fitting, require_disk
 from s2cl.io.simulation_file import simulation_file
 
 Progress = Callable[[int], None]
@@ -80,11 +80,7 @@ def _most_copies(checked: Checked, budget: Budget, device_memory: bool) -> int:
     def fits(c: int) -> bool:
         return simulate_footprint(checked, copies=c, device_memory=device_memory).peak <= budget.memory_bytes
 
-    lo, hi = 0, checked.scene.run.copies
-    while lo < hi:
-        mid = (lo + hi + 1) // 2
-        lo, hi = (mid, hi) if fits(mid) else (lo, mid - 1)
-    return lo
+    return most_fitting(fits, checked.scene.run.copies)
 
 
 def require_device_launches(rt: Runtime, scene: Scene) -> None:
@@ -179,6 +175,7 @@ def _write_chunks(sim: Simulator, band_radiance: np.ndarray, checked: Checked, i
         picked.add(lo * c, out.reflectance)
         if progress:
             progress((hi - lo) * c)
+        out = parts = None  # let the chunk go before the next is sensed (its footprint counts one chunk)
 
 
 def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed: int, frame: int):
@@ -193,6 +190,7 @@ def _sensed_chunks(sim: Simulator, band_radiance: np.ndarray, copies: int, seed:
         if out is None:  # no per-pixel stage: the images are the noise-free radiance
             out = SenseResult()
         yield lo, hi, out
+        expanded = out = None  # the generator's own references, let go before the next chunk
 
 
 class _ImageWriter:

@@ -34,7 +34,7 @@ from s2cl.app.checks import Checked
 from s2cl.cl.device_memory import POOL_ROUNDING, DeviceBuffer
 from s2cl.cl.runtime import Runtime, get_runtime
 from s2cl.forward.stages import Stage, chain
-from s2cl.io.budget import BASELINE_BYTES, Allocation, Budget, gb, largest_fitting, require_disk
+from s2cl.io.budget import BASELINE_BYTES, Allocation, Budget, gb, largest_fitting, most_fitting, require_disk
 from s2cl.retrieve.metric import Metric
 from s2cl.sweep.device_footprint import SweepSizes, sweep_device_buffers
 from s2cl.sweep.digest import BATCH_BYTES_PER_COLUMN, BYTES_PER_VARIANT
@@ -147,11 +147,11 @@ def sweep_resources(checked: Checked, *, chunk: int | None = None, budget: Budge
     need = host.need
     what = f"a sweep of {n_configs:,} configurations × {pixels:,} pixels"
     if need(1) > budget.memory_bytes:
-        none, one = footprint(0).need(1), footprint(1).need(1)  # linear in the copies
-        if none > budget.memory_bytes:  # not even without noisy copies: the band variants' tables are too many
+        if footprint(0).need(1) > budget.memory_bytes:  # not even without copies: too many band variants' tables
             budget.require(need(1), what=what + f" ({variants:,} band variants)", key="sweep.step_nm",
                            source=scene.source, fits=f"the variant tables alone take {gb(host.tables)}")
-        most = largest_fitting(budget.memory_bytes, none, one - none)
+        # not a straight line in the copies: past some count the chunk's part outgrows the report's
+        most = most_fitting(lambda c: footprint(c).need(1) <= budget.memory_bytes, copies)
         budget.require(need(1), what=what, key="surface.copies", source=scene.source,
                        fits=f"at most {most:,} copies fit" if most else "")
     space.check_numbered(scene.source)  # after the memory: a space too large to hold is told so first

@@ -223,5 +223,6 @@ class Simulator:
                 result.outputs[name][:, lo:hi] = part.reshape(nb, hi - lo, c)
             if progress:
                 progress((hi - lo) * c)
+            expanded = out = None  # let the chunk go before the next is sensed
         if "flags" in result.outputs:
             result.clipped = clipped_counts(result.outputs["flags"].reshape(nb, -1))

@@ -15,6 +15,7 @@ import math
 import os
 import re
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -106,6 +107,16 @@ def largest_fitting(budget_bytes: float, fixed: float, per_unit: float) -> int:
     if per_unit <= 0:
         return 0
     return max(0, math.floor((budget_bytes - fixed) / per_unit))
+
+
+def most_fitting(fits: Callable[[int], bool], upper: int) -> int:
+    """The largest count ``n`` in ``0 … upper`` with ``fits(n)`` (0 if none), by bisection: for footprints that grow
+    with the count but not in a straight line (a larger part taking over past some count)."""
+    lo, hi = 0, upper
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid - 1)
+    return lo
 
 
 def require_disk(folder: str | Path, need: float, *, what: str, key: str, source: str | None = None) -> None:

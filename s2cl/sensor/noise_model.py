@@ -81,8 +81,9 @@ def nnls_two(design: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     ``(m, 2)`` (float64), exactly: the least-squares solution (:func:`numpy.linalg.lstsq`) when it has full rank and
     both coefficients are non-negative; otherwise the minimum lies on a boundary of the quadrant (the problem is
     convex), so it is the better of the two one-coefficient fits ``(0, x₁ ≥ 0)`` and ``(x₀ ≥ 0, 0)``, the first on a
-    tie, and the first alone when the two columns are parallel (rank 1: every split of the fit is as good; for the
-    noise model, pure shot noise, as with one point)."""
+    tie, and the first alone when the two columns are parallel and it fits at all (rank 1: every split of the fit is
+    as good; for the noise model, pure shot noise, as with one point; the second where the first is zero or points
+    away from the target)."""
     D = np.asarray(design, dtype=np.float64)
     y = np.asarray(target, dtype=np.float64)
     x, _, rank, _ = np.linalg.lstsq(D, y, rcond=None)
@@ -90,7 +91,7 @@ def nnls_two(design: np.ndarray, target: np.ndarray) -> tuple[float, float]:
         return float(x[0]), float(x[1])
     best: tuple[float, float] = (0.0, 0.0)
     best_norm = float(np.linalg.norm(y))
-    for k in (1, 0) if rank == 2 else (1,):  # (0, x₁) first: it wins a tie; alone when the columns are parallel
+    for k in (1, 0):  # (0, x₁) first: it wins a tie
         col = D[:, k]
         norm2 = float(col @ col)
         if norm2 == 0.0:
@@ -100,4 +101,6 @@ def nnls_two(design: np.ndarray, target: np.ndarray) -> tuple[float, float]:
         if norm < best_norm:
             best = (0.0, c) if k == 1 else (c, 0.0)
             best_norm = norm
+            if rank < 2:  # parallel columns: a fit by the second one is as good; the first alone decides
+                break
     return best
