@@ -192,17 +192,18 @@ def read_alone(scene_path: Path, block_rows: int | None) -> float:
 def kernel_alone(scene_path: Path, block_rows: int | None) -> float:
     """Seconds of the chain's resampling kernel on every pixel of the product, each block as the chain gives it to the
     kernel (read, no-data pixels zeroed: untimed)."""
-    from s2cl.app.chain_parts import scene_simulator
-    from s2cl.app.image_simulation import scene_cube
-    from s2cl.app.product_scene import resolve_product_scene
+    from s2cl.app.chain_parts import chain_parts
+    from s2cl.app.product_scene import resolve_cube
     from s2cl.cl.runtime import get_runtime
+    from s2cl.forward.cube import open_scene_cube
+    from s2cl.forward.simulate import Simulator
     from s2cl.scene.scene import Scene
-    from s2cl.scene.terms import scene_atmosphere
 
-    cube = scene_cube(Scene.load(str(scene_path)))
-    scene, _ = resolve_product_scene(Scene.load(str(scene_path)))
-    sim = scene_simulator(get_runtime(scene.run.device), scene, atmosphere=scene_atmosphere(scene),
-                          interpolation=cube.interpolation)
+    scene, resolved = resolve_cube(Scene.load(str(scene_path)))  # the product opened once, as the run opens it
+    assert resolved is not None
+    parts = chain_parts(scene)  # the scene's atmosphere and correction, as the run's chain
+    cube = open_scene_cube(resolved, parts)
+    sim = Simulator.of(get_runtime(scene.run.device), parts, interpolation=cube.interpolation)
     kernel = 0.0
     for r0, r1 in _blocks(cube.rows, block_rows):
         spectra, _ = cube.block(r0, r1)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from functools import lru_cache
 
 from s2cl.errors import InputError
 from s2cl.forward.grid_interpolation import on_grid
@@ -50,12 +49,11 @@ def scene_reader(scene: Scene) -> CubeReader | None:
     return open_cube(path, s.variable, geometry=s.geometry)
 
 
-@lru_cache(maxsize=8)
 def resolve_cube(scene: Scene) -> tuple[Scene, ResolvedCube | None]:
     """``scene`` with its GSD and spectral grid completed from its cube file's metadata (the module docstring) and
     its cube resolved (:class:`~s2cl.forward.parts.ResolvedCube`: the file opened once, its shape, the caveats that
-    say what was taken); ``(scene, None)`` for a library scene. The same scene object always gives the same result
-    (cached), so each step of a run sees one scene and the file's metadata is read once."""
+    say what was taken); ``(scene, None)`` for a library scene. The checks call it once per run and hand the result on
+    in :class:`~s2cl.app.checks.Checked` (nothing caches it: a second call opens the file again)."""
     s = scene.spec.surface
     if s.cube is None:
         return scene, None

@@ -53,9 +53,11 @@ def footprint_nodata(nodata: np.ndarray, factor: int, reach: tuple[int, int], to
     the boxes on each side where the image goes on): ``out_rows`` output rows whose boxes start at its row ``top``,
     the same as those rows of the whole image's mask."""
     rows, cols = reach
-    if rows or cols:  # ~0.3 s to import: only where a spatial effect reaches past the box
+    near = nodata
+    if rows or cols:  # scipy.ndimage takes ~0.3 s to import: only where a spatial effect reaches past the box
         from scipy.ndimage import maximum_filter
-    near = maximum_filter(nodata, size=(2 * rows + 1, 2 * cols + 1), mode="nearest") if rows or cols else nodata
+
+        near = maximum_filter(nodata, size=(2 * rows + 1, 2 * cols + 1), mode="nearest")
     nx = (near.shape[1] // factor) * factor
     return near[top : top + out_rows * factor, :nx].reshape(out_rows, factor, nx // factor, factor).any(axis=(1, 3))
 
