@@ -314,6 +314,32 @@ class AnalysisSpec(Section):
         return data
 
 
+#: an application's name: it names results columns (``<name>_<metric>``), so letters, digits and ``_``
+APPLICATION_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
+
+
+class ApplicationSpec(Section):
+    """One application of a scene that serves several (``[[application]]``): its own library, analysis and
+    requirement; the scene's [sweep], sensor, atmosphere and effects are shared (s2cl.scene.applications)."""
+
+    name: str = Field(description="the application's name, lower-case letters, digits and _ (e.g. chlorophyll): it "
+                      "names its results columns (chlorophyll_rms)")
+    library: str | None = Field(None, description="its surface library (default: surface.library)")
+    copies: int | None = Field(None, ge=1, le=1_000_000, description="noisy copies of each of its library's spectra "
+                               "(default: surface.copies)")
+    analysis: AnalysisSpec = Field(description="its retrieval: the keys of [analysis]")
+    target: float | str | None = Field(None, description="its requirement, a score to meet in the metric's units "
+                                       "(lower is better): a number (5.0) or a number with the metric's unit "
+                                       "('5 ug/cm2', '10 %')")
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, value: str) -> str:
+        if not APPLICATION_NAME.fullmatch(value):
+            raise ValueError(f"must be 1-40 lower-case letters, digits or _, starting with a letter, got {value!r}")
+        return value
+
+
 class OutputSpec(Section):
     directory: str | None = Field(None, description="output folder (default: s2cl-out/<scene name>)")
     format: Literal["netcdf", "cog"] = Field("netcdf", description="image outputs of s2cl simulate: simulation.nc "
@@ -351,11 +377,29 @@ class SceneSpec(Section):
     instrument: InstrumentSpec | None = Field(None, description="deprecated: its effects are [effects] keys (psf, "
                                               "coregistration, smile, nonuniformity; still read, with a note)")
     analysis: AnalysisSpec | None = Field(None, description="the retrieval scored on the simulated bands")
+    application: list[ApplicationSpec] | None = Field(None, description="several applications sharing one band "
+                                                      "set, instead of [analysis] (s2cl.scene.applications)")
     sweep: SweepSpec | None = Field(None, description="which bands move, and where (s2cl optimise)")
     study: StudySpec | None = Field(None, description="an atmospheric-band, stability or cellulose study "
                                     "(s2cl study)")
     compute: ComputeSpec = Field(ComputeSpec(), description="precision, vector width and device")
     output: OutputSpec = Field(OutputSpec(), description="where the outputs are written")
+
+    @model_validator(mode="after")
+    def _applications(self) -> SceneSpec:
+        """[[application]] is a non-empty list of uniquely named applications, and replaces [analysis]."""
+        if self.application is None:
+            return self
+        if self.analysis is not None:
+            raise ValueError("application: give [analysis] (one application) or [[application]] (several), not both")
+        if not self.application:
+            raise ValueError("application: the list is empty; give at least one [[application]] or an [analysis]")
+        names = [a.name for a in self.application]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"application: two applications are named {', '.join(repr(n) for n in twice)}; names "
+                             "must differ (they name the results columns)")
+        return self
 
     @model_validator(mode="after")
     def _calibration_gain(self) -> SceneSpec:
