@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from s2cl.errors import InputError, OutputError
-from s2cl.io.inputs import input_file, parse_number
+from s2cl.io.inputs import input_file, number_at, parse_number
 from s2cl.io.outdir import check_output_dir, check_output_file
 from s2cl.io.output import write_json
 from s2cl.sensor.names import check_band_name, safe_file_part
@@ -69,6 +69,15 @@ def test_numbers_in_decimal_notation_are_read(text: str) -> None:
 def test_what_float_would_also_take_is_not_a_number(text: str) -> None:
     with pytest.raises(ValueError):
         parse_number(text)
+
+
+def test_a_metadata_number_is_read_around_its_spaces_or_refused_in_one_line_naming_file_and_key() -> None:
+    """The one rule of the cube readers' header fields, XML nodes and GDAL tags (ENVI, EnMAP, GeoTIFF)."""
+    assert number_at(" 0.5 ", source="x.hdr", key="reflectance scale factor") == 0.5
+    assert number_at(7, source="x.hdr", key="k") == 7.0
+    with pytest.raises(InputError) as err:
+        number_at("0_1", source="METADATA.XML", key="bandID 3 wavelengthCenterOfBand")
+    assert str(err.value) == "METADATA.XML: bandID 3 wavelengthCenterOfBand: must be a number, got '0_1'"
 
 
 def test_wavelengths_must_be_positive() -> None:

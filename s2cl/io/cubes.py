@@ -28,7 +28,7 @@ from s2cl.grid import check_wavelengths
 from s2cl.io.cube_reader import CubeReader, floating, real, wavelength_scale
 from s2cl.io.envi import envi_data_file, envi_layout, header_int, read_envi_header
 from s2cl.io.georef import envi_georef
-from s2cl.io.inputs import input_file, parse_number
+from s2cl.io.inputs import input_file, number_at, parse_number
 from s2cl.io.products import file_kind, open_product
 from s2cl.io.products.bands import bad_band_flags
 
@@ -240,10 +240,7 @@ def _header_number(meta: dict, key: str, p: Path) -> float | None:
     text = meta.get(key)
     if text is None:
         return None
-    try:
-        return parse_number(str(text).strip())
-    except ValueError:
-        raise InputError(f"must be a number, got {token(str(text))}", source=p, key=key) from None
+    return number_at(text, source=p, key=key)
 
 
 #: numpy types of the ENVI data types (:data:`s2cl.io.envi.ENVI_ITEM_BYTES`), before the header's byte order

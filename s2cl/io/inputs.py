@@ -13,7 +13,7 @@ import re
 import stat
 from pathlib import Path
 
-from s2cl.errors import InputError
+from s2cl.errors import InputError, token
 
 #: a number as CSV files write them: optional sign, digits with an optional fraction, optional exponent;
 #: or inf / nan (refused later, with a message naming the value, by the checks of finite values)
@@ -29,6 +29,16 @@ def parse_number(text: str) -> float:
     if not _NUMBER.fullmatch(text):
         raise ValueError(f"not a number: {text!r}")
     return float(text)
+
+
+def number_at(text: object, *, source: str | Path, key: str) -> float:
+    """The number a file's metadata holds at ``key`` (header field, XML node, tag; :func:`parse_number`'s notation,
+    surrounding space ignored), or one :class:`InputError` naming the file and key."""
+    cell = str(text).strip()
+    try:
+        return parse_number(cell)
+    except ValueError:
+        raise InputError(f"must be a number, got {token(cell)}", source=source, key=key) from None
 
 
 def _kind(mode: int) -> str:

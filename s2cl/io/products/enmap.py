@@ -25,7 +25,7 @@ import numpy as np
 from s2cl.errors import InputError, token
 from s2cl.io.cube_reader import CubeReader
 from s2cl.io.georef import GeoRef, crs_wkt, pyproj_crs
-from s2cl.io.inputs import input_file, parse_number
+from s2cl.io.inputs import input_file, number_at, parse_number
 from s2cl.io.products.bands import BandSelection
 from s2cl.io.products.geotiff import check_real, open_dataset, row_reader, tiff_georef
 
@@ -94,10 +94,7 @@ def _xml(xml: Path) -> ET.Element:
 def _float(node: ET.Element | None, xml: Path, key: str) -> float:
     if node is None or node.text is None:
         raise InputError("is missing", source=xml, key=key)
-    try:
-        return parse_number(node.text.strip())
-    except ValueError:
-        raise InputError(f"{token(node.text.strip())} is not a number", source=xml, key=key) from None
+    return number_at(node.text, source=xml, key=key)
 
 
 def _band_table(root: ET.Element, xml: Path) -> dict[str, np.ndarray]:

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from s2cl.errors import DependencyError, InputError, token
+from s2cl.errors import DependencyError, InputError
 from s2cl.io.cube_reader import CubeReader, wavelength_scale
 from s2cl.io.georef import GEO_EXTRA, GeoRef, crs_wkt
-from s2cl.io.inputs import parse_number
+from s2cl.io.inputs import number_at
 from s2cl.io.products.bands import BandSelection, bad_band_flags, scaled
 
 #: rasterio data types s2cl reads (real numbers)
@@ -99,13 +99,6 @@ def open_geotiff(p: Path) -> Any:
                       fwhm_nm=None if fwhm is None else fwhm[i], stored_bands=count)
 
 
-def _number(text: Any, p: Path, key: str) -> float:
-    try:
-        return parse_number(str(text).strip())
-    except ValueError:
-        raise InputError(f"{token(str(text))} is not a number", source=p, key=key) from None
-
-
 def _band_wavelengths(src: Any, p: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Each band's wavelength and FWHM (nm) from its GDAL metadata; an :class:`InputError` naming the first band
     without one."""
@@ -116,12 +109,13 @@ def _band_wavelengths(src: Any, p: Path) -> tuple[np.ndarray, np.ndarray | None]
         imagery = src.tags(b, ns="IMAGERY")
         if "wavelength" in tags:
             scale = wavelength_scale(tags.get("wavelength_units", units_all), p, f"band {b} wavelength_units")
-            wl.append(_number(tags["wavelength"], p, f"band {b} wavelength") * scale)
-            fwhm.append(_number(tags["fwhm"], p, f"band {b} fwhm") * scale if "fwhm" in tags else np.nan)
+            wl.append(number_at(tags["wavelength"], source=p, key=f"band {b} wavelength") * scale)
+            fwhm.append(number_at(tags["fwhm"], source=p, key=f"band {b} fwhm") * scale if "fwhm" in tags else np.nan)
         elif "CENTRAL_WAVELENGTH_UM" in imagery:
-            wl.append(_number(imagery["CENTRAL_WAVELENGTH_UM"], p, f"band {b} CENTRAL_WAVELENGTH_UM") * 1000.0)
+            centre = imagery["CENTRAL_WAVELENGTH_UM"]
+            wl.append(number_at(centre, source=p, key=f"band {b} CENTRAL_WAVELENGTH_UM") * 1000.0)
             f = imagery.get("FWHM_UM")
-            fwhm.append(_number(f, p, f"band {b} FWHM_UM") * 1000.0 if f is not None else np.nan)
+            fwhm.append(number_at(f, source=p, key=f"band {b} FWHM_UM") * 1000.0 if f is not None else np.nan)
         else:
             raise InputError(f"band {b} has no wavelength: a GeoTIFF cube needs each band's GDAL metadata item "
                              "'wavelength' (with 'wavelength_units') or IMAGERY CENTRAL_WAVELENGTH_UM", source=p,
