@@ -186,3 +186,62 @@ def test_cli_errors_are_one_line(tmp_path, monkeypatch, capsys, args, says) -> N
     code, _out, err = run_main(["scorecard", "default", "-q", "-o", "card", *args], capsys)
     assert code == 2 and err.count("\n") == 1 and err.startswith("error: ") and says in err, err
     assert not (tmp_path / "card").exists()
+
+
+MULTI_TOML = """
+[scene]
+name = "multi-small"
+[surface]
+library = "builtin:lib1"
+quantity = "reflectance"
+copies = 2
+[effects]
+atmosphere = true
+correct = true
+[[application]]
+name = "chlorophyll"
+[application.analysis]
+kind = "igrm"
+parameter = "cab"
+[[application]]
+name = "lai"
+[application.analysis]
+kind = "ndvi"
+parameter = "lai"
+[sweep]
+bands = ["B4", "B5", "B6", "B8"]
+[sweep.ranges]
+B4 = { centres = [665, 675], widths = [30] }
+B5 = { centre = 705, width = 15 }
+B6 = { centre = 740, width = 15 }
+B8 = { centre = 842, width = 115 }
+"""
+
+
+def test_application_scenes_score_each_application_on_the_bands_it_reads(tmp_path) -> None:
+    multi = tmp_path / "multi.toml"
+    multi.write_text(MULTI_TOML)
+    card = scorecard(multi, ["sentinel2", "OLI-2"])
+    assert [a.name for a in card.applications] == ["chlorophyll", "lai"]
+    lai = card.cell("lai", "sentinel2")
+    assert list(lai.bands) == ["B8", "B4"]  # the index reads NIR and red only (its roles in order)
+    assert card.cell("lai", "OLI-2").na == "no band near 842 nm (B8, within 15 nm)"  # not "near 705 nm"
+    assert list(card.cell("chlorophyll", "sentinel2").bands) == ["B4", "B5", "B6", "B8"]
+    # the same index alone, on a sweep of its own two bands: the same score, bit for bit
+    alone = tmp_path / "ndvi.toml"
+    alone.write_text(MULTI_TOML.split("[[application]]")[0] + '[analysis]\nkind = "ndvi"\nparameter = "lai"\n'
+                     '[sweep]\nbands = ["B4", "B8"]\n[sweep.ranges]\nB4 = { centre = 665, width = 30 }\n'
+                     'B8 = { centre = 842, width = 115 }\n')
+    assert scorecard(alone, ["sentinel2"]).cell("lai", "sentinel2").score == lai.score
+
+
+def test_own_response_keeps_a_measured_srf_only_at_the_bands_own_shape() -> None:
+    from s2cl.sensor.srf import TabulatedResponse
+
+    table = TabulatedResponse(np.array([650.0, 665.0, 680.0]), np.array([0.0, 1.0, 0.0]), origin="hand")
+    band = Band("B4", 665.0, 30.0, 1.0, 50.0, 300.0, ((50.0, 100.0),), 10.0, tabulated=table, own_response=True)
+    assert band.with_shape(665.0, 30.0).tabulated is table
+    moved = band.with_shape(670.0, 30.0)
+    assert moved.tabulated is None and not moved.own_response
+    assert Band("B4", 665.0, 30.0, 1.0, 50.0, 300.0, ((50.0, 100.0),), 10.0,
+                tabulated=table).with_shape(665.0, 30.0).tabulated is None  # a scene's band: the model SRF

@@ -30,7 +30,8 @@ from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.plan import plan_sweep, reference_row
 from s2cl.errors import InputError
 from s2cl.io.inputs import input_file
-from s2cl.scene.applications import Application, application_scene, scene_applications
+from s2cl.retrieve.family import family_of
+from s2cl.scene.applications import Application, application_scene, is_multi_application, scene_applications
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import RangeSpec, SweepSpec
 from s2cl.sensor.catalogue import (
@@ -146,10 +147,22 @@ def results_sensor(folder: Path, scene: Scene) -> CatalogueSensor:
                            "the scene's sensor, SNR scaled by sqrt(width / its width)", sensor, by_name=True)
 
 
-def application_roles(scene: Scene) -> dict[str, float]:
-    """The bands a single-application scene's analysis uses (its [sweep] bands, else its analysis bands), each with
-    its centre (nm) on the scene's sensor: the roles another sensor's bands must play."""
-    bands = list(scene.spec.sweep.bands) if scene.spec.sweep is not None else analysis_bands(scene)
+def application_roles(scene: Scene, multi: bool = False) -> dict[str, float]:
+    """The bands a single-application scene's analysis reads, each with its centre (nm) on the scene's sensor: the
+    roles another sensor's bands must play. A family that reads every band it is given (IGRM, SAM) reads the
+    [sweep] bands, as the sweep's reference row does (else the analysis bands); one that reads the bands it names
+    (an index, a formula) those bands only, so a sensor is not refused for a band the application never reads (its
+    score is the same: each band's noise is keyed by its place in the sensor, not in the design). ``multi``: the
+    application comes from an ``[[application]]`` table, whose ``analysis.bands`` (where given) are its own."""
+    a = scene.spec.analysis
+    assert a is not None
+    family = family_of(a.kind, scene.source)
+    if multi and a.bands:
+        bands = list(a.bands)
+    elif not family.uses_every_band:
+        bands = family.default_bands(a, scene.sensor.band_names)
+    else:
+        bands = list(scene.spec.sweep.bands) if scene.spec.sweep is not None else analysis_bands(scene)
     return {scene.sensor.band(b).name: scene.sensor.band(b).centre_nm for b in bands}
 
 
@@ -171,10 +184,10 @@ def fixed_scene(scene: Scene, sensor: Sensor, roles: list[str]) -> Scene:
     return dataclasses.replace(scene, spec=scene.spec.model_copy(update={"sweep": sweep}), sensor=sensor)
 
 
-def own_check(scene: Scene) -> Checked:
+def own_check(scene: Scene, multi: bool = False) -> Checked:
     """The application's scene fixed at its own sensor's bands, checked: the scene's own errors (its library,
     atmosphere, analysis) are errors here, once, before any sensor is scored."""
-    roles = list(application_roles(scene))
+    roles = list(application_roles(scene, multi))
     return check_sweep(fixed_scene(scene, scene.sensor, roles))
 
 
@@ -185,7 +198,7 @@ def score_cell(scene: Scene, app: Application, sensor: CatalogueSensor, toleranc
     if sensor.sensor is None:
         return Cell(app.name, sensor.name, None, sensor.unavailable or "unavailable")
     one = application_scene(scene, app)
-    roles = application_roles(one)
+    roles = application_roles(one, is_multi_application(scene))
     mapping = map_roles(roles, sensor.sensor, tolerance_nm, by_name=sensor.by_name)
     bands = {m.role: _band_record(sensor, m.band) for m in mapping.matches if m.band is not None}
     if mapping.missing:
@@ -239,7 +252,7 @@ def scorecard(scene: str | Path | Scene, sensors: list[str] | None = None, *,
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise InputError(f"sensor {twice[0]} is named twice; known: {', '.join(known_sensors())}", key="--sensor")
-    infos = [app_info(app, own_check(application_scene(sc, app))) for app in apps]
+    infos = [app_info(app, own_check(application_scene(sc, app), is_multi_application(sc))) for app in apps]
     cells = []
     for app in apps:
         for card in cards:
