@@ -95,13 +95,30 @@ def test_unknown_sensor_names_the_known_ones() -> None:
     assert catalogue_sensor("landsat8").name == "OLI" and catalogue_sensor("s2a").name == "S2A"
 
 
-def test_measured_sentinel2_unavailable_is_na_not_an_error(monkeypatch) -> None:
+def test_measured_srfs_unavailable_are_na_or_eq1_not_an_error(monkeypatch, tmp_path) -> None:
     def no_py6s(platform: str, band: str):
         raise DependencyError('measured SRFs come from Py6S: pip install "s2cl[sixs]"')
 
     monkeypatch.setattr(catalogue, "measured_sentinel2_srf", no_py6s)
+    monkeypatch.setattr(catalogue, "measured_oli_srf", lambda band: no_py6s("OLI", band))
     s2b = catalogue_sensor("S2B")
     assert s2b.sensor is None and "Py6S" in (s2b.unavailable or "")
+    oli = catalogue_sensor("OLI")  # falls back to eq. 1 at the published centres and widths, and says so
+    assert oli.sensor is not None and all(b.tabulated is None for b in oli.sensor.bands)
+    assert "eq. 1" in oli.srf and "not installed" in oli.srf
+    card = scorecard(_scene(tmp_path), ["sentinel2", "S2B"])
+    cell = card.cell("cab", "S2B")
+    assert cell.score is None and "Py6S" in (cell.na or "") and card.relative(cell) is None
+
+
+def test_measured_srfs_enter_the_cell(tmp_path) -> None:
+    pytest.importorskip("Py6S")
+    s2a = catalogue_sensor("S2A")
+    assert s2a.sensor is not None and all(b.tabulated is not None and b.own_response for b in s2a.sensor.bands)
+    card = scorecard(_scene(tmp_path), ["sentinel2", "S2A"])
+    model, measured = card.cell("cab", "sentinel2"), card.cell("cab", "S2A")
+    assert measured.na is None and measured.score != model.score  # same centres and widths, other responses
+    assert measured.row["n_valid"] == model.row["n_valid"]  # the same pixels
 
 
 def _scene(tmp_path: Path, b4_centres: str = "665, 675, 685", copies: int = 2) -> Path:
