@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import RESULTS, ROOT
+from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
 
 DOCS = ROOT / "docs"
 STUDIES = ("cirrus", "water-vapour", "aerosol", "ozone", "methane")
@@ -876,6 +877,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "images.product-throughput": product_throughput,
     "stages.costs": stage_costs,
     "stages.table3": stage_table3,
+    **SCORECARD_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)

@@ -1,7 +1,8 @@
 """The ``s2cl`` command line: one click group. Every command has ``--help``; errors print one line and exit 2.
 
 The commands live by subject: :mod:`~s2cl.cli.simulate`, :mod:`~s2cl.cli.sweep` (with ``optimise``),
-:mod:`~s2cl.cli.info` (scenes, libraries, devices, sensor, srf, residuals), :mod:`~s2cl.cli.study` and
+:mod:`~s2cl.cli.info` (scenes, libraries, devices, sensor, srf, residuals), :mod:`~s2cl.cli.scorecard`,
+:mod:`~s2cl.cli.study` and
 :mod:`~s2cl.cli.lut`; this module gathers them and turns errors into one line.
 """
 
@@ -15,6 +16,7 @@ import click
 
 from s2cl.cli.info import devices, libraries, residuals, scenes, sensor, srf
 from s2cl.cli.lut import lut
+from s2cl.cli.scorecard import scorecard
 from s2cl.cli.simulate import simulate
 from s2cl.cli.study import study
 from s2cl.cli.sweep import optimise, sweep
@@ -33,6 +35,7 @@ def cli(verbose: int) -> None:
     Start here:
       s2cl optimise              sweep the default scene's band designs, rank them, plot
       s2cl simulate              run the built-in default scene, write NetCDF + summary
+      s2cl scorecard             score the scene's applications on S2A, S2B, OLI, Landsat Next, ...
       s2cl scenes                list built-in scenes
       s2cl libraries             list built-in spectral libraries
       s2cl sensor                show the sensor table and its noise model
@@ -47,7 +50,7 @@ def cli(verbose: int) -> None:
     configure(verbose)
 
 
-for _command in (simulate, optimise, sweep, scenes, libraries, devices, sensor, srf, residuals, study, lut):
+for _command in (simulate, optimise, sweep, scorecard, scenes, libraries, devices, sensor, srf, residuals, study, lut):
     cli.add_command(_command)
 
 

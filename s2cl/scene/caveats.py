@@ -41,7 +41,8 @@ class Caveat:
 
 def srf_caveats(scene: Any, swept: list[str]) -> list[Caveat]:
     """Warn when swept bands have a tabulated SRF, which a sweep replaces by the model SRF."""
-    tabulated = [b for b in swept if scene.sensor.band(b).tabulated is not None]
+    tabulated = [b for b in swept if scene.sensor.band(b).tabulated is not None
+                 and not scene.sensor.band(b).own_response]
     if not tabulated:
         return []
     return [Caveat("sensor.srf", f"the sweep uses the model SRF (Segl et al. 2012 eq. 1) for every variant of "

@@ -38,6 +38,9 @@ class Band:
     :param tabulated: a measured/tabulated SRF, or None for the paper's model (eq. 1).
     :param extra: the band's values in a sensor table's optional numeric columns (name, value), such as a per-band
         coefficient a stage of the forward chain reads (:mod:`s2cl.forward.stages`).
+    :param own_response: at its own centre and width the band keeps its tabulated SRF in a sweep's tables
+        (:meth:`with_shape`): the scorecard's sensors with measured SRFs (:mod:`s2cl.sensor.catalogue`). Off, as
+        for every band a scene's sensor reads, a sweep uses the model SRF for every variant and the reference row.
     """
 
     name: str
@@ -51,6 +54,7 @@ class Band:
     fwhm_ref_nm: float = 0.0
     tabulated: TabulatedResponse | None = field(default=None, repr=False)
     extra: tuple[tuple[str, float], ...] = ()
+    own_response: bool = False
 
     def __post_init__(self) -> None:
         if self.fwhm_ref_nm == 0.0:
@@ -108,8 +112,23 @@ class Band:
         )
 
     def with_shape(self, centre_nm: float, fwhm_nm: float) -> Band:
-        """This band moved to ``centre_nm`` with width ``fwhm_nm`` (model SRF; noise rescaled)."""
-        return replace(self, centre_nm=float(centre_nm), fwhm_nm=float(fwhm_nm), tabulated=None)
+        """This band moved to ``centre_nm`` with width ``fwhm_nm`` (model SRF; noise rescaled); a band with
+        ``own_response`` left at its own centre and width keeps its tabulated SRF."""
+        if self.own_response and float(centre_nm) == self.centre_nm and float(fwhm_nm) == self.fwhm_nm:
+            return self
+        return replace(self, centre_nm=float(centre_nm), fwhm_nm=float(fwhm_nm), tabulated=None, own_response=False)
+
+    def stand_in(self, name: str, centre_nm: float | None = None, fwhm_nm: float | None = None,
+                 gsd_m: float | None = None) -> Band:
+        """A new band ``name`` with this band's radiometry (Lmin, Lref, Lmax, its SNR points and the width they refer
+        to, so that a width w gets the SNR scaled by √(w / this band's width), as every swept variant does) and the
+        model SRF (eq. 1) at ``centre_nm`` and ``fwhm_nm`` (default: this band's), GSD ``gsd_m`` (default: this
+        band's). The one rule for a band whose own radiometry s2cl does not have: a band addition's added band
+        (``[sweep.add] like``) and the scorecard's sensors without an SNR table (:mod:`s2cl.sensor.catalogue`)."""
+        band = replace(self, name=name, tabulated=None, own_response=False,
+                       gsd_m=self.gsd_m if gsd_m is None else float(gsd_m))
+        return band.with_shape(self.centre_nm if centre_nm is None else centre_nm,
+                               self.fwhm_nm if fwhm_nm is None else fwhm_nm)
 
 
 @dataclass(frozen=True, eq=False)

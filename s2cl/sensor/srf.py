@@ -233,14 +233,37 @@ def measured_sentinel2_srf(platform: str, band: str) -> TabulatedResponse:
         raise InputError(f"platform must be 'S2A' or 'S2B', got {platform!r}", key="sensor.srf")
     if band not in _S2_PY6S:
         raise InputError(f"no measured Sentinel-2 response for band {band!r}; bands: {', '.join(_S2_PY6S)}", key=band)
+    return py6s_response(f"{platform}_MSI_{_S2_PY6S[band]}", band, "ESA measured")
+
+
+#: Landsat 8 OLI bands whose measured response Py6S ships (``PredefinedWavelengths.LANDSAT_OLI_B1``…; B8 is the
+#: panchromatic band)
+OLI_PY6S_BANDS = ("B1", "B2", "B3", "B4", "B5", "B6", "B7", "B9")
+
+
+def measured_oli_srf(band: str) -> TabulatedResponse:
+    """The measured Landsat 8 OLI response of ``band`` (``B1``…``B7``, ``B9``) from Py6S's built-in tables (NASA's
+    band-average relative spectral response at 2.5 nm); install with ``pip install "s2cl[sixs]"``."""
+    if band not in OLI_PY6S_BANDS:
+        raise InputError(f"no measured Landsat 8 OLI response for band {band!r}; bands: {', '.join(OLI_PY6S_BANDS)}",
+                         key=band)
+    return py6s_response(f"LANDSAT_OLI_{band}", band, "NASA measured")
+
+
+def py6s_response(table: str, band: str, what: str) -> TabulatedResponse:
+    """A response Py6S ships as ``PredefinedWavelengths.<table>`` (id, start µm, stop µm, values at 2.5 nm), its
+    small negative noise clipped (:func:`clip_response_noise`).
+
+    :raises DependencyError: Py6S is not installed.
+    """
     try:
         from Py6S import PredefinedWavelengths
     except ImportError as err:
-        raise DependencyError('measured Sentinel-2 SRFs come from Py6S: pip install "s2cl[sixs]"') from err
-    _, start_um, stop_um, values = getattr(PredefinedWavelengths, f"{platform}_MSI_{_S2_PY6S[band]}")
+        raise DependencyError(f'measured SRFs ({table}) come from Py6S: pip install "s2cl[sixs]"') from err
+    _, start_um, stop_um, values = getattr(PredefinedWavelengths, table)
     values = np.asarray(values, dtype=np.float64)
     wl = 1000.0 * (start_um + 0.0025 * np.arange(values.size))
-    if abs(wl[-1] - 1000.0 * stop_um) > 1e-6:
-        raise InputError(f"unexpected Py6S table layout for {platform} {band}", key="sensor.srf")
-    origin = f"Py6S {platform}_MSI_{_S2_PY6S[band]} (ESA measured)"
+    if abs(1000.0 * stop_um - wl[-1]) >= 2.5:  # 2.5 nm steps from the start; the last within a step of the stop
+        raise InputError(f"unexpected Py6S table layout for {table}", key="sensor.srf")
+    origin = f"Py6S {table} ({what})"
     return TabulatedResponse(wl, clip_response_noise(wl, values, source=origin, key=band), origin=origin)

@@ -107,7 +107,7 @@ def added_band(add: AddSpec, sensor: Sensor) -> Band:
         raise InputError(f"{add.name} is a band of the sensor; the added band needs a new name (e.g. 'N2300')",
                          key=f"{ADD_KEY}.name")
     like = _sensor_band(sensor, add.like, f"{ADD_KEY}.like")
-    return replace(like, name=add.name, tabulated=None)
+    return like.stand_in(add.name)
 
 
 def _added_range(spec: SweepSpec, sensor: Sensor, base: list[BandRange | BandGrid]) -> BandRange | BandGrid:
