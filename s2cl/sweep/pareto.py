@@ -177,7 +177,8 @@ def noise_margin(job: Any, configs: np.ndarray, metric: str, *,
     seed and level as ``within_noise``) gives, per competitor ``j`` of the best, the observed difference ``d_j`` and
     the lower end ``low_j`` of its percentile interval. ``j`` is within noise of the best when ``low_j ≤ 0``, that is
     when ``d_j ≤ d_j − low_j``: ``d_j − low_j`` is the difference the bootstrap cannot tell from zero near the best.
-    The margin is its median over the competitors (clipped at 0). Margin 0 (said so) when the metric has no
+    The margin is its median over the competitors (clipped at 0; a competitor with the best's very statistics,
+    interval [0, 0], left out). Margin 0 (said so) when the metric has no
     bootstrap or fewer than two designs are given."""
     scored = metric_scored_by(metric)
     configs = np.asarray(configs, dtype=np.int64)
@@ -190,7 +191,8 @@ def noise_margin(job: Any, configs: np.ndarray, metric: str, *,
     stats = design_stats(job, configs, scored, device=device, evaluator_of=evaluator_of)
     strata = np.asarray(t.target)[:: t.copies] if scored.stratified else None
     boot = paired_bootstrap(stats, scored.score, 0, replicates=replicates, seed=seed, level=level, strata=strata)
-    reach = (boot.difference - boot.low)[1:]
+    alike = (boot.low == 0.0) & (boot.high == 0.0)  # the best's very statistics: they say nothing of the noise
+    reach = (boot.difference - boot.low)[1:][~alike[1:]]
     reach = np.clip(reach[np.isfinite(reach)], 0.0, None)
     if reach.size == 0:
         return {"margin": 0.0, **record, "method": "none (no competitor could be scored)"}

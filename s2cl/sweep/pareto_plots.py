@@ -84,7 +84,7 @@ def parallel_figure(front_scores: np.ndarray, applications: Sequence[dict[str, A
     ax.set_xticks(x, [f"{axis_label(a)}\n÷ {h}" for a, h in zip(applications, how, strict=True)], fontsize=8)
     ax.set_ylabel("score relative to the axis's divisor (lower is better)")
     ax.set_title("The Pareto front across the applications")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.grid(axis="y", alpha=0.3)
     return fig
 
