@@ -337,3 +337,38 @@ def test_the_console_table_lists_the_own_bands_then_the_front(capsys: pytest.Cap
     print_pareto(summary)
     out = capsys.readouterr().out
     assert "Pareto front over 2 applications" in out and "2 designs meet every requirement (chl ≤ 3)" in out
+
+
+# -- the margins of several applications, and everything in one call ----------------------------------------------
+
+
+def test_noise_margins_map_joint_designs_onto_each_applications_own() -> None:
+    """A joint space twice the application's (joint c is the application's c // 2, scored alike): the margin is the
+    application's own, measured on its distinct designs."""
+    from s2cl.sweep.engine import evaluate_chunk
+
+    job = gvmi_job(copies=6)
+    rows = pd.DataFrame(evaluate_chunk(job, 0, job.n_configs, evaluator=numpy_evaluator(job)))
+    own = noise_margin(job, best_configs(rows["config"].to_numpy(), rows["rms"].to_numpy(), 6), "rms",
+                       evaluator_of=numpy_evaluator, replicates=200)
+    joint = pd.DataFrame({"config": np.arange(2 * len(rows)), "app_rms": np.repeat(rows["rms"].to_numpy(), 2)})
+    app = {"name": "app", "metric": "rms", "column": "app_rms"}
+    margins, records = pareto.noise_margins(joint, [app], [job], [lambda c: c // 2], top=6,
+                                            evaluator_of=numpy_evaluator, replicates=200)
+    assert margins.tolist() == [own["margin"]] and records[0]["candidates"] == 6
+
+
+def test_trade_off_writes_the_record_the_column_and_the_figure(results_file: Path) -> None:
+    from s2cl.sweep.trade_off import FIGURE, trade_off
+
+    job = gvmi_job(chunk=7, copies=4)
+    apps = [{"name": "water", "metric": "rms", "units": "g/cm²", "column": "rms", "target": None, "reference": 30.0},
+            {"name": "other", "metric": "rms", "units": "", "column": "other_rms", "target": 40.0,
+             "reference": 50.0}]
+    record, written = trade_off(results_file, apps, [job, job], [None, None], evaluator_of=numpy_evaluator)
+    assert written == [results_file, results_file.parent / FIGURE] and written[1].read_bytes()[:4] == b"\x89PNG"
+    df = pq.read_table(results_file).to_pandas()
+    assert sorted(df.loc[df[PARETO], "config"]) == sorted(record["front"]["configs"])
+    want = front(df[["rms", "other_rms"]].to_numpy(), [record["margins"][n]["margin"] for n in ("water", "other")])
+    assert df.loc[want, "config"].tolist() == sorted(record["front"]["configs"])
+    assert record["margins"]["water"]["margin"] > 0 and record["margins"]["water"]["candidates"] == 20

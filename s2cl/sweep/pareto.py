@@ -204,6 +204,26 @@ def noise_margin(job: Any, configs: np.ndarray, metric: str, *,
             "reach": [float(reach.min()), float(reach.max())]}
 
 
+def noise_margins(df: Any, applications: Sequence[dict[str, Any]], jobs: Sequence[Any],
+                  to_application: Sequence[Callable[[np.ndarray], np.ndarray] | None], *, top: int = MARGIN_TOP,
+                  device: str | None = None, evaluator_of: Callable[[Any], Any] | None = None,
+                  replicates: int = REPLICATES) -> tuple[np.ndarray, list[dict[str, Any]]]:
+    """Every application's :func:`noise_margin` and its record: application ``k`` (``applications[k]``: its
+    ``column`` and ``metric``) is measured on its own sweep ``jobs[k]``, on the ``top`` best of its designs among
+    ``df``'s rows, each joint ``config`` mapped to the application's configuration number by
+    ``to_application[k]`` (None: the same numbers, a single-application sweep)."""
+    joint = df["config"].to_numpy(dtype=np.int64)
+    margins, records = [], []
+    for app, job, mapping in zip(applications, jobs, to_application, strict=True):
+        own = joint if mapping is None else np.asarray(mapping(joint), dtype=np.int64)
+        configs = best_configs(own, df[app["column"]].to_numpy(dtype=np.float64), top)
+        rec = noise_margin(job, configs, app["metric"], device=device, evaluator_of=evaluator_of,
+                           replicates=replicates)
+        margins.append(rec["margin"])
+        records.append(rec)
+    return np.asarray(margins, dtype=np.float64), records
+
+
 # -- summary.json's record ------------------------------------------------------------------------------------------
 
 def application_columns(applications: Sequence[dict[str, Any]]) -> list[str]:
