@@ -39,7 +39,9 @@ def scatter_figure(scores: np.ndarray, on_front: np.ndarray, applications: Seque
     if rest.size > max_points:
         rest = np.sort(np.random.default_rng(seed).choice(rest, max_points, replace=False))
         label = f"designs ({max_points:,} of {np.count_nonzero(ok & ~on):,} drawn)"
-    ax.scatter(s[rest, 0], s[rest, 1], s=4, c="0.6", alpha=0.3, linewidths=0, rasterized=True, label=label)
+    few = rest.size <= 10_000  # a few designs drawn plainly, many faintly
+    ax.scatter(s[rest, 0], s[rest, 1], s=14 if few else 4, c="0.55" if few else "0.6", alpha=0.8 if few else 0.3,
+               linewidths=0, rasterized=True, label=label)
     f = s[on][np.lexsort((s[on, 1], s[on, 0]))]
     ax.plot(f[:, 0], f[:, 1], "o-", color=FRONT_COLOUR, ms=4, lw=1.2, label=f"front ({len(f):,})", zorder=3)
     for k, line in ((0, ax.axvline), (1, ax.axhline)):
