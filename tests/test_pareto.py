@@ -195,6 +195,12 @@ def test_the_record_without_a_reference_orders_by_the_first_application() -> Non
     assert rec["relative_sum"]["top"] == [] and rec["relative_sum"]["missing"] == ["water"]
 
 
+def test_the_record_of_no_rankable_design_is_empty() -> None:
+    rec = pareto_record(_frame().assign(full_fidelity=False), APPS, [0.0, 0.0], meta={})
+    assert rec["front"] == {"count": 0, "configs": [], "order": "relative sum", "designs": []}
+    assert rec["meeting"]["count"] == 0 and rec["relative_sum"]["top"] == []
+
+
 def test_the_record_ranks_only_rankable_rows() -> None:
     df = _frame().assign(full_fidelity=[True, False, True, True, True])
     rec = pareto_record(df, APPS, [0.0, 0.0], meta={"underdetermined": "exclude"})

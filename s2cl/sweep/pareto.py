@@ -134,7 +134,7 @@ def _front_of(x: np.ndarray, m: np.ndarray) -> np.ndarray:
 def meets(scores: np.ndarray, targets: Sequence[float | None]) -> np.ndarray:
     """``bool[n]``: the design meets every requirement: its score is at most the application's target (in the
     metric's units) wherever a target is given (NaN never meets one); an application without target is always met."""
-    s = np.asarray(scores, dtype=np.float64).reshape(len(scores), -1)
+    s = _table(scores)
     ok = np.ones(len(s), dtype=bool)
     for k, target in enumerate(targets):
         if target is not None:
@@ -150,7 +150,13 @@ def relative_sum(scores: np.ndarray, reference: Sequence[float]) -> np.ndarray:
     ref = np.asarray(reference, dtype=np.float64)
     if not (np.isfinite(ref) & (ref > 0)).all():
         raise ValueError(f"reference: need a finite score > 0 per application, got {ref.tolist()}")
-    return (np.asarray(scores, dtype=np.float64).reshape(len(scores), -1) / ref).sum(axis=1)
+    return (_table(scores) / ref).sum(axis=1)
+
+
+def _table(scores: np.ndarray) -> np.ndarray:
+    """``scores`` as float64 ``(designs, applications)`` (one application: a column)."""
+    s = np.asarray(scores, dtype=np.float64)
+    return s[:, None] if s.ndim == 1 else s
 
 
 # -- the margins ----------------------------------------------------------------------------------------------------
@@ -255,7 +261,7 @@ def pareto_record(df: Any, applications: Sequence[dict[str, Any]], margins: Sequ
     refs = [a.get("reference") for a in applications]
     ranked = all(r is not None and np.isfinite(r) and r > 0 for r in refs)
     rel = relative_sum(scores, refs) if ranked else np.full(len(df), np.nan)
-    front_best = np.where(on[:, None], scores, np.inf).min(axis=0)  # inf: no front
+    front_best = np.where(on[:, None], scores, np.inf).min(axis=0, initial=np.inf)  # inf: no front
     configs = df["config"].to_numpy(dtype=np.int64)
     bands = bands_of(df.columns)
 
