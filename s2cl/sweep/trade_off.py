@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from s2cl.sweep.digest import rankable_rows
 from s2cl.sweep.pareto import (
     add_pareto_column,
     application_columns,
@@ -27,11 +28,13 @@ def trade_off(results: str | Path, applications: Sequence[dict[str, Any]], jobs:
     ``summary["applications"]``; ``jobs`` and ``to_application``: each application's single-application sweep and
     the map of joint configuration numbers onto it, as :func:`s2cl.sweep.pareto.noise_margins` takes them), and the
     files written: ``results.parquet`` again (with its ``pareto`` column) and, for two or more applications, the
-    figure :data:`FIGURE` beside it."""
+    figure :data:`FIGURE` beside it. Only the designs a ranking may use (:func:`s2cl.sweep.digest.rankable_rows`)
+    take part."""
     path = Path(results)
     df, meta = read_scores(path, applications)
+    df = rankable_rows(df, meta)  # a search's designs scored on every pixel only, as every ranking
     margins, how = noise_margins(df, applications, jobs, to_application, device=device, evaluator_of=evaluator_of)
-    record = pareto_record(df, applications, margins, margin_records=how, meta=meta)
+    record = pareto_record(df, applications, margins, margin_records=how)
     written = [add_pareto_column(path, record["front"]["configs"])]
     on = df["config"].isin(record["front"]["configs"]).to_numpy()
     figure = pareto_plot(df[application_columns(applications)].to_numpy(), on, applications, path.parent / FIGURE)
