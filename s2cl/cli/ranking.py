@@ -110,10 +110,15 @@ def _print_within_noise(wn: dict[str, Any] | None) -> None:
 def _ranking_cells(e: dict[str, Any], bands: list[str], metric: str) -> list[str]:
     """One ranking row: each band's centre/width, the metric, then what its :class:`~s2cl.retrieve.metric.Metric`
     prints beside it (a robust twin, the failure fractions; empty where the row has no such column)."""
-    cells = ["–" if e["bands"][b][0] is None else f"{e['bands'][b][0]:g}/{e['bands'][b][1]:g}" for b in bands]
+    cells = band_cells(e["bands"], bands)
     cells.append(f"{e[metric]:.3g}")
     cells += [format(e[column], spec) if column in e else "" for column, _, spec in metric_in([metric]).ranking_columns]
     return cells
+
+
+def band_cells(shapes: dict[str, Any], bands: list[str]) -> list[str]:
+    """Each band's ``centre/width`` (nm) of a design's ``bands`` record, ``–`` where it has none."""
+    return ["–" if shapes.get(b, [None])[0] is None else f"{shapes[b][0]:g}/{shapes[b][1]:g}" for b in bands]
 
 
 def _print_ranking_notes(summary: dict[str, Any]) -> None:
