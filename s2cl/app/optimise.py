@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from s2cl.app.checks import Checked, check_sweep
+from s2cl.app.multi_optimise import PreparedApplications, prepare_applications, rank_applications, run_applications
 from s2cl.app.plan import (
     count_table,
     own_design,
@@ -24,6 +25,7 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
 from s2cl.io.outdir import check_output_dir, claim
+from s2cl.scene.applications import is_multi_application
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
@@ -154,6 +156,9 @@ class PreparedSweep:
     device: str | None
     #: the scene resolved by the checks (the reference's own tables are built from its parts, nothing again)
     checked: Checked
+    #: a scene with several applications (``[[application]]``): each one's sweep and the joint table
+    #: (:mod:`s2cl.app.multi_optimise`); ``job`` and ``checked`` are then the first application's
+    applications: PreparedApplications | None = None
 
 
 def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int | None, scheduler: str | None,
@@ -163,6 +168,9 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
+    if is_multi_application(sc):
+        return _prepare_applications(sc, folder, where, budget, workers=workers, scheduler=scheduler,
+                                     overwrite=overwrite, chunk=chunk, device=device)
     checked = check_sweep(sc, budget=budget)
     check_output_dir(folder, where=where)
     rt = get_runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
@@ -183,10 +191,30 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
                          device, checked)
 
 
+def _prepare_applications(sc: Scene, folder: Path, where: str, budget: Budget, *, workers: int | None,
+                          scheduler: str | None, overwrite: bool, chunk: int | None, device: str | None
+                          ) -> PreparedSweep:
+    """:func:`prepare` of a scene with several applications (:func:`s2cl.app.multi_optimise.prepare_applications`):
+    the same checks, each application's sweep and the joint table planned, nothing created."""
+    distributed = bool(workers or scheduler)
+    check_output_dir(folder, where=where)
+    if scheduler:
+        reach_scheduler(scheduler)
+    t0 = time.perf_counter()
+    multi = prepare_applications(sc, folder, budget=budget, chunk=chunk, device=device, overwrite=overwrite,
+                                 distributed=distributed)
+    return PreparedSweep(sc, folder, multi.first.job, False, report(multi.checked.caveats), t0, workers, scheduler,
+                         overwrite, device, multi.first.checked, multi)
+
+
 def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = None,
                 on_start: Callable[[Any, int, int], None] | None = None) -> tuple[Path, dict[str, Any] | None]:
     """Evaluate the sweep's designs into its (claimed) folder: the whole space, or a search's rungs; the results'
     path and the search's record (None for the whole space)."""
+    if run.applications is not None:  # each application's sweep, then the joint table
+        return run_applications(run.applications, run.folder, workers=run.workers, scheduler=run.scheduler,
+                                overwrite=run.overwrite, device=run.device, progress=progress,
+                                on_start=on_start), None
     if run.searching:
         return run_search(run.job, run.folder, workers=run.workers, scheduler=run.scheduler,
                           overwrite=run.overwrite, device=run.device)
@@ -198,7 +226,10 @@ def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = 
 
 def rank_against_reference(run: PreparedSweep, results: Path) -> tuple[Digest, dict[str, Any]]:
     """Rank the results against the sensor's own bands (the reference row), test the best designs for being told
-    apart within the noise (``within_noise_top``), and the digest and summary."""
+    apart within the noise (``within_noise_top``), and the digest and summary; a scene with several applications
+    ranks for its first and adds a record per application (:func:`s2cl.app.multi_optimise.rank_applications`)."""
+    if run.applications is not None:
+        return rank_applications(run.applications, results, run.device)
     sc, job, checked = run.scene, run.job, run.checked
     path, meta = open_results(results)
     own = own_design(checked, job) if job.base_row is None else None  # its tables built once, for row and pixels
@@ -318,7 +349,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
                                                                                  bands_of(columns)))
     summary = summarise(digest, meta, reference)
-    for key in ("seconds", "warnings", "search"):
+    for key in ("seconds", "warnings", "search", "applications"):
         if key in kept:
             summary[key] = kept[key]
     kept_within_noise(summary, kept)
