@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+import s2cl.sweep.joint as joint_table
 from s2cl.app.applications import ApplicationPart, CheckedApplications, check_applications
 from s2cl.app.checks import Checked
 from s2cl.app.plan import OwnDesign, own_design, plan_sweep, reference_pixels, reference_row
@@ -122,7 +123,8 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
         apps.append(PreparedApplication(part, job, sub, ja, counts))
     per_band = space.per_band
     joint = JointJob(tuple(r.band for r in space.ranges), counts, tuple(v[:, 0].copy() for v in per_band),
-                     tuple(v[:, 1].copy() for v in per_band), tuple(joint_apps), scene.name, {})
+                     tuple(v[:, 1].copy() for v in per_band), tuple(joint_apps), scene.name, {},
+                     chunk=joint_table.JOINT_CHUNK)
     records = [application_record(a) for a in apps]
     meta = {**results_meta(apps[0].job), b"fingerprint": joint.fingerprint().encode(),
             b"bands": json.dumps(list(joint.bands)).encode(), b"applications": json.dumps(records).encode()}

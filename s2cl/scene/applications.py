@@ -55,12 +55,13 @@ def is_multi_application(scene: Scene) -> bool:
 
 def application_scene(scene: Scene, app: Application) -> Scene:
     """The single-application scene ``app`` stands for: ``scene`` with the application's analysis as its
-    [analysis], its library and copies as ``surface.library`` and ``surface.copies``, and no ``[[application]]``
-    (the sensor, grid, atmosphere, effects, [sweep] and output are the scene's)."""
+    [analysis], its library and copies as ``surface.library`` and ``surface.copies`` (and ``run.copies``: what the
+    engines read), and no ``[[application]]`` (the sensor, grid, atmosphere, effects, [sweep] and output are the
+    scene's)."""
     spec = scene.spec
     surface = spec.surface.model_copy(update={"library": app.library, "copies": app.copies})
     one = spec.model_copy(update={"analysis": app.analysis, "application": None, "surface": surface})
-    return dataclasses.replace(scene, spec=one)
+    return dataclasses.replace(scene, spec=one, run=dataclasses.replace(scene.run, copies=app.copies))
 
 
 #: a requirement written with its unit: a number, then the unit (``5 ug/cm2``, ``5 µg/cm²``, ``10 %``, ``5``)
