@@ -13,9 +13,9 @@ import dataclasses
 import math
 import re
 from dataclasses import dataclass
+from typing import Protocol
 
 from s2cl.errors import InputError, token
-from s2cl.retrieve.metric import Metric
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import AnalysisSpec
 
@@ -72,6 +72,14 @@ def _unit_key(unit: str) -> str:
     """A unit spelled for comparison: ``µ``/``μ`` as ``u``, superscripts as digits, no spaces, lower case."""
     table = str.maketrans({"µ": "u", "μ": "u", "²": "2", "³": "3", " ": None})
     return unit.translate(table).lower()
+
+
+class Metric(Protocol):
+    """What :func:`target_value` asks of a metric (:class:`s2cl.retrieve.metric.Metric`, a layer above scenes)."""
+
+    def unit(self, parameter: str | None) -> str: ...
+
+    def score_label(self, parameter: str | None) -> str: ...
 
 
 def target_value(app: Application, metric: Metric) -> float | None:

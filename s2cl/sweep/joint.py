@@ -6,13 +6,14 @@ the heatmaps and the reference row read it as a single-application sweep's), and
 (``<name>_<score column>``, float64; NaN where the application cannot fit the design and its sweep leaves such
 designs out of the ranking). The table is written in chunks, resumably, with the sweep engine's folder machinery
 (manifest, ``chunks/part-*.parquet``, :func:`s2cl.sweep.folder.merge_chunks`); the applications' columns are read
-from memory-mapped files, so memory does not grow with the joint space (one chunk at a time).
+from memory-mapped files (in ``applications/.lookup/`` while the table is written), so memory does not grow with the
+joint space (one chunk at a time).
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
-import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from s2cl.resources import code_fingerprint
+from s2cl.sweep.digest import Digest, results_batches
 from s2cl.sweep.engine import APPLICATIONS
 from s2cl.sweep.folder import RESULTS, chunk_done, merge_chunks, write_chunk
 from s2cl.sweep.raw import variant_indices
@@ -28,8 +30,6 @@ from s2cl.version import __version__
 
 #: designs per chunk of the joint table (the rows of one results row group: memory ∝ it, not the space)
 JOINT_CHUNK = 65_536
-#: rows read from an application's results at a time while its columns are mapped
-_READ_ROWS = 65_536
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,11 @@ class JointApplication:
     counts: tuple[int, ...]
     exclude: bool
     fingerprint: str
+
+    @property
+    def n_configs(self) -> int:
+        """Configurations of its own sweep."""
+        return int(np.prod(self.counts, dtype=np.int64))
 
     def configs_of(self, joint: np.ndarray) -> np.ndarray:
         """Its configuration numbers of the joint designs with variant indices ``joint`` ``(n, joint slots)``
@@ -96,8 +101,6 @@ class JointJob:
 
     def manifest(self) -> dict[str, Any]:
         """The joint folder's manifest (:func:`s2cl.sweep.engine.prepare_folder`)."""
-        import datetime as dt
-
         return {"fingerprint": self.fingerprint(), "code": code_fingerprint(), "scene": self.scene_name,
                 "s2cl_version": __version__, "configurations": self.n_configs, "chunk": self.chunk,
                 "bands": list(self.bands), "counts": list(self.counts),
@@ -124,32 +127,27 @@ class JointJob:
         return rows
 
 
-def lookup_columns(results: Path, columns: list[str], folder: Path) -> dict[str, np.ndarray]:
-    """``columns`` of the results table ``results`` by configuration number, as read-only memory-mapped arrays in
-    ``folder`` (filled :data:`_READ_ROWS` rows at a time: memory bounded whatever the table's size)."""
-    import pyarrow.parquet as pq
-
+def lookup_columns(results: Path, n: int, columns: list[str], folder: Path) -> dict[str, np.ndarray]:
+    """``columns`` of the results table ``results`` (``n`` rows) by configuration number, as read-only
+    memory-mapped arrays in ``folder`` (filled a batch at a time: memory bounded whatever the table's size)."""
     folder.mkdir(parents=True, exist_ok=True)
-    with pq.ParquetFile(results, pre_buffer=False) as f:
-        n, schema = f.metadata.num_rows, f.schema_arrow
-        maps = {c: np.lib.format.open_memmap(folder / f"{c}.npy", mode="w+",
-                                             dtype=schema.field(c).type.to_pandas_dtype(), shape=(n,))
-                for c in columns}
-        for batch in f.iter_batches(batch_size=_READ_ROWS, columns=["config", *columns]):
-            configs = batch.column("config").to_numpy()
-            for c in columns:
-                maps[c][configs] = batch.column(c).to_numpy(zero_copy_only=False)
+    maps: dict[str, np.ndarray] = {}
+    for batch in results_batches(results):
+        configs = batch["config"].to_numpy()
+        for c in columns:
+            values = batch[c].to_numpy()
+            if c not in maps:
+                maps[c] = np.lib.format.open_memmap(folder / f"{c}.npy", mode="w+", dtype=values.dtype, shape=(n,))
+            maps[c][configs] = values
     for m in maps.values():
-        m.flush()
+        m.flush()  # type: ignore[attr-defined]
+    del maps
     return {c: np.load(folder / f"{c}.npy", mmap_mode="r") for c in columns}
 
 
 def row_columns(results: Path) -> list[str]:
     """The columns of a sweep's results that a joint row copies: all but ``config`` and the band shapes."""
-    import pyarrow.parquet as pq
-
-    names = pq.read_schema(results).names
-    return [c for c in names if c != "config" and not c.endswith(("_centre_nm", "_width_nm"))]
+    return [c for c in Digest.of_columns(results) if c != "config" and not c.endswith(("_centre_nm", "_width_nm"))]
 
 
 def indices_of(counts: tuple[int, ...], configs: np.ndarray) -> np.ndarray:
@@ -173,18 +171,13 @@ def run_joint(job: JointJob, out: Path, results: list[Path]) -> Path:
             lookups = []
             for i, (app, path) in enumerate(zip(job.apps, results, strict=True)):
                 wanted = row_columns(path) if app.whole_row else [app.score, "underdetermined"]
-                lookups.append(lookup_columns(path, wanted, scratch / str(i)))
+                lookups.append(lookup_columns(path, app.n_configs, wanted, scratch / str(i)))
             for lo, hi in todo:
                 write_chunk(out, lo, job.rows(lo, hi, lookups))
             del lookups
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     return merge_chunks(out, [lo for lo, _ in job.chunks()], job.meta)
-
-
-def applications_meta(records: list[dict[str, Any]]) -> dict[bytes, bytes]:
-    """Schema metadata naming the applications and their columns (``applications``: JSON)."""
-    return {b"applications": json.dumps(records).encode()}
 
 
 __all__ = ["APPLICATIONS", "JOINT_CHUNK", "RESULTS", "JointApplication", "JointJob", "indices_of", "lookup_columns",
