@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 import s2cl
+from s2cl.app.optimise import count_sweep
 from s2cl.errors import InputError
 from s2cl.retrieve.metric import CLASSIFICATION, REGRESSION
 from s2cl.scene.applications import scene_applications, target_value
@@ -260,8 +261,20 @@ def test_a_joint_space_too_large_is_refused_in_one_line(tmp_path, monkeypatch) -
     assert not (tmp_path / "out").exists()
 
 
-def test_sweep_count_of_an_application_scene_says_where_it_runs(tmp_path) -> None:
+def test_sweep_count_counts_the_joint_space(tmp_path) -> None:
+    scene = _write(tmp_path, "two", TWO)
+    seen = []
+    count = count_sweep(scene, on_counted=lambda name, variants, n: seen.append((variants, n)))
+    assert count.configurations == 48 == seen[0][1] and count.underdetermined == 0
+    assert [(v["band"], v["variants"]) for v in count.variants] == [("B5", 4), ("B6", 3), ("B11", 4)]
+    assert not (tmp_path / "two").exists()
+
+
+def test_a_study_of_an_application_scene_is_refused_in_one_line(tmp_path) -> None:
+    """Commands that take one [analysis] (check_sweep: the studies) name where such a scene runs."""
+    from s2cl.app.checks import check_sweep
+
     scene = _write(tmp_path, "two", TWO)
     with pytest.raises(InputError, match=r"application: a scene with \[\[application\]\] tables runs with s2cl "
-                                         "optimise"):
-        s2cl.app.optimise.count_sweep(scene)
+                                         "optimise, sweep run or sweep count"):
+        check_sweep(Scene.load(scene))

@@ -198,8 +198,8 @@ def check_sweep_sections(scene: Scene) -> None:
         raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
                          source=scene.source, key="sweep")
     if scene.spec.analysis is None and scene.spec.application is not None:
-        raise InputError("a scene with [[application]] tables runs with s2cl optimise (or sweep run); this command "
-                         "takes one [analysis]", source=scene.source, key="application")
+        raise InputError("a scene with [[application]] tables runs with s2cl optimise, sweep run or sweep count; "
+                         "this command takes one [analysis]", source=scene.source, key="application")
     if scene.spec.analysis is None:
         raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(registry())})",
                          source=scene.source, key="analysis")

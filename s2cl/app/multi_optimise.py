@@ -113,6 +113,7 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
         plan = sweep_resources(part.checked, chunk=chunk, budget=budget, resumed=resumable_chunk(sub, overwrite),
                                host_metrics=host_metrics, rt=rt)
         job = plan_sweep(part.scene, checked=part.checked, device=device, resources=plan)
+        job = dataclasses.replace(job, scene_name=f"{scene.name}/{part.name}")  # what its manifest and progress say
         check_folder(job, sub, overwrite=overwrite)
         if not distributed:
             kernel_evaluator(job, device)  # each kernel builds (and is checked) before the folder is made

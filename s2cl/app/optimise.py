@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from s2cl.app.applications import check_applications
 from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.multi_optimise import PreparedApplications, prepare_applications, rank_applications, run_applications
 from s2cl.app.plan import (
@@ -32,7 +33,7 @@ from s2cl.sensor.names import safe_file_part
 from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
 from s2cl.sweep.cluster import reach_scheduler
 from s2cl.sweep.digest import TOP
-from s2cl.sweep.engine import SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
+from s2cl.sweep.engine import APPLICATIONS, SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
 from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import (
     Digest,
@@ -268,6 +269,8 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     before the memory is sized (which may refuse a sweep too large to run: the count is still worth showing)."""
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
+    if is_multi_application(sc):
+        return count_applications(sc, budget, on_counted)
     checked = check_sweep(sc, budget=budget)
     folder, where = output_folder(sc, None)
     check_output_dir(folder, where=where)
@@ -282,6 +285,29 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)
+
+
+def count_applications(sc: Scene, budget: Budget,
+                       on_counted: Callable[[str, list[dict[str, Any]], int], None] | None = None) -> SweepCount:
+    """:func:`count_sweep` of a scene with several applications: the joint space's variants and designs; the memory
+    and chunk of the largest application's sweep (they run one after the other); the designs the first application
+    (the ranking's) cannot fit, counted in its own sub-space and times the designs of the bands it does not read."""
+    multi = check_applications(sc, budget=budget)
+    folder, where = output_folder(sc, None)
+    check_output_dir(folder, where=where)
+    report(multi.caveats)
+    space = multi.space
+    if on_counted:
+        on_counted(sc.name, count_table(space), space.size)
+    rt = get_runtime(sc.run.device)
+    plans = [sweep_resources(p.checked, budget=budget, resumed=resumable_chunk(folder / APPLICATIONS / p.name),
+                             host_metrics=not metrics_on_device(rt), rt=rt) for p in multi.parts]
+    biggest = max(plans, key=lambda plan: plan.memory_bytes)
+    first = multi.parts[0]
+    assert first.checked.analysis is not None
+    bad = underdetermined_count(first.space, first.checked.analysis)
+    return SweepCount(sc.name, count_table(space), space.size, biggest.memory_bytes, biggest.chunk,
+                      None if bad is None else bad * (space.size // first.space.size), sc.spec.sweep.underdetermined)
 
 
 #: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address
