@@ -146,6 +146,8 @@ def test_summary_records_each_application(runs) -> None:  # type: ignore[no-unty
     assert water["reference"] == out["leaf_water"].summary["reference"]["rms"]
     assert summary["metric"] == "rms" and summary["configurations"] == 48
     assert summary["bands"] == ["B5", "B6", "B11"]
+    # a heatmap per moving band; B11's (chlorophyll does not read it) of leaf water's column
+    assert {p.name for p in out["two"].written} >= {f"heatmap_{b}.png" for b in ("B5", "B6", "B11")}
 
 
 def test_a_killed_run_resumes_to_the_same_bytes(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]

@@ -28,6 +28,7 @@ from s2cl.app.plan import OwnDesign, own_design, plan_sweep, reference_pixels, r
 from s2cl.app.sweep_budget import require_sweep_disk, sweep_resources
 from s2cl.cl.runtime import get_runtime
 from s2cl.io.budget import Budget, require_disk
+from s2cl.sensor.names import safe_file_part
 from s2cl.sweep.digest import TOP
 from s2cl.sweep.engine import (
     SweepJob,
@@ -41,7 +42,7 @@ from s2cl.sweep.engine import (
 )
 from s2cl.sweep.joint import APPLICATIONS, JointApplication, JointJob, indices_of, run_joint
 from s2cl.sweep.metrics_kernel import metrics_on_device
-from s2cl.sweep.report import Digest, open_results, summarise
+from s2cl.sweep.report import Digest, heatmap, open_results, summarise
 from s2cl.sweep.within_noise import mark_top, within_noise
 
 
@@ -190,6 +191,31 @@ def add_pareto(prepared: PreparedApplications, results: Path, summary: dict[str,
     ``results`` (``summary["applications"][i]["column"]``), with each application's noise margins from its own
     job (:class:`PreparedApplication`), goes into ``summary["pareto"]`` and the ``pareto`` column here
     (:mod:`s2cl.sweep.pareto`, wired in by the lead). Nothing yet."""
+
+
+def unread_by_first(summary: dict[str, Any], bands: list[str]) -> list[str]:
+    """The ``bands`` the first application of a multi-application sweep's ``summary`` does not read (its ranking's
+    metric does not depend on them); none for a single-application sweep."""
+    apps = summary.get("applications") or []
+    return [b for b in bands if apps and b not in apps[0].get("bands", bands)]
+
+
+def application_heatmaps(digest: Digest, summary: dict[str, Any], folder: Path, bands: list[str]) -> list[Path]:
+    """A heatmap of each of ``bands`` (bands the first application does not read) for the first application that
+    reads it: its score column's best over the other bands at each centre × width (one more pass over the results
+    per application drawn); the files written."""
+    written, digests = [], {}
+    for b in bands:
+        app = next((a for a in summary["applications"] if b in a.get("bands", ())), None)
+        if app is None or not isinstance(digest.source, Path):
+            continue
+        column = app["column"]
+        if column not in digests:  # every design counts: the column is NaN where this application cannot fit it
+            digests[column] = Digest.of_file(digest.source, {"underdetermined": "keep"}, metric_column=column)
+        title = f"{b}: {column}\n(best over the other bands; red: best)"
+        written.append(heatmap(digests[column], b, folder / f"heatmap_{safe_file_part(b)}.png", metric=column,
+                               unit=app.get("units") or "", title=title))
+    return written
 
 
 def _joint_reference(prepared: PreparedApplications, rows: list[dict[str, Any]]) -> dict[str, Any]:

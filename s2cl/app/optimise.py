@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING, Any
 
 from s2cl.app.applications import check_applications
 from s2cl.app.checks import Checked, check_sweep
-from s2cl.app.multi_optimise import PreparedApplications, prepare_applications, rank_applications, run_applications
+from s2cl.app.multi_optimise import (
+    PreparedApplications,
+    application_heatmaps,
+    prepare_applications,
+    rank_applications,
+    run_applications,
+    unread_by_first,
+)
 from s2cl.app.plan import (
     count_table,
     own_design,
@@ -356,8 +363,10 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
         plots += gain_plots(digest, record, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
+    others = unread_by_first(summary, moving)  # several applications: drawn for an application that reads them
     return written + [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png", hatch=within_pairs(summary, b))
-                      for b in moving] + plots
+                      for b in moving if b not in others] + plots + \
+        application_heatmaps(digest, summary, folder, others)
 
 
 def report_results(results: str | Path, band: str | None = None) -> tuple[dict[str, Any], list[Path]]:
