@@ -34,7 +34,8 @@ atmosphere = true
 correct = true
 seed = 3
 """
-RANGES = {"B5": "{ centres = [700, 705], widths = [15, 20] }", "B6": "{ centres = [735, 740, 745], widths = [15] }",
+# B5 and B6 share the centre 705 nm in 2 of chlorophyll's designs: IGRM cannot fit them (3 distinct centres)
+RANGES = {"B5": "{ centres = [700, 705], widths = [15, 20] }", "B6": "{ centres = [705, 740, 745], widths = [15] }",
           "B11": "{ centres = [1600, 1640], widths = [50, 100] }"}
 TWO = COMMON + """
 [[application]]
@@ -118,8 +119,12 @@ def test_each_score_equals_its_own_scene_bit_for_bit(runs) -> None:  # type: ign
     with_c = joint.merge(chl, on=keys_c, how="left", suffixes=("", "_own"), validate="many_to_one")
     with_w = joint.merge(water[[*keys_w, "rms", "underdetermined"]], on=keys_w, how="left", suffixes=("", "_own"),
                          validate="many_to_one")
-    assert not chl["underdetermined"].any() and not water["underdetermined"].any()
-    assert _same(with_c["chlorophyll_rms"].to_numpy(), with_c["rms_own"].to_numpy())
+    assert chl["underdetermined"].sum() == 2 and not water["underdetermined"].any()
+    unfit = with_c["underdetermined_own"].to_numpy()
+    assert unfit.sum() == 2 * len(water)
+    # NaN where chlorophyll cannot fit the design (the sweep leaves those out of its ranking), else its own score
+    assert _same(with_c["chlorophyll_rms"].to_numpy(), np.where(unfit, np.nan, with_c["rms_own"].to_numpy()))
+    assert np.isnan(with_c["chlorophyll_rms"].to_numpy()[unfit]).all() and np.isfinite(with_c["rms_own"][unfit]).all()
     assert _same(with_w["leaf_water_rms"].to_numpy(), with_w["rms_own"].to_numpy())
     # the first application's whole row is the joint row's (ranking, heatmaps and the reference read it)
     for column in ("rms", "r2", "robust_rms", "failed_fraction", "bound_fraction", "underdetermined"):
@@ -127,6 +132,30 @@ def test_each_score_equals_its_own_scene_bit_for_bit(runs) -> None:  # type: ign
     assert joint["leaf_water_rms"].dtype == np.float64
     assert np.unique(joint[keys_c + keys_w].to_numpy(), axis=0).shape[0] == 48  # every design once
     assert list(joint["config"]) == list(range(48))
+
+
+def test_joint_configurations_map_to_each_application_s_own(runs, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The prepared sweep exposes, per application, its checked scene, its job and the map from joint configuration
+    numbers to its own: the application's row at the mapped number has the joint row's shapes of its bands."""
+    from s2cl.app.optimise import prepare
+
+    _, out = runs
+    prepared = prepare(out["two"].folder / ".." / "two.toml", tmp_path / "p", workers=None, scheduler=None,
+                       overwrite=False, chunk=None, device=None, max_memory=None)
+    multi = prepared.applications
+    assert multi is not None and [a.name for a in multi.apps] == ["chlorophyll", "leaf_water"]
+    assert prepared.job is multi.first.job and prepared.checked is multi.first.checked
+    joint = _table(out["two"])
+    for a, bands in zip(multi.apps, (["B5", "B6"], ["B11"]), strict=True):
+        assert a.checked.scene.spec.analysis.kind == a.part.app.analysis.kind and a.job.n_configs == {
+            "chlorophyll": 12, "leaf_water": 4}[a.name]
+        own = pd.read_parquet(out["two"].folder / "applications" / a.name / "results.parquet").set_index("config")
+        mapped = own.loc[a.configs_of(joint["config"].to_numpy())]
+        for b in bands:
+            for s in ("centre_nm", "width_nm"):
+                assert (mapped[f"{b}_{s}"].to_numpy() == joint[f"{b}_{s}"].to_numpy()).all()
+        assert _same(np.where(mapped["underdetermined"], np.nan, mapped["rms"]), joint[a.column].to_numpy())
+    assert not (tmp_path / "p").exists()
 
 
 def test_summary_records_each_application(runs) -> None:  # type: ignore[no-untyped-def]
@@ -267,7 +296,8 @@ def test_sweep_count_counts_the_joint_space(tmp_path) -> None:
     scene = _write(tmp_path, "two", TWO)
     seen = []
     count = count_sweep(scene, on_counted=lambda name, variants, n: seen.append((variants, n)))
-    assert count.configurations == 48 == seen[0][1] and count.underdetermined == 0
+    assert count.configurations == 48 == seen[0][1]
+    assert count.underdetermined == 2 * 4  # chlorophyll's two (B5 = B6 = 705 nm) with each of leaf water's four
     assert [(v["band"], v["variants"]) for v in count.variants] == [("B5", 4), ("B6", 3), ("B11", 4)]
     assert not (tmp_path / "two").exists()
 

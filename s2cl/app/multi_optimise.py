@@ -103,7 +103,10 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
     host_metrics = not metrics_on_device(rt, distributed=distributed)
     space = checked.space
     n_apps = len(checked.parts)
-    require_disk(folder, results_disk_bytes(space.size, len(space.ranges) + n_apps + 8),
+    # the joint chunks and results (the first application's columns, a score per application) and, while they are
+    # written, the applications' columns mapped from disk (the first one's whole row, a score and a flag of others)
+    lookups = sum(p.space.size * 8 * (len(p.metric.columns) + 2 if i == 0 else 2) for i, p in enumerate(checked.parts))
+    require_disk(folder, results_disk_bytes(space.size, len(space.ranges) + n_apps + 8) + lookups,
                  what=f"the joint results of {space.size:,} designs ([sweep]: {len(space.ranges)} bands)",
                  key="sweep", source=scene.source)
     apps, joint_apps = [], []
