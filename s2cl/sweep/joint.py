@@ -25,7 +25,6 @@ from s2cl.resources import code_fingerprint
 from s2cl.sweep.digest import Digest, results_batches
 from s2cl.sweep.engine import APPLICATIONS
 from s2cl.sweep.folder import RESULTS, chunk_done, merge_chunks, write_chunk
-from s2cl.sweep.raw import variant_indices
 from s2cl.version import __version__
 
 #: designs per chunk of the joint table (the rows of one results row group: memory ∝ it, not the space)
@@ -111,7 +110,7 @@ class JointJob:
         """Rows of designs ``lo … hi-1``: config, band centres and widths, the first application's columns, each
         application's score column; ``lookups``: per application, the columns it copies and its score (and
         ``underdetermined``) by configuration number."""
-        idx = variant_indices(self, lo, hi)
+        idx = indices_of(self.counts, np.arange(lo, hi, dtype=np.int64))
         rows: dict[str, np.ndarray] = {"config": np.arange(lo, hi, dtype=np.int64)}
         for k, b in enumerate(self.bands):
             rows[f"{b}_centre_nm"] = self.centre[k][idx[:, k]]
@@ -152,7 +151,8 @@ def row_columns(results: Path) -> list[str]:
 
 def indices_of(counts: tuple[int, ...], configs: np.ndarray) -> np.ndarray:
     """Variant index per slot ``(len(configs), len(counts))`` of the configuration numbers ``configs`` of a space
-    with ``counts`` variants per slot (mixed radix, last slot fastest: :func:`s2cl.sweep.raw.variant_indices`)."""
+    with ``counts`` variants per slot (mixed radix, last slot fastest, as :func:`s2cl.sweep.raw.variant_indices`
+    numbers a range of them)."""
     flat = np.asarray(configs, dtype=np.int64).copy()
     out = np.empty((flat.size, len(counts)), dtype=np.int64)
     for k in range(len(counts) - 1, -1, -1):
