@@ -134,7 +134,7 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
     meta = {**results_meta(apps[0].job), b"fingerprint": joint.fingerprint().encode(),
             b"bands": json.dumps(list(joint.bands)).encode(), b"applications": json.dumps(records).encode()}
     joint = dataclasses.replace(joint, meta=meta)
-    check_folder(joint, folder, overwrite=overwrite)  # type: ignore[arg-type]  # the same folder rules
+    check_folder(joint, folder, overwrite=overwrite)  # a JointJob has a SweepJob's fingerprint(), chunk and chunks()
     return PreparedApplications(checked, tuple(apps), joint)
 
 
@@ -155,8 +155,7 @@ def run_applications(prepared: PreparedApplications, folder: Path, *, workers: i
     """Run (or resume) each application's sweep, then write (or resume) the joint table into the (claimed)
     ``folder``; the path of the joint ``results.parquet``. The joint manifest is written first: ``overwrite``
     clears the folder, the applications' sweeps included, before any of them runs."""
-    prepare_folder(prepared.joint, folder, overwrite=overwrite,  # type: ignore[arg-type]
-                   manifest=prepared.joint.manifest())
+    prepare_folder(prepared.joint, folder, overwrite=overwrite, manifest=prepared.joint.manifest())
     results = []
     for a in prepared.apps:
         started = (lambda todo, done, job=a.job: on_start(job, todo, done)) if on_start else None

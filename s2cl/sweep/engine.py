@@ -206,9 +206,11 @@ def _remove_sweep_files(out: Path) -> None:
                 p.unlink(missing_ok=True)
 
 
-def check_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> dict[str, Any] | None:
+def check_folder(job: SweepJob | Any, out: Path, *, overwrite: bool = False) -> dict[str, Any] | None:
     """Refuse a folder that holds another sweep (or this sweep in other chunks) unless ``overwrite``; the
-    folder's manifest, if any. Reads only: the CLI calls it before the folder is claimed."""
+    folder's manifest, if any. ``job``: a :class:`SweepJob`, or a job with its ``fingerprint()`` and ``chunk`` (a
+    multi-application sweep's joint table, :class:`s2cl.sweep.joint.JointJob`). Reads only: the CLI calls it
+    before the folder is claimed."""
     old = read_manifest(out)
     if old is not None and old.get("fingerprint") != job.fingerprint():
         if not overwrite and old.get("code") != code_fingerprint():
@@ -232,8 +234,8 @@ def check_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> dict[s
     return old
 
 
-def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False, manifest: dict[str, Any] | None = None
-                   ) -> list[tuple[int, int]]:
+def prepare_folder(job: SweepJob | Any, out: Path, *, overwrite: bool = False,
+                   manifest: dict[str, Any] | None = None) -> list[tuple[int, int]]:
     """Create or check the output folder; return the chunks still to compute.
 
     Crash-safe order: the manifest is written (atomically) before ``chunks/`` is made and old files are
