@@ -310,3 +310,20 @@ def test_a_study_of_an_application_scene_is_refused_in_one_line(tmp_path) -> Non
     with pytest.raises(InputError, match=r"application: a scene with \[\[application\]\] tables runs with s2cl "
                                          "optimise, sweep run or sweep count"):
         check_sweep(Scene.load(scene))
+
+
+def test_sweep_report_keeps_the_applications(runs) -> None:  # type: ignore[no-untyped-def]
+    """``s2cl sweep report`` of a finished multi-application sweep ranks it again and keeps its records."""
+    from s2cl.app.optimise import report_results
+
+    _, out = runs
+    summary, written = report_results(out["two"].folder)
+    assert summary["applications"] == out["two"].summary["applications"]
+    before = out["two"].summary
+
+    def plain(entries):  # type: ignore[no-untyped-def]  # the report marks untested designs within_noise: null
+        return [{k: v for k, v in e.items() if k != "within_noise"} for e in entries]
+
+    assert plain(summary["top"]) == plain(before["top"])
+    assert plain([summary["reference"]]) == plain([before["reference"]])
+    assert {p.name for p in written} >= {"summary.json", "heatmap_B11.png"}
