@@ -56,6 +56,7 @@ def test_application_scene_is_the_single_application_scene() -> None:
     one = application_scene(sc, scene_applications(sc)[1])
     assert one.spec.application is None and one.spec.analysis.kind == "gvmi"
     assert one.spec.surface.library == "builtin:leaf-water" and one.spec.surface.copies == 3
+    assert one.run.copies == 3 and sc.run.copies == 7  # what the engines read (the resolved run), not only the spec
     assert one.sensor is sc.sensor and one.grid is sc.grid and one.name == "two"
     assert scene_applications(one)[0].name == "ewt"  # an [analysis] scene: one application, named by its parameter
     assert not is_multi_application(one)

@@ -95,17 +95,20 @@ def check_simulate(scene: Scene, *, budget: Budget | None = None) -> Checked:
         if not scene.effects.correct:
             raise InputError("the analysis needs band reflectance: set effects.atmosphere and effects.correct "
                              "(or remove [analysis])", source=scene.source, key="effects.correct")
-    truth, assumed = _atmosphere(scene)
+    truth, assumed = atmosphere_terms(scene)
     caveats = [*(cube.caveats if cube else ()), *_caveats(scene, space, list(scene.sensor.band_names))]
     return Checked(scene, library, space, analysis, bands, caveats, truth=truth, assumed=assumed, sensor=scene.sensor,
                    cube=cube)
 
 
-def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
+def check_sweep(scene: Scene, *, budget: Budget | None = None, library: SpectralLibrary | None = None,
+                terms: tuple[AtmosphereArrays | None, AtmosphereArrays | None] | None = None) -> Checked:
     """Everything a sweep of ``scene`` needs, checked (the same for optimise, sweep run and sweep count); a
-    library file is sized from its metadata against ``budget`` before it is read."""
+    library file is sized from its metadata against ``budget`` before it is read. ``library`` and ``terms`` (the
+    true and the assumed atmosphere's): what the caller already loaded and computed for this scene (an application
+    of a scene with several: :mod:`s2cl.app.applications`), used instead of loading and computing them again."""
     check_sweep_sections(scene)
-    library, space = _surface(scene, budget), _space(scene)
+    library, space = library if library is not None else _surface(scene, budget), _space(scene)
     assert space is not None
     _known_bands(scene, scene.spec.analysis.bands or [], "analysis.bands")  # simulate's analysis bands
     analysis = _analysis(scene, space.bands, library)
@@ -114,7 +117,7 @@ def check_sweep(scene: Scene, *, budget: Budget | None = None) -> Checked:
     with errors_in(scene.source):  # an addition sweep: its base set scorable alone
         base = check_base(scene.spec.sweep.add, scene.spec.analysis, space, library)
         sensor = with_added_band(scene.sensor, scene.spec.sweep)
-    truth, assumed = _atmosphere(scene)
+    truth, assumed = terms if terms is not None else atmosphere_terms(scene)
     known = [b for b in space.bands if base is None or b != base.added]  # the added band has the model SRF
     caveats = _caveats(scene, space, known) + srf_caveats(scene, known)
     return Checked(scene, library, space, analysis, list(space.bands), caveats, base, truth, assumed, sensor)
@@ -170,7 +173,7 @@ def _analysis(scene: Scene, bands: list[str], library: SpectralLibrary | None) -
     return settings
 
 
-def _atmosphere(scene: Scene) -> tuple[AtmosphereArrays | None, AtmosphereArrays | None]:
+def atmosphere_terms(scene: Scene) -> tuple[AtmosphereArrays | None, AtmosphereArrays | None]:
     """The terms of the true atmosphere and of the one the correction assumes, each where the scene needs it (the
     effect is on, or the scene has a sweep): both states inside the LUT's ranges, checked by computing them once."""
     sweep = scene.spec.sweep is not None
@@ -194,6 +197,9 @@ def check_sweep_sections(scene: Scene) -> None:
     if scene.spec.sweep is None:
         raise InputError("the scene has no [sweep] section: it cannot be optimised (s2cl simulate runs it)",
                          source=scene.source, key="sweep")
+    if scene.spec.analysis is None and scene.spec.application is not None:
+        raise InputError("a scene with [[application]] tables runs with s2cl optimise, sweep run or sweep count; "
+                         "this command takes one [analysis]", source=scene.source, key="application")
     if scene.spec.analysis is None:
         raise InputError(f"a sweep needs an [analysis] section (kind: {', '.join(registry())})",
                          source=scene.source, key="analysis")

@@ -10,7 +10,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from s2cl.app.applications import check_applications
 from s2cl.app.checks import Checked, check_sweep
+from s2cl.app.multi_optimise import (
+    PreparedApplications,
+    application_heatmaps,
+    prepare_applications,
+    rank_applications,
+    run_applications,
+    unread_by_first,
+)
 from s2cl.app.plan import (
     count_table,
     own_design,
@@ -24,13 +33,14 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, token
 from s2cl.io.budget import Budget
 from s2cl.io.outdir import check_output_dir, claim
+from s2cl.scene.applications import is_multi_application
 from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 from s2cl.sensor.names import safe_file_part
 from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
 from s2cl.sweep.cluster import reach_scheduler
 from s2cl.sweep.digest import TOP
-from s2cl.sweep.engine import SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
+from s2cl.sweep.engine import APPLICATIONS, SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
 from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import (
     Digest,
@@ -154,6 +164,9 @@ class PreparedSweep:
     device: str | None
     #: the scene resolved by the checks (the reference's own tables are built from its parts, nothing again)
     checked: Checked
+    #: a scene with several applications (``[[application]]``): each one's sweep and the joint table
+    #: (:mod:`s2cl.app.multi_optimise`); ``job`` and ``checked`` are then the first application's
+    applications: PreparedApplications | None = None
 
 
 def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int | None, scheduler: str | None,
@@ -163,6 +176,9 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
     folder, where = output_folder(sc, out)
+    if is_multi_application(sc):
+        return _prepare_applications(sc, folder, where, budget, workers=workers, scheduler=scheduler,
+                                     overwrite=overwrite, chunk=chunk, device=device)
     checked = check_sweep(sc, budget=budget)
     check_output_dir(folder, where=where)
     rt = get_runtime(device or sc.run.device)  # the device is checked (and compiles) before anything is created
@@ -183,10 +199,30 @@ def prepare(scene: str | Path | Scene, out: str | Path | None, *, workers: int |
                          device, checked)
 
 
+def _prepare_applications(sc: Scene, folder: Path, where: str, budget: Budget, *, workers: int | None,
+                          scheduler: str | None, overwrite: bool, chunk: int | None, device: str | None
+                          ) -> PreparedSweep:
+    """:func:`prepare` of a scene with several applications (:func:`s2cl.app.multi_optimise.prepare_applications`):
+    the same checks, each application's sweep and the joint table planned, nothing created."""
+    distributed = bool(workers or scheduler)
+    check_output_dir(folder, where=where)
+    if scheduler:
+        reach_scheduler(scheduler)
+    t0 = time.perf_counter()
+    multi = prepare_applications(sc, folder, budget=budget, chunk=chunk, device=device, overwrite=overwrite,
+                                 distributed=distributed)
+    return PreparedSweep(sc, folder, multi.first.job, False, report(multi.checked.caveats), t0, workers, scheduler,
+                         overwrite, device, multi.first.checked, multi)
+
+
 def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = None,
                 on_start: Callable[[Any, int, int], None] | None = None) -> tuple[Path, dict[str, Any] | None]:
     """Evaluate the sweep's designs into its (claimed) folder: the whole space, or a search's rungs; the results'
     path and the search's record (None for the whole space)."""
+    if run.applications is not None:  # each application's sweep, then the joint table
+        return run_applications(run.applications, run.folder, workers=run.workers, scheduler=run.scheduler,
+                                overwrite=run.overwrite, device=run.device, progress=progress,
+                                on_start=on_start), None
     if run.searching:
         return run_search(run.job, run.folder, workers=run.workers, scheduler=run.scheduler,
                           overwrite=run.overwrite, device=run.device)
@@ -198,7 +234,10 @@ def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = 
 
 def rank_against_reference(run: PreparedSweep, results: Path) -> tuple[Digest, dict[str, Any]]:
     """Rank the results against the sensor's own bands (the reference row), test the best designs for being told
-    apart within the noise (``within_noise_top``), and the digest and summary."""
+    apart within the noise (``within_noise_top``), and the digest and summary; a scene with several applications
+    ranks for its first and adds a record per application (:func:`s2cl.app.multi_optimise.rank_applications`)."""
+    if run.applications is not None:
+        return rank_applications(run.applications, results, run.device)
     sc, job, checked = run.scene, run.job, run.checked
     path, meta = open_results(results)
     own = own_design(checked, job) if job.base_row is None else None  # its tables built once, for row and pixels
@@ -237,6 +276,8 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     before the memory is sized (which may refuse a sweep too large to run: the count is still worth showing)."""
     budget = Budget.of(max_memory)
     sc = scene if isinstance(scene, Scene) else Scene.load(str(scene))
+    if is_multi_application(sc):
+        return count_applications(sc, budget, on_counted)
     checked = check_sweep(sc, budget=budget)
     folder, where = output_folder(sc, None)
     check_output_dir(folder, where=where)
@@ -251,6 +292,29 @@ def count_sweep(scene: str | Path | Scene = "default", *, max_memory: str | None
     bad = underdetermined_count(checked.space, checked.analysis) if checked.analysis is not None else 0
     return SweepCount(sc.name, variants, checked.space.size, plan.memory_bytes, plan.chunk, bad,
                       sc.spec.sweep.underdetermined)
+
+
+def count_applications(sc: Scene, budget: Budget,
+                       on_counted: Callable[[str, list[dict[str, Any]], int], None] | None = None) -> SweepCount:
+    """:func:`count_sweep` of a scene with several applications: the joint space's variants and designs; the memory
+    and chunk of the largest application's sweep (they run one after the other); the designs the first application
+    (the ranking's) cannot fit, counted in its own sub-space and times the designs of the bands it does not read."""
+    multi = check_applications(sc, budget=budget)
+    folder, where = output_folder(sc, None)
+    check_output_dir(folder, where=where)
+    report(multi.caveats)
+    space = multi.space
+    if on_counted:
+        on_counted(sc.name, count_table(space), space.size)
+    rt = get_runtime(sc.run.device)
+    plans = [sweep_resources(p.checked, budget=budget, resumed=resumable_chunk(folder / APPLICATIONS / p.name),
+                             host_metrics=not metrics_on_device(rt), rt=rt) for p in multi.parts]
+    biggest = max(plans, key=lambda plan: plan.memory_bytes)
+    first = multi.parts[0]
+    assert first.checked.analysis is not None
+    bad = underdetermined_count(first.space, first.checked.analysis)
+    return SweepCount(sc.name, count_table(space), space.size, biggest.memory_bytes, biggest.chunk,
+                      None if bad is None else bad * (space.size // first.space.size), sc.spec.sweep.underdetermined)
 
 
 #: a Dask scheduler address: [PROTOCOL://]HOST:PORT, HOST a name, an IPv4 address or an [IPv6] address
@@ -299,8 +363,10 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
         plots += gain_plots(digest, record, folder)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
+    others = unread_by_first(summary, moving)  # several applications: drawn for an application that reads them
     return written + [heatmap(digest, b, folder / f"heatmap_{safe_file_part(b)}.png", hatch=within_pairs(summary, b))
-                      for b in moving] + plots
+                      for b in moving if b not in others] + plots + \
+        application_heatmaps(digest, summary, folder, others)
 
 
 def report_results(results: str | Path, band: str | None = None) -> tuple[dict[str, Any], list[Path]]:
@@ -318,7 +384,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
                                                                                  bands_of(columns)))
     summary = summarise(digest, meta, reference)
-    for key in ("seconds", "warnings", "search"):
+    for key in ("seconds", "warnings", "search", "applications"):
         if key in kept:
             summary[key] = kept[key]
     kept_within_noise(summary, kept)

@@ -154,11 +154,13 @@ def fixed_row(checked: Checked, job: SweepJob, space: SweepSpace, analysis: Anal
     return _first(score_designs(_one_job(checked, job, space, analysis), np.array([0]), device=device))
 
 
-def count_table(checked: Checked) -> list[dict[str, Any]]:
-    """Variants per band (count and extremes) of the checked sweep, for ``s2cl sweep count``."""
-    assert checked.space is not None
+def count_table(checked: Checked | SweepSpace) -> list[dict[str, Any]]:
+    """Variants per band (count and extremes) of the checked sweep (or of a sweep space), for ``s2cl sweep
+    count``."""
+    space = checked if isinstance(checked, SweepSpace) else checked.space
+    assert space is not None
     rows = []
-    for r, n in zip(checked.space.ranges, checked.space.counts, strict=True):
+    for r, n in zip(space.ranges, space.counts, strict=True):
         c0, c1, w0, w1 = r.extent()
         rows.append({"band": r.band, "variants": n, "centres_nm": f"{c0:g}–{c1:g}", "widths_nm": f"{w0:g}–{w1:g}"})
     return rows

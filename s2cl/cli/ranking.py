@@ -14,7 +14,23 @@ def print_sweep(summary: dict[str, Any]) -> None:
     """Print a finished sweep's ranking (the reference row and the best configurations, with notes) and, for the
     paper's scenes, the paper-style table beside s2cl's (the report itself: :func:`s2cl.app.optimise.write_report`)."""
     _print_sweep(summary)
+    _print_applications(summary)
     _print_paper(summary)
+
+
+def _print_applications(summary: dict[str, Any]) -> None:
+    """A scene with several applications: one line each (its score column, the sensor's own bands' score, its
+    target); the ranking above is the first application's."""
+    apps = summary.get("applications")
+    if not apps:
+        return
+    click.echo(f"ranked by the first application ({apps[0]['name']}); each application's score is its column of "
+               "results.parquet:")
+    for a in apps:
+        ref = "–" if a.get("reference") is None else f"{a['reference']:.4g}"
+        target = "" if a.get("target") is None else f", target {a['target']:g}"
+        click.echo(f"  {a['name']}: {a['kind']} → {a.get('parameter') or a['metric']}, column {a['column']} "
+                   f"({a['units'] or 'no unit'}), sensor's own bands {ref}{target}")
 
 
 def _print_paper(summary: dict[str, Any]) -> None:

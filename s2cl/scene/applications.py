@@ -10,8 +10,12 @@ score for one application equals what the application's own scene gives for the 
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 from dataclasses import dataclass
+from typing import Protocol
 
+from s2cl.errors import InputError, token
 from s2cl.scene.scene import Scene
 from s2cl.scene.schema import AnalysisSpec
 
@@ -51,9 +55,56 @@ def is_multi_application(scene: Scene) -> bool:
 
 def application_scene(scene: Scene, app: Application) -> Scene:
     """The single-application scene ``app`` stands for: ``scene`` with the application's analysis as its
-    [analysis], its library and copies as ``surface.library`` and ``surface.copies``, and no ``[[application]]``
-    (the sensor, grid, atmosphere, effects, [sweep] and output are the scene's)."""
+    [analysis], its library and copies as ``surface.library`` and ``surface.copies`` (and ``run.copies``: what the
+    engines read), and no ``[[application]]`` (the sensor, grid, atmosphere, effects, [sweep] and output are the
+    scene's)."""
     spec = scene.spec
     surface = spec.surface.model_copy(update={"library": app.library, "copies": app.copies})
     one = spec.model_copy(update={"analysis": app.analysis, "application": None, "surface": surface})
-    return dataclasses.replace(scene, spec=one)
+    return dataclasses.replace(scene, spec=one, run=dataclasses.replace(scene.run, copies=app.copies))
+
+
+#: a requirement written with its unit: a number, then the unit (``5 ug/cm2``, ``5 µg/cm²``, ``10 %``, ``5``)
+_TARGET = re.compile(r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*")
+
+
+def _unit_key(unit: str) -> str:
+    """A unit spelled for comparison: ``µ``/``μ`` as ``u``, superscripts as digits, no spaces, lower case."""
+    table = str.maketrans({"µ": "u", "μ": "u", "²": "2", "³": "3", " ": None})
+    return unit.translate(table).lower()
+
+
+class Metric(Protocol):
+    """What :func:`target_value` asks of a metric (:class:`s2cl.retrieve.metric.Metric`, a layer above scenes)."""
+
+    def unit(self, parameter: str | None) -> str: ...
+
+    def score_label(self, parameter: str | None) -> str: ...
+
+
+def target_value(app: Application, metric: Metric) -> float | None:
+    """The application's requirement (``target``) as a number in the units of its ``metric`` (the score to meet,
+    lower is better), or None when it has none. ``target`` is a number in those units, or a string of a number and
+    a unit that must be the metric's (``"5 ug/cm2"`` and ``"5 µg/cm²"`` for an RMS of cab, ``"10 %"`` for an
+    omission error); anything else is a one-line :class:`InputError` naming ``<key>.target`` and the unit expected
+    (the caller adds the scene's file: :func:`s2cl.errors.errors_in`)."""
+    if app.target is None:
+        return None
+    key = f"{app.key}.target"
+    unit = metric.unit(app.analysis.parameter)
+    expected = f"a number in {unit} (e.g. 5 or '5 {unit}')" if unit else "a number (the metric has no known unit)"
+    if isinstance(app.target, str):
+        m = _TARGET.fullmatch(app.target)
+        if m is None:
+            raise InputError(f"{token(app.target)} is not a requirement: give {expected}", key=key)
+        value, written = float(m[1]), m[2]
+        if written and _unit_key(written) != _unit_key(unit):
+            label = metric.score_label(app.analysis.parameter)
+            raise InputError(f"{token(app.target)} is in {token(written)}, but the {label} is in "
+                             f"{unit or 'no known unit'}: give {expected}", key=key)
+    else:
+        value = float(app.target)
+    if not math.isfinite(value) or value < 0:
+        raise InputError(f"must be a finite score ≥ 0 (lower is better), got {token(app.target)}: give {expected}",
+                         key=key)
+    return value

@@ -44,6 +44,8 @@ def _model(annotation: Any) -> type[BaseModel] | None:
     inner, _ = _strip_none(annotation)
     if get_origin(inner) is dict:
         inner = get_args(inner)[1]
+    elif get_origin(inner) is list:  # an array of tables ([[application]])
+        inner = get_args(inner)[0]
     inner = _switch(inner) or inner
     return inner if isinstance(inner, type) and issubclass(inner, BaseModel) else None
 
@@ -100,9 +102,10 @@ def _cell(text: str) -> str:
 
 
 def _key(prefix: str, name: str, info: FieldInfo) -> str:
-    """The dotted table name a section field opens (``sweep.add``; ``sweep.ranges.KEY`` for a dict of them)."""
-    dict_of = get_origin(_strip_none(info.annotation)[0]) is dict
-    return f"{prefix}{name}.KEY" if dict_of else f"{prefix}{name}"
+    """The dotted table name a section field opens (``sweep.add``; ``sweep.ranges.KEY`` for a dict of them;
+    ``[application]`` for an array of them, so that its heading reads ``[[application]]``)."""
+    origin = get_origin(_strip_none(info.annotation)[0])
+    return f"{prefix}{name}.KEY" if origin is dict else f"[{prefix}{name}]" if origin is list else f"{prefix}{name}"
 
 
 def sections(model: type[BaseModel] = SceneSpec, prefix: str = "") -> Iterator[tuple[str, type[BaseModel], str]]:
@@ -112,7 +115,7 @@ def sections(model: type[BaseModel] = SceneSpec, prefix: str = "") -> Iterator[t
         if sub is not None:
             key = _key(prefix, name, info)
             yield key, sub, info.description or ""
-            yield from sections(sub, f"{key}.")
+            yield from sections(sub, f"{key.strip('[]')}.")
 
 
 def undescribed(model: type[BaseModel] = SceneSpec) -> list[str]:
@@ -151,7 +154,7 @@ def render() -> str:
         intro = [description[:1].upper() + description[1:] + "."] if description else []
         if doc:  # the model's docstring, after the field's description unless it says the same
             intro = [*intro, doc] if not doc.lower().startswith(description.lower()) else [doc]
-        lines += [f"## `[{key}]`", "", *(f"{_cell(t)}\n" for t in intro), *_table(model, f"{key}.")]
+        lines += [f"## `[{key}]`", "", *(f"{_cell(t)}\n" for t in intro), *_table(model, f"{key.strip('[]')}.")]
     return "\n".join(lines)
 
 

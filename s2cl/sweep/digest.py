@@ -256,6 +256,12 @@ def _labels(values: np.ndarray, group: int) -> list[str]:
     return out
 
 
+def results_batches(path: str | Path) -> Iterator[Any]:
+    """The results table at ``path`` as DataFrames of :data:`BATCH_ROWS` rows each, in order (what the digest
+    reads; memory: one batch)."""
+    return _batches(path)
+
+
 def _batches(path: str | Path) -> Iterator[Any]:
     import pyarrow.parquet as pq
 

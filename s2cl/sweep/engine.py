@@ -45,6 +45,8 @@ from s2cl.version import __version__
 
 REGRESS_LABELS = {int(code): name for name, code in REGRESS_NAMES.items()}
 MANIFEST = "manifest.json"
+#: the folder of a multi-application sweep's applications' own sweeps (:mod:`s2cl.sweep.joint`)
+APPLICATIONS = "applications"
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,15 +199,18 @@ def resumable_chunk(out: str | Path, overwrite: bool = False) -> int | None:
 def _remove_sweep_files(out: Path) -> None:
     """Chunks, results and everything derived from them (summary, heatmaps): another sweep replaces them."""
     shutil.rmtree(out / CHUNKS, ignore_errors=True)
+    shutil.rmtree(out / APPLICATIONS, ignore_errors=True)  # a multi-application sweep's own sweeps
     for pattern in DERIVED:
         for p in out.glob(pattern):
             if p.is_file() or p.is_symlink():
                 p.unlink(missing_ok=True)
 
 
-def check_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> dict[str, Any] | None:
+def check_folder(job: SweepJob | Any, out: Path, *, overwrite: bool = False) -> dict[str, Any] | None:
     """Refuse a folder that holds another sweep (or this sweep in other chunks) unless ``overwrite``; the
-    folder's manifest, if any. Reads only: the CLI calls it before the folder is claimed."""
+    folder's manifest, if any. ``job``: a :class:`SweepJob`, or a job with its ``fingerprint()`` and ``chunk`` (a
+    multi-application sweep's joint table, :class:`s2cl.sweep.joint.JointJob`). Reads only: the CLI calls it
+    before the folder is claimed."""
     old = read_manifest(out)
     if old is not None and old.get("fingerprint") != job.fingerprint():
         if not overwrite and old.get("code") != code_fingerprint():
@@ -229,18 +234,21 @@ def check_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> dict[s
     return old
 
 
-def prepare_folder(job: SweepJob, out: Path, *, overwrite: bool = False) -> list[tuple[int, int]]:
+def prepare_folder(job: SweepJob | Any, out: Path, *, overwrite: bool = False,
+                   manifest: dict[str, Any] | None = None) -> list[tuple[int, int]]:
     """Create or check the output folder; return the chunks still to compute.
 
     Crash-safe order: the manifest is written (atomically) before ``chunks/`` is made and old files are
     removed before a new manifest is written, so a run killed at any moment leaves a folder that the same
-    command resumes: a manifest whose chunks are its own, or no manifest and an empty ``chunks/``.
+    command resumes: a manifest whose chunks are its own, or no manifest and an empty ``chunks/``. ``manifest``:
+    the manifest of a job that is not a :class:`SweepJob` (a multi-application sweep's joint table,
+    :class:`s2cl.sweep.joint.JointJob`: it has the same ``fingerprint()``, ``chunk`` and ``chunks()``).
     """
     old = check_folder(job, out, overwrite=overwrite)
     if overwrite or old is None or old.get("fingerprint") != job.fingerprint():
         if overwrite or old is not None:
             _remove_sweep_files(out)
-        write_json(out / MANIFEST, _manifest(job))
+        write_json(out / MANIFEST, manifest if manifest is not None else _manifest(job))
     (out / CHUNKS).mkdir(parents=True, exist_ok=True)
     return [(lo, hi) for lo, hi in job.chunks() if not chunk_done(out, lo, hi)]
 
