@@ -327,3 +327,26 @@ def test_sweep_report_keeps_the_applications(runs) -> None:  # type: ignore[no-u
     assert plain(summary["top"]) == plain(before["top"])
     assert plain([summary["reference"]]) == plain([before["reference"]])
     assert {p.name for p in written} >= {"summary.json", "heatmap_B11.png"}
+
+
+def test_optimise_writes_the_pareto_front_a_brute_force_dominance_test_finds(runs) -> None:  # type: ignore[no-untyped-def]
+    """The trade-off wired into ``s2cl optimise``: ``summary["pareto"]`` and the ``pareto`` column of
+    ``results.parquet`` hold exactly the designs no other design dominates, by a plain pairwise test written here
+    (the rule of docs/pareto.md with the margins the run recorded), and the figure is written."""
+    _, out = runs
+    summary, table = out["two"].summary, _table(out["two"])
+    record = summary["pareto"]
+    columns = ["chlorophyll_rms", "leaf_water_rms"]
+    margins = [record["margins"][a]["margin"] for a in ("chlorophyll", "leaf_water")]
+    rows = [(int(c), [float(v) for v in vals]) for c, *vals in table[["config", *columns]].itertuples(index=False)]
+    rankable = [(c, s) for c, s in rows if all(np.isfinite(s))]  # a design an application cannot fit is never on it
+
+    def dominates(a: list[float], b: list[float]) -> bool:
+        return all(x <= y for x, y in zip(a, b)) and any(y - x > m for x, y, m in zip(a, b, margins))
+
+    expected = {c for c, s in rankable if not any(dominates(t, s) for _, t in rankable)}
+    assert expected and set(record["front"]["configs"]) == expected
+    assert set(table.loc[table["pareto"], "config"]) == expected
+    assert record["designs"] == len(rankable)
+    assert (out["two"].folder / "pareto.png").exists()
+    assert "pareto" not in summary["top"][0]  # a ranking entry is a design's own values

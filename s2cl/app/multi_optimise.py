@@ -43,6 +43,7 @@ from s2cl.sweep.engine import (
 from s2cl.sweep.joint import APPLICATIONS, JointApplication, JointJob, indices_of, run_joint
 from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import Digest, heatmap, open_results, summarise
+from s2cl.sweep.trade_off import trade_off
 from s2cl.sweep.within_noise import mark_top, within_noise
 
 
@@ -131,7 +132,7 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
                      tuple(v[:, 1].copy() for v in per_band), tuple(joint_apps), scene.name, {},
                      chunk=joint_table.JOINT_CHUNK)
     records = [application_record(a) for a in apps]
-    meta = {**results_meta(apps[0].job), b"fingerprint": joint.fingerprint().encode(),
+    meta = {**results_meta(apps[0].job), b"scene": scene.name.encode(), b"fingerprint": joint.fingerprint().encode(),
             b"bands": json.dumps(list(joint.bands)).encode(), b"applications": json.dumps(records).encode()}
     joint = dataclasses.replace(joint, meta=meta)
     check_folder(joint, folder, overwrite=overwrite)  # a JointJob has a SweepJob's fingerprint(), chunk and chunks()
@@ -184,15 +185,18 @@ def rank_applications(prepared: PreparedApplications, results: Path, device: str
         mark_top(summary)
     summary["applications"] = [application_record(a, row.get(a.part.metric.score_column))
                                for a, row in zip(prepared.apps, rows, strict=True)]
-    add_pareto(prepared, results, summary)
+    add_pareto(prepared, results, summary, device)
     return digest, summary
 
 
-def add_pareto(prepared: PreparedApplications, results: Path, summary: dict[str, Any]) -> None:
-    """The seam of the trade-off (issue 35, item 3): the Pareto front over the applications' columns of
-    ``results`` (``summary["applications"][i]["column"]``), with each application's noise margins from its own
-    job (:class:`PreparedApplication`), goes into ``summary["pareto"]`` and the ``pareto`` column here
-    (:mod:`s2cl.sweep.pareto`, wired in by the lead). Nothing yet."""
+def add_pareto(prepared: PreparedApplications, results: Path, summary: dict[str, Any], device: str | None) -> None:
+    """The trade-off (:func:`s2cl.sweep.trade_off.trade_off`): the Pareto front over the applications' columns of
+    ``results`` (``summary["applications"][i]["column"]``), each application's noise margin measured on its own
+    sweep's job, into ``summary["pareto"]``, the ``pareto`` column of ``results`` and, for two or more applications,
+    :data:`~s2cl.sweep.trade_off.FIGURE` beside it."""
+    record, _ = trade_off(results, summary["applications"], [a.job for a in prepared.apps],
+                          [a.configs_of for a in prepared.apps], device=device)
+    summary["pareto"] = record
 
 
 def unread_by_first(summary: dict[str, Any], bands: list[str]) -> list[str]:

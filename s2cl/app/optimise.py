@@ -57,6 +57,7 @@ from s2cl.sweep.report import (
     write_summary,
 )
 from s2cl.sweep.search import run_search
+from s2cl.sweep.trade_off import FIGURE as PARETO_FIGURE
 from s2cl.sweep.within_noise import kept_within_noise, mark_top, within_column, within_noise, within_pairs
 
 if TYPE_CHECKING:
@@ -361,6 +362,8 @@ def write_report(digest: Any, summary: dict[str, Any], folder: Path, bands: list
     if record is not None and digest.ranked:
         summary["addition"] = summarise_addition(digest, summary, record)
         plots += gain_plots(digest, record, folder)
+    if "pareto" in summary and (folder / PARETO_FIGURE).exists():  # drawn with the trade-off (s2cl.sweep.trade_off)
+        plots.append(folder / PARETO_FIGURE)
     written = [write_summary(folder / "summary.json", summary)]
     moving = [b for b in bands if digest.variants(b) > 1]
     others = unread_by_first(summary, moving)  # several applications: drawn for an application that reads them
@@ -384,7 +387,7 @@ def report_results(results: str | Path, band: str | None = None) -> tuple[dict[s
     digest = Digest.of_file(path, meta, reference=reference, match=paper_match(meta.get("scene", ""),
                                                                                  bands_of(columns)))
     summary = summarise(digest, meta, reference)
-    for key in ("seconds", "warnings", "search", "applications"):
+    for key in ("seconds", "warnings", "search", "applications", "pareto"):
         if key in kept:
             summary[key] = kept[key]
     kept_within_noise(summary, kept)

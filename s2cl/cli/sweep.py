@@ -12,6 +12,7 @@ from s2cl.app.optimise import MAX_WORKERS, count_sweep, report_results
 from s2cl.app.optimise import optimise as optimise_scene  # the command below is `optimise`
 from s2cl.cli.console import progress_bar, rich_console
 from s2cl.cli.options import DEVICE_HELP, MAX_MEMORY_HELP, quiet_option
+from s2cl.cli.pareto_table import print_pareto
 from s2cl.cli.ranking import print_sweep
 from s2cl.io.budget import gb
 
@@ -93,6 +94,7 @@ def _run_sweep(scene: str, output: Path | None, workers: int | None, scheduler: 
                                 chunk=chunk, device=device, max_memory=max_memory, progress=advance,
                                 on_start=on_start)
     print_sweep(result.summary)
+    print_pareto(result.summary)
     click.echo("wrote " + ", ".join(str(p) for p in result.written))
 
 
@@ -117,6 +119,7 @@ def sweep_report(results: Path, band: str | None, quiet: bool) -> None:
     """Rank the configurations of a finished sweep (a results folder or .parquet file) and plot."""
     summary, written = report_results(results, band)
     print_sweep(summary)
+    print_pareto(summary)
     if not quiet:
         for p in written:
             click.echo(f"wrote {p}")

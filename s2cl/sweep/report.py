@@ -136,7 +136,9 @@ def summarise(data: Any, meta: dict[str, str], reference: dict[str, Any] | None 
     DataFrame of results."""
     d = digest_of(data, meta, reference=reference, top_n=top)
     metric, bands = d.metric, d.bands
-    keep = [c for c in d.columns if not c.endswith(("_centre_nm", "_width_nm"))]
+    # a design's own values; the ``pareto`` column a multi-application sweep's trade-off adds is the summary's
+    # ``pareto`` record's, not a ranking entry's
+    keep = [c for c in d.columns if not c.endswith(("_centre_nm", "_width_nm")) and c != "pareto"]
 
     def entry(row: Any) -> dict[str, Any]:
         return {"bands": shapes(row, bands), **{k: _plain(row[k]) for k in keep}}
