@@ -40,7 +40,7 @@ from pathlib import Path
 from memory_probe import peak
 import s2cl.app.simulate_scene as simulate_scene
 scene, block = sys.argv[1], int(sys.argv[2])
-simulate_scene.cube_block_rows = lambda *args, **kwargs: block
+simulate_scene.footprint_block_rows = lambda *args, **kwargs: block
 out = Path(tempfile.mkdtemp())
 simulate_scene.simulate_scene(scene, out / "warm")
 print(json.dumps(peak(lambda: simulate_scene.simulate_scene(scene, out / "run"))))
