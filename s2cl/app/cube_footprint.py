@@ -27,7 +27,7 @@ import numpy as np
 
 from s2cl.app.image_quicklook import MAX_SIDE
 from s2cl.app.simulate_footprint import sense_chunk, total
-from s2cl.forward.grid_interpolation import on_grid
+from s2cl.forward import grid_interpolation
 from s2cl.forward.instrument import Instrument, Smile
 from s2cl.forward.parts import ResolvedCube
 from s2cl.forward.reach import band_groups
@@ -44,7 +44,7 @@ F64 = np.dtype(np.float64).itemsize
 #: bytes of an int32 value (a generated cube's labels and parcel ids: :func:`s2cl.libraries.fields.fields_image`)
 I32 = np.dtype(np.int32).itemsize
 #: bytes of a bool or uint8 value (masks, flags, the analysis' status and bounds)
-BYTE = 1
+BYTE = np.dtype(np.uint8).itemsize
 #: bytes of the analysis map's value (float32)
 F32 = np.dtype(np.float32).itemsize
 #: bytes per pixel of an RGBA image that matplotlib resamples a panel into (float64) and draws (uint8)
@@ -201,4 +201,4 @@ def cube_disk_bytes(sc: Scene, rows: int, cols: int, *, cog: bool = False) -> fl
 
 def samples_on_grid(cube: ResolvedCube) -> bool:
     """Whether ``cube``'s file holds its spectra at the grid's wavelengths (they are used as read)."""
-    return cube.reader is not None and on_grid(cube.reader.wavelengths_nm, cube.grid)
+    return cube.reader is not None and grid_interpolation.on_grid(cube.reader.wavelengths_nm, cube.grid)
