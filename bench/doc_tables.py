@@ -832,6 +832,32 @@ def stage_table3() -> str:
             f"Measured by `python -m bench.stage_costs` into `{_rel(STAGE_COSTS_JSON)}`.")
 
 
+def cube_footprint() -> str:
+    """docs/images.md: an image's declared host memory against the measured peak, per device and case
+    (``bench/results/cube-footprint.json``)."""
+    path = RESULTS / "cube-footprint.json"
+    r = _load(path)
+    mb = lambda v: f"{v / 1e6:.1f}"  # noqa: E731
+    rows = []
+    for d in r["devices"]:
+        for case in d["cases"]:
+            for run in case["runs"]:
+                rows.append((d["device"].split(" (")[0], case["case"], run["block_rows"], mb(run["declared"]),
+                             mb(run["rss"]), mb(run["traced"]), f"{run['rss'] / run['declared']:.2f}"))
+    per_row = []
+    for d in r["devices"]:
+        for case in d["cases"]:
+            if "per_pixel_row" in case:
+                b = case["per_pixel_row"]
+                per_row.append((d["device"].split(" (")[0], case["case"], f"{b['declared']:,.0f}", f"{b['rss']:,.0f}",
+                                f"{b['traced']:,.0f}"))
+    return (md_table(("device", "cube", "block rows", "declared MB", "resident MB", "numpy MB", "resident ÷ declared"),
+                     rows)
+            + "\n\nBytes per input pixel of a row read (between the two block sizes):\n\n"
+            + md_table(("device", "cube", "declared", "resident", "numpy"), per_row)
+            + f"\n\nFrom `{_rel(path)}` (written by `{r['command']}`; {_machine(r)}; {_load_note(r)}).")
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     **{f"study.{s}": (lambda s=s: study_table(s)) for s in STUDY_JSON},
     **{f"study.{s}.key-figures": (lambda s=s: study_key_figures(s)) for s in STUDY_JSON},
@@ -874,6 +900,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "search.joint-b3-b8a-full": lambda: search_joint("full"),
     "machines": machines,
     "images.product-example": product_example,
+    "images.cube-footprint": cube_footprint,
     "images.product-throughput": product_throughput,
     "stages.costs": stage_costs,
     "stages.table3": stage_table3,

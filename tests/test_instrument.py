@@ -559,24 +559,33 @@ def _memory_scene(tmp_path, name: str, rows: int, cols: int) -> Path:
     return toml
 
 
+#: bytes per input pixel of a row the memory test's cube is read with, by hand (float32 work, 13 bands, 211 samples
+#: of the file, 421 of the 5 nm grid): the samples as read, mapped and copied as float64 (2 · 8 · 211 = 3,376), their
+#: non-finite test (211), the resampling kernel's buffers, its native samples in and the 13 bands out in float32 (4 ·
+#: (211 + 13) = 896), the NODATA mask (1); then the 10 m group (4 bands, 1 input pixel per band pixel), the largest:
+#: the PSF's float64 work and its float32 copy (12), the band images before and after their stack (2 · 4 · 4 = 32),
+#: the sense kernel's outputs held (noisy, dn, flags, calibrated: 4 · (4 + 2 + 1 + 4) = 44), and one launch's
+#: arrays (the radiance made contiguous 16, a fetched output 16, the kernel's buffers: the outputs and the radiance,
+#: 44 + 16) = 92: 4,664 bytes
+MEM_PER_PIXEL = 4664
+#: bytes of a block whatever its rows, by hand: the sense kernel's per-band values of the 10 m group's launch
+#: (noise_a, noise_b, lmin, lmax, scale, gain: 6 · 4 bands · 4 bytes)
+MEM_LAUNCH = 96
+#: and where the host puts the spectra on the grid (the kernel not interpolating them): the spectra on the grid in
+#: float64 (8 · 421 = 3,368) and the kernel reading 421 grid samples instead of 211 (4 · 210 = 840) more
+MEM_PER_PIXEL_ON_GRID = MEM_PER_PIXEL + 3368 + 840
+
+
 def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path, monkeypatch) -> None:
     """``s2cl simulate`` of a cube file with the MTF and co-registration under a --max-memory that leaves the bytes
-    of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand): the memory rule picks blocks of
-    6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured on the
-    reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit leaves
-    (14.3 of 18.4 MB when written: the resampling kernel reads the file's 10 nm bands as they are, and the bytes
-    per row are an upper bound). Left out of the estimate, the halo would let blocks of 36 rows read up to 68, 33 MB
-    by the estimate's own bytes per row."""
+    of 6 rows and their halo of 16 rows on each side (:data:`MEM_HALO`, by hand), at :data:`MEM_PER_PIXEL` bytes per
+    input pixel read (by hand; the cube file holds nothing whole and there is no analysis): the memory rule picks
+    blocks of 6 rows (a row less refuses the cube); the block reader holds at most 6 + 2 · 16 rows at once (measured
+    on the reads), which the estimate's bytes cover within the limit; the traced peak stays inside what the limit
+    leaves. Left out of the estimate, the halo would let blocks of 36 rows read up to 68."""
     import tracemalloc
 
-    from s2cl.app.simulate_scene import (
-        CUBE_BYTES_PER_BAND,
-        CUBE_BYTES_PER_GRID,
-        CUBE_BYTES_PER_INPUT,
-        cube_block_rows,
-        cube_whole_bytes,
-        simulate_scene,
-    )
+    from s2cl.app.simulate_scene import cube_block_rows, simulate_scene
     from s2cl.errors import ResourceError
     from s2cl.forward.cube import SceneCube
     from s2cl.io.budget import BASELINE_BYTES, Budget
@@ -584,15 +593,16 @@ def test_a_cube_with_mtf_and_coregistration_streams_within_its_estimate(tmp_path
     toml = _memory_scene(tmp_path, "big", MEM_ROWS, MEM_COLS)
     small = _memory_scene(tmp_path, "small", 30, 30)
     sc = Scene.load(str(toml))
+    assert (sc.grid.size, sc.sensor.size, sc.run.precision) == (421, 13, "float32")  # the figures' premises
     # the cube's 10 nm bands go into the resampling kernel as they are (it interpolates them onto the 5 nm grid):
     # no spectra on the grid are held
-    per_row = MEM_COLS * (CUBE_BYTES_PER_BAND * sc.sensor.size + CUBE_BYTES_PER_INPUT * MEM_WL.size)
-    fixed = BASELINE_BYTES + cube_whole_bytes(sc, MEM_ROWS * MEM_COLS, MEM_WL.size)
+    per_row = MEM_COLS * MEM_PER_PIXEL
+    fixed = BASELINE_BYTES + MEM_LAUNCH
     limit = math.ceil(fixed + (6 + 2 * MEM_HALO) * per_row)
     assert cube_block_rows(sc, Budget.of(str(limit)), MEM_ROWS, MEM_COLS, MEM_WL.size, True) == 6
     with pytest.raises(ResourceError, match=r"surface\.cube"):
         cube_block_rows(sc, Budget.of(str(limit - per_row)), MEM_ROWS, MEM_COLS, MEM_WL.size, True)
-    with_grid = per_row + MEM_COLS * CUBE_BYTES_PER_GRID * sc.grid.size  # a cube put on the grid on the host
+    with_grid = MEM_COLS * MEM_PER_PIXEL_ON_GRID  # a cube put on the grid on the host
     assert cube_block_rows(sc, Budget.of(str(math.ceil(fixed + (6 + 2 * MEM_HALO) * with_grid))), MEM_ROWS,
                            MEM_COLS, MEM_WL.size) == 6
 

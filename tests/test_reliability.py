@@ -265,8 +265,9 @@ def test_a_cube_too_large_for_memory_is_refused_before_loading(tmp_path) -> None
     import h5netcdf
     import numpy as np
 
-    # declared 100 × 50,000 × 211, stored as fill values: the kernel reads its 211 bands as they are (4,000 bytes a
-    # pixel of a block by the memory rule), so one block of 6 rows takes 1.2 GB
+    # declared 100 × 50,000 × 211, stored as fill values: the kernel reads its 211 bands as they are (at least the
+    # samples as read, mapped and copied as float64, 2 · 8 · 211 = 3,376 bytes a pixel of a block), so one block of 6
+    # rows takes more than 1.0 GB beside the 350 MB baseline
     with h5netcdf.File(tmp_path / "big.nc", "w") as f:
         f.dimensions = {"y": 100, "x": 50000, "wavelength": 211}
         f.create_variable("wavelength", ("wavelength",), float, data=np.linspace(400, 2500, 211))

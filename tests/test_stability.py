@@ -233,3 +233,16 @@ def test_application_file_relative_to_the_study_scene(tmp_path):
     assert app.bands == ("B8", "B11") and app.scene.run.copies == 2
     assert app.nominal == ((842.0, 115.0), (1610.0, 90.0))
     assert drift_space(app, DRIFTS).counts == [len(DRIFTS.shifts) + len(DRIFTS.factors) - 1] * 2
+
+
+def test_an_evaluation_counts_the_bytes_of_what_it_holds_per_pixel() -> None:
+    """One configuration's evaluation per pixel, by hand: the sweep kernel's outputs as fetched (the index in the
+    working precision, status, bounds and condition codes of a byte each), the metrics' work for one row (8 float64
+    arrays of a regression, 4 of a classification), and a regression's scoring (3 masks of a byte, the used index
+    taken, its float64 prediction and residual)."""
+    from s2cl.retrieve.metric import CLASSIFICATION, REGRESSION
+    from s2cl.studies.drift import evaluation_bytes_per_pixel
+
+    assert evaluation_bytes_per_pixel(REGRESSION, 4) == (4 + 3) + 8 * 8 + (3 + 4 + 2 * 8)
+    assert evaluation_bytes_per_pixel(REGRESSION, 8) == (8 + 3) + 8 * 8 + (3 + 8 + 2 * 8)
+    assert evaluation_bytes_per_pixel(CLASSIFICATION, 4) == (4 + 3) + 4 * 8

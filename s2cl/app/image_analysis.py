@@ -130,9 +130,9 @@ class StreamedAnalysis:
     """The scene's analysis fed by the simulation as it writes (``s2cl simulate``): :meth:`tee` wraps the store the
     simulation writes into, and the analysis bands' reflectance and flags rows are kept as they are written, until
     every band holds whole rows of the common grid, which are retrieved then and let go; nothing is read back from the
-    file. The rows held are at most a block's (the memory rule's analysis share,
-    :data:`s2cl.app.simulate_scene.CUBE_BYTES_PER_BAND`); the map, status, bounds and flags are held whole, as the
-    memory rule counts them (:data:`s2cl.app.simulate_scene.CUBE_BYTES_FILE`), and written when it finishes."""
+    file. The rows held are at most a block's (the footprint counts them with the block,
+    :meth:`s2cl.app.cube_footprint.CubeFootprint.block`); the map, status, bounds and flags are held whole, as the
+    footprint counts them (:func:`s2cl.app.cube_footprint.cube_footprint`), and written when it finishes."""
 
     def __init__(self, rt: Runtime, scene: Scene, bands: list[str], settings: AnalysisSettings, rows: int,
                  cols: int):

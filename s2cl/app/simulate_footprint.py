@@ -90,12 +90,12 @@ def chunk_arrays(checked: Checked, pixels: int, *, device_memory: bool) -> list[
 
 
 def sense_chunk(scene: Scene, pixels: int, *, device_memory: bool, summary: bool,
-                analysed: int = 0) -> list[Allocation]:
+                analysed: int = 0, bands: int | None = None) -> list[Allocation]:
     """A chunk of ``pixels`` through the sense kernel at its peak: the band radiance repeated and the stages' outputs
     (their declared types), and the larger of one launch's arrays and what follows the launches one after the other
     (with ``summary``, the band summary's float64 work; the clipping counts' masks; the gather of ``analysed``
-    bands)."""
-    nb, real = scene.sensor.size, np.dtype(scene.run.precision).itemsize
+    bands); ``bands``: the bands sensed (default the sensor's; an image's GSD group senses its own)."""
+    nb, real = scene.sensor.size if bands is None else bands, np.dtype(scene.run.precision).itemsize
     stages = chain(scene.effects)
     names = {a.name for a in sense_args(stages) if a.kind == "out"}
     declared = sense_buffers(stages, nb, real)  # per pixel of a launch: the outputs' and the radiance's buffers

@@ -12,10 +12,18 @@ from typing import Any
 
 from s2cl.app.chain_parts import checked_parts, scene_instrument
 from s2cl.app.checks import Checked, check_simulate
+from s2cl.app.cube_footprint import (
+    CubeFootprint,
+    block_rows_fitting,
+    cube_disk_bytes,
+    cube_footprint,
+    samples_on_grid,
+)
 from s2cl.app.image_analysis import StreamedAnalysis
 from s2cl.app.image_quicklook import write_quicklook
 from s2cl.app.optimise import output_folder
 from s2cl.app.simulate import require_device_launches, require_netcdf_disk, simulate_memory, simulate_to_netcdf
+from s2cl.app.simulate_footprint import total
 from s2cl.cl.runtime import get_runtime
 from s2cl.errors import InputError, errors_in
 from s2cl.forward.cube import open_scene_cube, simulate_cube
@@ -30,20 +38,6 @@ from s2cl.scene.caveats import report
 from s2cl.scene.scene import Scene
 
 SIMULATION_JSON = "simulation.json"
-
-#: bytes per pixel of a block of a cube: per input wavelength (as stored, and float64 as read), per grid
-#: wavelength (on the grid, TOA radiance, resampling input) and per band (images, noise, DN, calibration)
-CUBE_BYTES_PER_INPUT, CUBE_BYTES_PER_GRID, CUBE_BYTES_PER_BAND = 16, 24, 48
-#: bytes per input pixel of a generated cube held whole: labels, parcel ids, the map's index, status and bounds
-CUBE_BYTES_GENERATED = 16
-#: bytes per input pixel of a cube file held whole: the map's index, status and bounds (its NODATA mask and the
-#: bands' footprint masks, once held whole, are now found block by block as its rows are read)
-CUBE_BYTES_FILE = 16
-#: bytes on disk per input pixel and band at most (radiance float64 with a PSF, noisy, calibrated and reflectance
-#: float32, DN, flags)
-CUBE_DISK_BYTES_PER_BAND = 23
-#: bytes on disk per input pixel and band of a COG at most (float32 radiance, uncompressed)
-COG_BYTES_PER_BAND = 4
 
 
 @dataclass(frozen=True)
@@ -116,40 +110,38 @@ def _cog_format(sc: Scene, fmt: str | None) -> bool:
 
 
 def cube_block_rows(sc: Scene, budget: Any, rows: int, cols: int, wavelengths: int = 0,
-                    interpolated: bool = False) -> int | None:
+                    interpolated: bool = False, analysis_bands: list[str] | tuple[str, ...] = (), *,
+                    on_grid: bool = False, device_memory: bool = True) -> int | None:
     """Input rows of the scene's ``rows × cols`` cube (``wavelengths`` per pixel in its file; 0: generated)
     simulated at a time within ``budget`` (None: the whole image fits); a :class:`ResourceError` naming
     ``surface.cube`` when not even one block of rows fits. ``interpolated``: the resampling kernel puts the file's
-    own bands on the grid (:attr:`s2cl.forward.parts.ResolvedCube.interpolates`), so no spectra on the grid are held.
+    own bands on the grid (:attr:`s2cl.forward.parts.ResolvedCube.interpolates`), so no spectra on the grid are held,
+    nor where they are the grid's (``on_grid``); ``analysis_bands``: the bands of the scene's analysis (none: no
+    analysis); ``device_memory``: the kernels' buffers are the host's.
 
-    What does not stream (:func:`cube_whole_bytes`): a generated cube's labels and parcel ids, and the map's index,
-    status and bounds (a cube file's NODATA mask streams: each block's own, found as it is read). What does: per
-    band and input pixel of a block and of the rows it is read with on each side (the halo of its spatial filters,
-    [spatial] PSF and [instrument] MTF and shift: :func:`s2cl.forward.reach.cube_halo`, the block reader's own), the
-    band images, the radiometric stage's outputs and the analysis (:data:`CUBE_BYTES_PER_BAND`), and a file's
-    spectra, read by rows (:data:`CUBE_BYTES_PER_INPUT`) and, unless ``interpolated``, put on the grid
-    (:data:`CUBE_BYTES_PER_GRID`) on their way through the resampler."""
-    grid = 0 if interpolated else CUBE_BYTES_PER_GRID * sc.grid.size
-    spectra = CUBE_BYTES_PER_INPUT * wavelengths + grid if wavelengths else 0
-    per_row = cols * (CUBE_BYTES_PER_BAND * sc.sensor.size + spectra)
+    The run's peak is its footprint (:func:`s2cl.app.cube_footprint.cube_footprint`: what it holds whole, and the
+    larger of a block of rows read with the halo of its spatial filters, [spatial] PSF and [instrument] MTF and
+    shift: :func:`s2cl.forward.reach.cube_halo`, the block reader's own, and the analysis' finish or the quicklook)
+    beside :data:`~s2cl.io.budget.BASELINE_BYTES`."""
+    fp = cube_footprint(sc, rows, cols, wavelengths, interpolated, analysis_bands, on_grid=on_grid,
+                        device_memory=device_memory)
+    return footprint_block_rows(sc, budget, fp, rows, cols, wavelengths)
+
+
+def footprint_block_rows(sc: Scene, budget: Any, fp: CubeFootprint, rows: int, cols: int,
+                         wavelengths: int) -> int | None:
+    """:func:`cube_block_rows` of the footprint ``fp`` of the scene's ``rows × cols`` cube."""
     with errors_in(sc.source):
         groups = band_groups(sc.sensor, sc.spec.surface.gsd_m)
         halo = cube_halo(scene_instrument(sc), groups)
-    factors = [factor for factor, _ in groups]
-    unit = math.lcm(*factors)
-    fixed = BASELINE_BYTES + cube_whole_bytes(sc, rows * cols, wavelengths)
-    if fixed + (rows + 2 * halo) * per_row <= budget.memory_bytes:
+    unit = math.lcm(*[factor for factor, _ in groups])
+    room = budget.memory_bytes - BASELINE_BYTES
+    if fp.peak(rows + 2 * halo) <= room:
         return None
-    budget.require(fixed + (unit + 2 * halo) * per_row, what=f"a cube of {rows * cols:,} pixels × {wavelengths} "
-                   f"wavelengths in blocks of {unit} rows", key="surface.cube", source=sc.source,
+    budget.require(BASELINE_BYTES + fp.peak(unit + 2 * halo), what=f"a cube of {rows * cols:,} pixels × "
+                   f"{wavelengths} wavelengths in blocks of {unit} rows", key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")
-    return max(unit, int((budget.memory_bytes - fixed) // per_row) - 2 * halo)
-
-
-def cube_whole_bytes(sc: Scene, pixels: int, wavelengths: int) -> float:
-    """Bytes a cube holds whole whatever the blocks: a file's :data:`CUBE_BYTES_FILE` per pixel, or a generated
-    cube's :data:`CUBE_BYTES_GENERATED`."""
-    return pixels * (CUBE_BYTES_FILE if wavelengths else CUBE_BYTES_GENERATED)
+    return block_rows_fitting(fp, room, unit, halo, rows)
 
 
 def _simulate_cube(checked: Checked, folder: Path, device: str | None, budget: Any,
@@ -162,19 +154,21 @@ def _simulate_cube(checked: Checked, folder: Path, device: str | None, budget: A
     sc, resolved = checked.scene, checked.cube
     assert resolved is not None
     pixels, wavelengths = resolved.pixels, resolved.wavelengths  # from the metadata the checks opened
-    budget.require(BASELINE_BYTES + cube_whole_bytes(sc, pixels, wavelengths), what=f"a cube of {pixels:,} pixels "
-                   f"× {wavelengths} wavelengths", key="surface.cube", source=sc.source,
+    rt = get_runtime(device or sc.run.device)
+    bands = list(checked.analysis_bands) if checked.analysis is not None else []
+    fp = cube_footprint(sc, resolved.rows, resolved.cols, wavelengths, resolved.interpolates, bands,
+                        on_grid=samples_on_grid(resolved), device_memory=rt.host_memory)
+    budget.require(BASELINE_BYTES + total(fp.whole), what=f"a cube of {pixels:,} pixels × {wavelengths} wavelengths",
+                   key="surface.cube", source=sc.source,
                    fits="crop the cube or coarsen grid.step_nm")  # a cube's whole part must fit before it is read
     # and one block of rows must fit before it is read
-    block_rows = cube_block_rows(sc, budget, resolved.rows, resolved.cols, wavelengths, resolved.interpolates)
-    rt = get_runtime(device or sc.run.device)
+    block_rows = footprint_block_rows(sc, budget, fp, resolved.rows, resolved.cols, wavelengths)
     require_device_launches(rt, sc)
     with errors_in(sc.source):
         parts = checked_parts(checked)
         cube = open_scene_cube(resolved, parts)
         groups = band_groups(sc.sensor, resolved.gsd_m)
-    per_band = CUBE_DISK_BYTES_PER_BAND + (2 * COG_BYTES_PER_BAND if cog else 0)  # a COG and its strips, at once
-    require_free(folder / SIMULATION_NC, 1.02 * cube.rows * cube.cols * per_band * sc.sensor.size + 2e6)
+    require_free(folder / SIMULATION_NC, 1.02 * cube_disk_bytes(sc, cube.rows, cube.cols, cog=cog) + 2e6)
     warnings = report(checked.caveats)
     t0 = time.perf_counter()
     nc = folder / SIMULATION_NC

@@ -11,11 +11,11 @@ import numpy as np
 
 from s2cl.errors import InputError, ResourceError, key_token, token
 from s2cl.grid import SpectralGrid, check_wavelengths
-from s2cl.io.budget import BASELINE_BYTES, Budget, largest_fitting
+from s2cl.io.budget import BASELINE_BYTES, Allocation, Budget, largest_fitting
 from s2cl.io.envi import envi_layout, read_envi_header
 from s2cl.io.inputs import input_file, parse_number
 from s2cl.io.tables import CsvStream, open_csv
-from s2cl.libraries.library import Quantity, SpectralLibrary, resample_to_grid
+from s2cl.libraries.library import FINITE_BLOCK, Quantity, SpectralLibrary, resample_to_grid
 from s2cl.libraries.params import CsvParameters, envi_parameters
 
 #: Largest wavelength gap (nm) in a user file that linear interpolation may bridge; a wider gap
@@ -195,20 +195,26 @@ def load_csv_library(
                          params=params)
 
 
-#: bytes per spectrum and grid wavelength of a library read for a run: the float64 spectra on the grid (the
-#: finiteness checks and the interpolation work row by row) and, right after, their TOA radiance, as
-#: ``s2cl simulate`` and the sweeps count them (:mod:`s2cl.app.simulate`, :mod:`s2cl.app.sweep_budget`)
-LIBRARY_BYTES_PER_GRID_VALUE = 24
+def library_read_footprint(n_spectra: int, read_bytes: float, grid: SpectralGrid) -> list[Allocation]:
+    """What reading a library file allocates at its peak: the file's values as read (``read_bytes``, the reader's
+    own count), its spectra put on ``grid`` (float64, :func:`s2cl.libraries.library.resample_to_grid`; bytes per
+    spectrum) and the library's finiteness test of a block of at most :data:`~s2cl.libraries.library.FINITE_BLOCK` of
+    the ``n_spectra`` (bool; the range checks go a row at a time)."""
+    return [Allocation("values as read", float(read_bytes)),
+            Allocation("spectra on the grid (float64)", 0.0, float(np.dtype(np.float64).itemsize * grid.size)),
+            Allocation("finiteness test (bool)", float(np.dtype(np.bool_).itemsize * min(n_spectra, FINITE_BLOCK)
+                                                       * grid.size))]
 
 
 def require_library_memory(budget: Budget | None, n_spectra: int, read_bytes: float, grid: SpectralGrid, *,
                            source: str) -> None:
     """Refuse (one line naming the file, before it is read) a library whose reading would exceed ``budget``:
-    ``read_bytes`` for the file's values as read, plus its spectra on ``grid``."""
+    :func:`library_read_footprint` beside :data:`~s2cl.io.budget.BASELINE_BYTES`."""
     budget = budget or Budget.of()
-    on_grid = float(LIBRARY_BYTES_PER_GRID_VALUE) * grid.size
-    need = BASELINE_BYTES + read_bytes + n_spectra * on_grid
-    most = largest_fitting(budget.memory_bytes, BASELINE_BYTES, on_grid + read_bytes / max(n_spectra, 1))
+    parts = library_read_footprint(n_spectra, read_bytes, grid)
+    need = BASELINE_BYTES + sum(a.bytes(n_spectra) for a in parts)
+    per_spectrum = sum(a.per_unit for a in parts) + read_bytes / max(n_spectra, 1)
+    most = largest_fitting(budget.memory_bytes, BASELINE_BYTES + parts[-1].fixed, per_spectrum)
     budget.require(need, what=f"reading its {n_spectra:,} spectra onto the grid {grid.describe()}", key=None,
                    source=source, fits=f"at most {min(most, n_spectra):,} spectra fit on this grid; use fewer "
                    "spectra or a coarser grid (grid.step_nm)")

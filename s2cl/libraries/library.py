@@ -114,11 +114,15 @@ class SpectralLibrary:
         )
 
 
+#: spectra :func:`check_finite` tests at a time (its bool temporaries: this many spectra's values)
+FINITE_BLOCK = 4096
+
+
 def check_finite(spectra: np.ndarray, *, names: list[str] | None = None, source: str | None = None) -> None:
     """Raise :class:`InputError` naming the first spectrum that holds NaN or inf (checked a block of rows at
     a time: no library-size temporaries)."""
     spectra = np.asarray(spectra)
-    step = 4096
+    step = FINITE_BLOCK
     for a in range(0, max(spectra.shape[0], 1), step):
         finite = np.isfinite(spectra[a : a + step])
         if finite.all():

@@ -26,20 +26,34 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from s2cl.app.checks import Checked, check_sweep
+from s2cl.cl.kernel_args import buffers
 from s2cl.errors import InputError, errors_in, key_token
 from s2cl.forward.stages import stage
 from s2cl.io.inputs import input_file
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.analysis import AnalysisSettings, analysis_targets
-from s2cl.retrieve.metrics import regression_metrics
+from s2cl.retrieve.metric import Metric
+from s2cl.retrieve.metrics import ROW_BLOCK, block_work_bytes, regression_metrics
 from s2cl.retrieve.quantify import fit_polynomial
 from s2cl.scene.scene import Scene, builtin_scenes
 from s2cl.sensor.variants import BandList, SweepSpace
+from s2cl.sweep.kernel import OUTPUTS
 from s2cl.sweep.raw import ChunkEvaluator
 from s2cl.sweep.tables import SweepTables, build_tables
 
-#: host bytes per pixel of one configuration's evaluation (kernel outputs, float64 index, fit temporaries)
-BYTES_PER_PIXEL = 160
+#: bytes of the host's float64 work values and of a bool mask value
+F64, BOOL = np.dtype(np.float64).itemsize, np.dtype(np.bool_).itemsize
+
+
+def evaluation_bytes_per_pixel(metric: Metric, real_bytes: int) -> float:
+    """Host bytes per pixel of one configuration's evaluation (:func:`drift_errors`): the sweep kernel's outputs as
+    fetched (their declared types, :data:`s2cl.sweep.kernel.OUTPUTS`), the metrics' work for its one row
+    (:func:`s2cl.retrieve.metrics.block_work_bytes`), and the nominal fit's scoring: the regression masks (bool), the
+    used index taken and, in float64, its prediction and residual."""
+    fetched = sum(b.per_unit for b in buffers(OUTPUTS, {"pitch": 1}, real_bytes, "configs"))
+    metrics = block_work_bytes(1, classifies=metric.classifies) / ROW_BLOCK
+    scoring = 3 * BOOL + real_bytes + 2 * F64
+    return fetched + metrics + (0 if metric.classifies else scoring)
 
 
 @dataclass(frozen=True)

@@ -24,12 +24,12 @@ from s2cl.cl.runtime import get_runtime
 from s2cl.io.budget import Budget, gb
 from s2cl.studies.common import KeyFigure, StudyResult, StudySetup, equal_error
 from s2cl.studies.drift import (
-    BYTES_PER_PIXEL,
     Application,
     Drifts,
     drift_configs,
     drift_errors,
     drift_tables,
+    evaluation_bytes_per_pixel,
     load_application,
 )
 from s2cl.sweep.kernel import SweepKernel
@@ -97,8 +97,9 @@ def run(setup: StudySetup) -> StudyResult:
     for app in apps:
         drifts.check_grid(app, setup.source)
         n = app.library.size * st.pixels
-        budget.require(n * (BYTES_PER_PIXEL + 8 * len(app.bands)), key="study.pixels", source=setup.source,
-                       what=f"application {app.label!r} ({n:,} pixels: {gb(n * BYTES_PER_PIXEL)} per configuration)")
+        per_pixel = evaluation_bytes_per_pixel(app.analysis.family.metric, np.dtype(app.scene.run.precision).itemsize)
+        budget.require(n * (per_pixel + 8 * len(app.bands)), key="study.pixels", source=setup.source,
+                       what=f"application {app.label!r} ({n:,} pixels: {gb(n * per_pixel)} per configuration)")
     ax = axes(drifts)
     max_shift = float(np.abs(ax["shift"]).max())
     max_factor = float(np.abs(ax["width"] - 1).max())

@@ -27,9 +27,13 @@ BATCH_ROWS = 65_536
 TOP = 10
 #: most centre rows and width columns a heatmap draws; beyond them consecutive values are grouped
 HEATMAP_CENTRES, HEATMAP_WIDTHS = 60, 40
-#: what the digest holds per band variant: the pair's key (complex128) and best value (float64), in at most four
-#: copies at once (the sorted pairs, those pending a merge, the merge's concatenation and its sort)
-BYTES_PER_VARIANT = 4 * (16 + 8)
+#: the types of what the digest holds per band variant (:class:`_PairBest`): the pair's key ``centre + 1j·width`` and
+#: its best value
+PAIR_KEY, PAIR_VALUE = np.dtype(np.complex128), np.dtype(np.float64)
+#: copies of them held at once at most: the sorted pairs, those pending a merge, the merge's concatenation and its sort
+PAIR_COPIES = 4
+#: bytes the digest holds per band variant, from those types
+BYTES_PER_VARIANT = PAIR_COPIES * (PAIR_KEY.itemsize + PAIR_VALUE.itemsize)
 #: 8-byte copies of a batch's column the digest holds at once at most: the Parquet reader's decoded pages and the
 #: blocks its allocator keeps, the Arrow batch, its DataFrame, the rankable rows and their sort
 BATCH_COPIES = 14
@@ -66,14 +70,14 @@ class _PairBest:
     """Best metric per (centre, width) pair of one band: sorted complex keys ``centre + 1j·width``; new pairs
     wait in ``pending`` and are merged when they outnumber the known ones (amortised: linear overall)."""
 
-    keys: np.ndarray = field(default_factory=lambda: np.empty(0, complex))
-    best: np.ndarray = field(default_factory=lambda: np.empty(0))
+    keys: np.ndarray = field(default_factory=lambda: np.empty(0, PAIR_KEY))
+    best: np.ndarray = field(default_factory=lambda: np.empty(0, PAIR_VALUE))
     pending: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     n_pending: int = 0
 
     def add(self, centre: np.ndarray, width: np.ndarray, value: np.ndarray) -> None:
         keys, inverse = np.unique(centre + 1j * width, return_inverse=True)
-        best = np.full(keys.size, np.nan)
+        best = np.full(keys.size, np.nan, PAIR_VALUE)
         np.fmin.at(best, inverse.ravel(), value)
         pos = np.searchsorted(self.keys, keys)
         found = pos < self.keys.size
@@ -91,7 +95,7 @@ class _PairBest:
         keys = np.concatenate([self.keys, *(k for k, _ in self.pending)])
         best = np.concatenate([self.best, *(b for _, b in self.pending)])
         self.keys, inverse = np.unique(keys, return_inverse=True)
-        self.best = np.full(self.keys.size, np.nan)
+        self.best = np.full(self.keys.size, np.nan, PAIR_VALUE)
         np.fmin.at(self.best, inverse.ravel(), best)
         self.pending, self.n_pending = [], 0
 
