@@ -16,10 +16,21 @@ DEFAULT_TOLERANCE_NM = 15.0
 
 
 def scorecard_table(folder: str) -> str:
-    """Applications × sensors: the score (relative to the best sensor) or n/a with the reason; then the command."""
+    """Applications × sensors of ``docs/scorecard/FOLDER``: the score (relative to the best sensor) or n/a with the
+    reason; then the command."""
+    path = SCORECARDS / folder / "scorecard.json"
+    r: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    tolerance = r["tolerance_nm"]
+    option = f" --tolerance {tolerance:g}" if tolerance != DEFAULT_TOLERANCE_NM else ""
+    return scorecard_markdown(path, f"Written by `s2cl scorecard {r['scene']}{option} -o docs/scorecard/{folder}` "
+                                    f"into `{_rel(path)}` (the heatmap beside it: `scorecard.png`).")
+
+
+def scorecard_markdown(path: Path, written_by: str) -> str:
+    """The table of the scorecard in ``path`` (its scorecard.json): applications × sensors, each cell the score and
+    (in brackets) the score over the best sensor's, or n/a with the reason; then ``written_by``."""
     from bench.doc_tables import md_table
 
-    path = SCORECARDS / folder / "scorecard.json"
     r: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
     sensors = [s["name"] for s in r["sensors"]]
     cells = {(c["application"], c["sensor"]): c for c in r["cells"]}
@@ -31,12 +42,9 @@ def scorecard_table(folder: str) -> str:
             row.append(f"n/a ({c['n/a']})" if c["score"] is None
                        else f"{c['score']:.4g} ({c['relative_to_best']:.3f})")
         rows.append(row)
-    tolerance = r["tolerance_nm"]
-    option = f" --tolerance {tolerance:g}" if tolerance != DEFAULT_TOLERANCE_NM else ""
     return (md_table(["application", *sensors], rows)
             + "\n\nEach cell: the score, and in brackets the score over the best sensor's for the application "
-            f"(1 = the best); roles within {tolerance:g} nm. Written by `s2cl scorecard {r['scene']}{option} -o "
-            f"docs/scorecard/{folder}` into `{_rel(path)}` (the heatmap beside it: `scorecard.png`).")
+            f"(1 = the best); roles within {r['tolerance_nm']:g} nm. {written_by}")
 
 
 def _rel(path: Path) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 
 from bench.common import RESULTS, ROOT
 from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
+from bench.mission_report import BLOCKS as MISSION_BLOCKS
 
 DOCS = ROOT / "docs"
 STUDIES = ("cirrus", "water-vapour", "aerosol", "ozone", "methane")
@@ -905,6 +906,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "stages.costs": stage_costs,
     "stages.table3": stage_table3,
     **SCORECARD_BLOCKS,
+    **MISSION_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)

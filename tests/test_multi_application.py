@@ -342,7 +342,8 @@ def test_optimise_writes_the_pareto_front_a_brute_force_dominance_test_finds(run
     rankable = [(c, s) for c, s in rows if all(np.isfinite(s))]  # a design an application cannot fit is never on it
 
     def dominates(a: list[float], b: list[float]) -> bool:
-        return all(x <= y for x, y in zip(a, b)) and any(y - x > m for x, y, m in zip(a, b, margins))
+        return all(x <= y for x, y in zip(a, b, strict=True)) and any(
+            y - x > m for x, y, m in zip(a, b, margins, strict=True))
 
     expected = {c for c, s in rankable if not any(dominates(t, s) for _, t in rankable)}
     assert expected and set(record["front"]["configs"]) == expected

@@ -48,6 +48,8 @@ from s2cl.sweep.report import read_summary
 #: the sensors scored when none is named
 DEFAULT_SENSORS = ("sentinel2", "S2A", "S2B", "OLI", "OLI-2", "landsat-next")
 RESULTS_PREFIX = "results:"
+#: the designs ``results:FOLDER:WHICH`` may take from a finished sweep
+DESIGN_SELECTORS = ("best", "balanced")
 
 
 @dataclass(frozen=True)
@@ -106,13 +108,15 @@ class Scorecard:
 
 def resolve_sensor(text: str, scene: Scene) -> CatalogueSensor:
     """A ``--sensor`` value: a catalogue name (:mod:`s2cl.sensor.catalogue`), ``results:FOLDER`` (a finished sweep's
-    best design on the scene's sensor) or a sensor table (``FILE.csv``, the columns of ``[sensor] file``).
+    #1 design on the scene's sensor), ``results:FOLDER:balanced`` (the best design of its Pareto front by relative
+    sum) or a sensor table (``FILE.csv``, the columns of ``[sensor] file``).
 
     :raises InputError: an unknown name (listing the known ones), an unreadable table, a folder without a readable
-        summary.json or without a ranked design.
+        summary.json, without a ranked design or (``:balanced``) without a ``pareto`` record.
     """
     if text.startswith(RESULTS_PREFIX):
-        return results_sensor(Path(text[len(RESULTS_PREFIX):]), scene)
+        folder, which = results_selector(text)
+        return results_sensor(folder, scene, which)
     if canonical_name(text) is None and (text.lower().endswith(".csv") or Path(text).exists()):
         path = input_file(Path(text), what="sensor table", key="--sensor")
         sensor = Sensor.from_csv(path)
@@ -121,28 +125,64 @@ def resolve_sensor(text: str, scene: Scene) -> CatalogueSensor:
     return catalogue_sensor(text)
 
 
-def results_sensor(folder: Path, scene: Scene) -> CatalogueSensor:
-    """The scene's sensor with the #1 design of the finished sweep in ``folder`` (its ``summary.json``: model SRFs,
-    the scene's radiometry with the SNR scaled to each band's width, as the sweep scored it)."""
+def results_selector(text: str) -> tuple[Path, str]:
+    """``results:FOLDER[:best|:balanced]`` as (FOLDER, the design to take: ``best`` when none is named)."""
+    rest = text[len(RESULTS_PREFIX):]
+    head, sep, tail = rest.rpartition(":")
+    if sep and head and tail in DESIGN_SELECTORS:
+        return Path(head), tail
+    return Path(rest), "best"
+
+
+def summary_design(summary: dict[str, Any], which: str, source: Path) -> tuple[dict[str, Any], str]:
+    """The design ``which`` of a finished sweep's ``summary`` (read from ``source``) as (its bands, band → [centre,
+    width] nm; a one-line description): ``best``, the #1 design of the ranking; ``balanced``, the best design of the
+    Pareto front by relative sum (``pareto.front.designs[0]``, the front being listed by relative sum).
+
+    :raises InputError: one line naming ``source``: no ranked design, no ``pareto`` record, a front not ranked by
+        relative sum.
+    """
+    if which == "balanced":
+        pareto = summary.get("pareto")
+        if not isinstance(pareto, dict) or not isinstance(pareto.get("front"), dict):
+            raise InputError("has no pareto record (written by s2cl optimise of a scene with several "
+                             "applications): results:FOLDER:balanced needs one; results:FOLDER takes the #1 design",
+                             source=source, key="--sensor")
+        front = pareto["front"]
+        designs = front.get("designs") or []
+        if front.get("order") != "relative sum" or not designs or not isinstance(designs[0].get("bands"), dict):
+            missing = ", ".join((pareto.get("relative_sum") or {}).get("missing") or []) or "none listed"
+            raise InputError(f"its Pareto front is not ranked by relative sum (applications without an own-bands "
+                             f"score: {missing}): no balanced design", source=source, key="--sensor")
+        d = designs[0]
+        return d["bands"], (f"balanced design (best of the Pareto front by relative sum, "
+                            f"{d.get('relative_sum', float('nan')):.4g})")
+    best = summary.get("best") or next(iter(summary.get("top") or []), None)
+    if not isinstance(best, dict) or not isinstance(best.get("bands"), dict):
+        raise InputError("has no ranked design (best) to score: is it a finished sweep's summary.json?",
+                         source=source, key="--sensor")
+    metric = summary.get("metric", "score")
+    return best["bands"], f"#1 design ({metric} {best.get(metric, float('nan')):.4g})"
+
+
+def results_sensor(folder: Path, scene: Scene, which: str = "best") -> CatalogueSensor:
+    """The scene's sensor with the design ``which`` (:func:`summary_design`: ``best`` or ``balanced``) of the finished
+    sweep in ``folder`` (its ``summary.json``: model SRFs, the scene's radiometry with the SNR scaled to each band's
+    width, as the sweep scored it)."""
     path = folder / "summary.json" if folder.is_dir() else folder
     if path.name != "summary.json" or not path.is_file():
         raise InputError(f"no summary.json in {folder}: name a finished sweep's output folder", key="--sensor")
     summary = read_summary(path)
-    best = summary.get("best") or next(iter(summary.get("top") or []), None)
-    if not isinstance(best, dict) or not isinstance(best.get("bands"), dict):
-        raise InputError("has no ranked design (best) to score: is it a finished sweep's summary.json?",
-                         source=path, key="--sensor")
+    bands, what = summary_design(summary, which, path)
     sensor = scene.sensor
-    for band, shape in best["bands"].items():
+    for band, shape in bands.items():
         if band.lower() not in (n.lower() for n in sensor.band_names):
             raise InputError(f"the design's band {band} is not a band of the scene's sensor "
                              f"({', '.join(sensor.band_names)})", source=path, key="--sensor")
         sensor = sensor.replace_band(sensor.band(band).with_shape(*shape))
-    swept = " ".join(f"{b} {c:g}/{w:g}" for b, (c, w) in best["bands"].items())
-    metric = summary.get("metric", "score")
-    name = f"best:{path.parent.name or 'results'}"
-    return CatalogueSensor(name, f"#1 design of {summary.get('scene') or path.parent.name}: {swept} "
-                           f"({metric} {best.get(metric, float('nan')):.4g})", str(path),
+    swept = " ".join(f"{b} {c:g}/{w:g}" for b, (c, w) in bands.items())
+    name = f"{which}:{path.parent.name or 'results'}"
+    return CatalogueSensor(name, f"{what} of {summary.get('scene') or path.parent.name}: {swept}", str(path),
                            "model (eq. 1) at the design's centres and widths; the scene's for the other bands",
                            "the scene's sensor, SNR scaled by sqrt(width / its width)", sensor, by_name=True)
 
