@@ -96,3 +96,22 @@ def test_balanced_without_a_pareto_record_is_one_line(tmp_path, monkeypatch, cap
     monkeypatch.chdir(tmp_path)
     code, _out, err = run_main(["scorecard", "default", "-q", "-o", "card", "-s", "results:single:balanced"], capsys)
     assert code == 2 and err.count("\n") == 1 and "has no pareto record" in err and "summary.json" in err, err
+
+
+def test_a_scorecard_without_sensors_adds_the_scene_s_finished_sweep(two_run, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """``s2cl scorecard SCENE`` after ``s2cl optimise SCENE``: the default sensors, then the sweep's #1 and balanced
+    designs from the scene's output folder; a folder of another scene, or none, adds nothing."""
+    from s2cl.app.scorecard import DEFAULT_SENSORS, default_sensors
+
+    path, out = two_run
+    text = path.read_text(encoding="utf-8").replace('[scene]\nname = "two"',
+                                                    f'[scene]\nname = "two"\n[output]\ndirectory = "{out}"', 1)
+    assert text != path.read_text(encoding="utf-8")
+    here = tmp_path / "two.toml"
+    here.write_text(text, encoding="utf-8")
+    assert default_sensors(Scene.load(here)) == [*DEFAULT_SENSORS, f"results:{out}", f"results:{out}:balanced"]
+    other = tmp_path / "other.toml"
+    other.write_text(text.replace('name = "two"', 'name = "other"', 1), encoding="utf-8")
+    assert default_sensors(Scene.load(other)) == list(DEFAULT_SENSORS)  # its folder holds "two"'s sweep
+    monkeypatch.chdir(tmp_path)
+    assert default_sensors(Scene.load(path)) == list(DEFAULT_SENSORS)   # s2cl-out/two: no sweep there

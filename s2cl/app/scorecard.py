@@ -271,6 +271,26 @@ def app_info(app: Application, checked: Checked) -> AppInfo:
     return AppInfo(app.name, app.analysis.kind, parameter, metric.score_column, metric.unit(parameter))
 
 
+def default_sensors(scene: Scene) -> list[str]:
+    """The sensors a scorecard scores when none is named: :data:`DEFAULT_SENSORS` and, where the scene's output
+    folder holds its finished sweep (``summary.json`` of this scene), that sweep's #1 design and, with a Pareto
+    record, its balanced design (``results:FOLDER``, ``results:FOLDER:balanced``)."""
+    folder = scene.output_dir
+    path = folder / "summary.json"
+    if not path.is_file():
+        return list(DEFAULT_SENSORS)
+    try:
+        summary = read_summary(path)
+    except InputError:
+        return list(DEFAULT_SENSORS)
+    if summary.get("scene") != scene.name or not summary.get("top"):
+        return list(DEFAULT_SENSORS)
+    found = [f"{RESULTS_PREFIX}{folder}"]
+    if isinstance(summary.get("pareto"), dict):
+        found.append(f"{RESULTS_PREFIX}{folder}:balanced")
+    return [*DEFAULT_SENSORS, *found]
+
+
 def scorecard(scene: str | Path | Scene, sensors: list[str] | None = None, *,
               tolerance_nm: float = DEFAULT_TOLERANCE_NM, device: str | None = None,
               progress: Callable[[Cell], None] | None = None) -> Scorecard:
@@ -287,7 +307,7 @@ def scorecard(scene: str | Path | Scene, sensors: list[str] | None = None, *,
     if not apps:
         raise InputError("the scene has no [analysis] or [[application]]: nothing to score", source=sc.source,
                          key="analysis")
-    cards = [resolve_sensor(s, sc) for s in (sensors or DEFAULT_SENSORS)]
+    cards = [resolve_sensor(s, sc) for s in (sensors or default_sensors(sc))]
     names = [c.name for c in cards]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:

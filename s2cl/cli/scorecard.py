@@ -20,7 +20,8 @@ from s2cl.sensor.roles import DEFAULT_TOLERANCE_NM
 _SENSOR_HELP = ("a sensor to score, repeatable: " + ", ".join(known_sensors()) + "; a sensor table FILE.csv (the "
                 "columns of [sensor] file); or results:FOLDER, the #1 design of a finished sweep on the scene's "
                 "sensor, or results:FOLDER:balanced, the best design of its Pareto front by relative sum "
-                "(default: sentinel2 S2A S2B OLI OLI-2 landsat-next)")
+                "(default: sentinel2 S2A S2B OLI OLI-2 landsat-next, and where the scene's output folder holds its "
+                "finished sweep, that sweep's #1 design and, with a Pareto front, its balanced design)")
 
 
 @click.command()
