@@ -304,3 +304,61 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+# -- the generated block of docs/applications.md ------------------------------------------------------------------
+
+#: the results file measured before the sharing (the same benchmark at the commit before it: s2cl 1ed1db1)
+BEFORE = RESULTS / "applications-before.json"
+
+
+def cost_block() -> str:
+    """``applications.cost``: per scene, each phase's median seconds in the multi-application run and summed over
+    its applications' own runs, the totals and their ratio, and the ratio before the sharing."""
+    import json
+
+    from bench.doc_tables import md_table
+
+    r = json.loads(OUTPUT.read_text(encoding="utf-8"))
+    before = json.loads(BEFORE.read_text(encoding="utf-8")) if BEFORE.exists() else None
+    names = list(r["scenes"])
+    head = ["phase (median s)"]
+    for n in names:
+        k = len(r["scenes"][n]["applications"])
+        head += [f"`{n}`: one run", f"`{n}`: {k} own runs"]
+    phases = list(r["scenes"][names[0]]["median"]["multi"]["phases"])
+    rows = []
+    for p in phases:
+        row = [p]
+        for n in names:
+            s = r["scenes"][n]
+            row += [f"{s['median']['multi']['phases'][p]:.2f}", f"{s['sum_of_singles']['phases'][p]:.2f}"]
+        rows.append(row)
+    for label, key in (("**total, wall clock**", "wall"), ("total, s2cl's own timer (`summary.json` seconds)",
+                                                             "s2cl_seconds")):
+        row = [label]
+        for n in names:
+            s = r["scenes"][n]
+            row += [f"**{s['median']['multi'][key]:.2f}**" if key == "wall" else f"{s['median']['multi'][key]:.2f}",
+                    f"**{s['sum_of_singles'][key]:.2f}**" if key == "wall" else f"{s['sum_of_singles'][key]:.2f}"]
+        rows.append(row)
+    lines = []
+    for n in names:
+        s = r["scenes"][n]
+        was = before["scenes"][n]["ratio"] if before and n in before["scenes"] else None
+        lines.append(f"- `{n}`: {s['what']}. One run ÷ the sum of the own runs: **{s['ratio']['wall']:.2f}** wall "
+                     f"clock, {s['ratio']['s2cl_seconds']:.2f} by s2cl's timer"
+                     + (f" (before the sharing: {was['wall']:.2f} and {was['s2cl_seconds']:.2f})." if was else "."))
+    extra = sum(r["scenes"][names[0]]["median"]["multi"]["phases"][p] for p in ("joint table", "trade-off"))
+    return (md_table(head, rows) + "\n\n" + "\n".join(lines)
+            + f"\n\nThe one run does work the own runs do not: the joint table and the trade-off (margins, front, "
+            f"`pareto` column, `pareto.png`: {extra:.2f} s together in `{names[0]}`). Copies 100, seed 1; medians "
+            f"of {r['scenes'][names[0]]['rounds']} interleaved rounds, each run with empty kernel and program caches "
+            f"(PoCL's disk cache kept, as between processes); {r['machine']['cpu']}, {r['machine']['cores']} cores, "
+            f"{r['machine']['date'][:10]}; {r['load_note']}. Measured by `{r['command']}` into "
+            f"`{OUTPUT.relative_to(OUTPUT.parents[2]).as_posix()}`"
+            + (f"; before: the same benchmark at the commit before the sharing, into "
+               f"`{BEFORE.relative_to(BEFORE.parents[2]).as_posix()}`" if before else "") + ".")
+
+
+BLOCKS = {"applications.cost": cost_block}

@@ -11,6 +11,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from bench.bench_applications import BLOCKS as APPLICATIONS_BLOCKS
 from bench.common import RESULTS, ROOT
 from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
 
@@ -878,6 +879,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "stages.costs": stage_costs,
     "stages.table3": stage_table3,
     **SCORECARD_BLOCKS,
+    **APPLICATIONS_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)

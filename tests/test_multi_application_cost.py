@@ -176,3 +176,22 @@ B6 = { centres = [740, 745], widths = [15] }
     path = tmp_path / "one.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+@pytest.mark.parametrize("in_memory", [True, False])
+def test_lookup_columns_in_memory_or_mapped_from_disk(tmp_path: Path, monkeypatch, in_memory: bool) -> None:  # type: ignore[no-untyped-def]
+    """An application's columns by configuration number, whether held in memory (small) or memory-mapped from disk:
+    the same values and types, rows written in any order."""
+    import pandas as pd
+
+    import s2cl.sweep.joint as joint
+
+    monkeypatch.setattr(joint, "IN_MEMORY_BYTES", 2**40 if in_memory else 0)
+    order = np.array([4, 0, 3, 1, 2])
+    table = pd.DataFrame({"config": order, "rms": order * 1.5, "underdetermined": order % 2 == 1})
+    path = tmp_path / "results.parquet"
+    table.to_parquet(path)
+    got = joint.lookup_columns(path, 5, ["rms", "underdetermined"], tmp_path / "lookup")
+    assert got["rms"].tolist() == [0.0, 1.5, 3.0, 4.5, 6.0] and got["rms"].dtype == np.float64
+    assert got["underdetermined"].tolist() == [False, True, False, True, False]
+    assert (tmp_path / "lookup").exists() is not in_memory
