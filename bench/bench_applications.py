@@ -308,8 +308,10 @@ if __name__ == "__main__":
 
 # -- the generated block of docs/applications.md ------------------------------------------------------------------
 
-#: the results file measured before the sharing (the same benchmark at the commit before it: s2cl 1ed1db1)
+#: the results file measured before the sharing: this benchmark run with ``--label before`` on the code of
+#: :data:`BEFORE_COMMIT`, the commit before it
 BEFORE = RESULTS / "applications-before.json"
+BEFORE_COMMIT = "1ed1db1"
 
 
 def cost_block() -> str:
@@ -349,15 +351,23 @@ def cost_block() -> str:
         lines.append(f"- `{n}`: {s['what']}. One run ÷ the sum of the own runs: **{s['ratio']['wall']:.2f}** wall "
                      f"clock, {s['ratio']['s2cl_seconds']:.2f} by s2cl's timer"
                      + (f" (before the sharing: {was['wall']:.2f} and {was['s2cl_seconds']:.2f})." if was else "."))
-    extra = sum(r["scenes"][names[0]]["median"]["multi"]["phases"][p] for p in ("joint table", "trade-off"))
+    def extra(n: str) -> float:
+        return sum(r["scenes"][n]["median"]["multi"]["phases"][p] for p in ("joint table", "trade-off"))
+
+    def without(n: str) -> float:
+        s = r["scenes"][n]
+        return (s["median"]["multi"]["wall"] - extra(n)) / s["sum_of_singles"]["wall"]
+
     return (md_table(head, rows) + "\n\n" + "\n".join(lines)
-            + f"\n\nThe one run does work the own runs do not: the joint table and the trade-off (margins, front, "
-            f"`pareto` column, `pareto.png`: {extra:.2f} s together in `{names[0]}`). Copies 100, seed 1; medians "
+            + "\n\nThe one run does work the own runs do not: the joint table and the trade-off (margins, front, "
+            f"`pareto` column, `pareto.png`; {', '.join(f'{extra(n):.2f} s in `{n}`' for n in names)}); without "
+            f"them, one run ÷ the sum of the own runs is {'; '.join(f'{without(n):.2f} in `{n}`' for n in names)}. "
+            "Copies 100, seed 1; medians "
             f"of {r['scenes'][names[0]]['rounds']} interleaved rounds, each run with empty kernel and program caches "
             f"(PoCL's disk cache kept, as between processes); {r['machine']['cpu']}, {r['machine']['cores']} cores, "
             f"{r['machine']['date'][:10]}; {r['load_note']}. Measured by `{r['command']}` into "
             f"`{OUTPUT.relative_to(OUTPUT.parents[2]).as_posix()}`"
-            + (f"; before: the same benchmark at the commit before the sharing, into "
+            + (f"; before: the same benchmark run on s2cl {BEFORE_COMMIT} (the commit before the sharing), into "
                f"`{BEFORE.relative_to(BEFORE.parents[2]).as_posix()}`" if before else "") + ".")
 
 
