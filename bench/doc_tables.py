@@ -11,6 +11,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from bench.bench_applications import BLOCKS as APPLICATIONS_BLOCKS
 from bench.common import RESULTS, ROOT
 from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
 from bench.mission_report import BLOCKS as MISSION_BLOCKS
@@ -907,6 +908,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "stages.table3": stage_table3,
     **SCORECARD_BLOCKS,
     **MISSION_BLOCKS,
+    **APPLICATIONS_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)

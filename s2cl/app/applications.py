@@ -17,6 +17,7 @@ import dataclasses
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 from s2cl.app.checks import Checked, atmosphere_terms, check_sweep
 from s2cl.errors import InputError, errors_in, token
@@ -96,6 +97,7 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
         space = sweep_space(spec.sweep, scene.sensor, scene.grid, scene.run.support)
     terms = atmosphere_terms(scene)
     libraries: dict[tuple[str | None, str], SpectralLibrary] = {}
+    shared: dict[Any, Any] = {}  # the band tables the applications' sweeps share (s2cl.sweep.tables.build_tables)
     parts, caveats = [], []
     joint = [r.band for r in space.ranges]
     for app in scene_applications(scene):
@@ -106,6 +108,7 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
             if key not in libraries:
                 libraries[key] = scene_library(one, budget=budget)
             checked = check_sweep(one, budget=budget, library=libraries[key], terms=terms)
+            checked = dataclasses.replace(checked, shared_tables=shared)  # each band resampled once per library
             assert checked.analysis is not None
             metric = checked.analysis.family.metric
             with errors_in(scene.source):

@@ -16,6 +16,7 @@ The engines' errors name the key; the checks run them inside :func:`s2cl.errors.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from s2cl.app.analysis import analysis_bands, analysis_design, check_image_analysis
 from s2cl.app.product_scene import resolve_cube
@@ -64,6 +65,9 @@ class Checked:
     sensor: Sensor | None = None
     #: an image scene's cube, its file's metadata opened once (``scene`` is completed from it: GSD, grid)
     cube: ResolvedCube | None = None
+    #: band tables shared with the other applications of a multi-application scene (``build_tables``' ``shared``:
+    #: each band's resampling done once per library); None: the sweep's own
+    shared_tables: dict[Any, Any] | None = field(default=None, repr=False)
 
     @property
     def source(self) -> str:

@@ -33,6 +33,7 @@ from s2cl.sweep.digest import TOP
 from s2cl.sweep.engine import (
     SweepJob,
     check_folder,
+    keep_together,
     kernel_evaluator,
     prepare_folder,
     results_disk_bytes,
@@ -110,7 +111,7 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
     require_disk(folder, results_disk_bytes(space.size, len(space.ranges) + n_apps + 8) + lookups,
                  what=f"the joint results of {space.size:,} designs ([sweep]: {len(space.ranges)} bands)",
                  key="sweep", source=scene.source)
-    apps, joint_apps = [], []
+    apps, joint_apps, together = [], [], []
     counts = tuple(int(n) for n in space.counts)
     for i, part in enumerate(checked.parts):
         sub = folder / APPLICATIONS / part.name
@@ -120,6 +121,8 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
         job = plan_sweep(part.scene, checked=part.checked, device=device, resources=plan)
         job = dataclasses.replace(job, scene_name=f"{scene.name}/{part.name}")  # what its manifest and progress say
         check_folder(job, sub, overwrite=overwrite)
+        together.append(job.fingerprint())
+        keep_together(together)  # each application's kernel serves its run and its designs' scores: built once
         if not distributed:
             kernel_evaluator(job, device)  # each kernel builds (and is checked) before the folder is made
         exclude = job.underdetermined != "keep"
@@ -173,6 +176,9 @@ def rank_applications(prepared: PreparedApplications, results: Path, device: str
     first = prepared.first
     path, meta = open_results(results)
     owns: list[OwnDesign] = [own_design(a.checked, a.job) for a in prepared.apps]
+    # each application's kernels kept beside the others', its own design's (a one-design job) too
+    keep_together([j.fingerprint() for j in {id(j): j for a, own in zip(prepared.apps, owns, strict=True)
+                                             for j in (a.job, own.job)}.values()])
     rows = [reference_row(a.checked, a.job, device, own) for a, own in zip(prepared.apps, owns, strict=True)]
     reference = _joint_reference(prepared, rows)
     candidates = first.checked.scene.spec.sweep.within_noise_top

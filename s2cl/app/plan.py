@@ -28,14 +28,15 @@ from s2cl.sweep.tables import SweepTables, build_tables
 
 
 def sweep_tables(checked: Checked, space: SweepSpace, analysis: AnalysisSettings) -> SweepTables:
-    """Tables of ``space`` scored by ``analysis``, from the checked scene's library, atmosphere terms and sensor."""
+    """Tables of ``space`` scored by ``analysis``, from the checked scene's library, atmosphere terms and sensor (and
+    the band tables it shares with the other applications of its scene, ``checked.shared_tables``)."""
     scene = checked.scene
     assert checked.library is not None and checked.truth is not None and checked.assumed is not None
     assert checked.sensor is not None and scene.spec.analysis is not None
     with errors_in(scene.source):
         lib, target, classes = analysis_targets(checked.library, analysis, scene.spec.analysis.classes)
         return build_tables(space, lib, checked.truth, checked.assumed, checked.sensor, scene.grid, scene.run,
-                            scene.spec.effects, target=target, class_names=classes)
+                            scene.spec.effects, target=target, class_names=classes, shared=checked.shared_tables)
 
 
 def plan_sweep(scene: Scene, *, chunk: int | None = None, checked: Checked | None = None,

@@ -20,7 +20,7 @@ import datetime as _dt
 import hashlib
 import json
 import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -104,14 +104,36 @@ class SweepJob:
 _EVALUATORS: dict[tuple[str, str | None], ChunkEvaluator] = {}
 
 
+#: fingerprints of the sweeps whose kernels a process keeps together: a multi-application sweep's applications
+#: (:func:`keep_together`); any other sweep's are kept alone
+_TOGETHER: set[str] = set()
+
+
+def keep_together(fingerprints: Iterable[str]) -> None:
+    """Keep the kernels (and per-design statistics) of the sweeps with these job fingerprints side by side, instead of
+    each new sweep's dropping the previous one's: a multi-application sweep checks every application's kernel, runs
+    each application's sweep, then scores each one's reference, within-noise and margin designs, on one build per
+    application. A sweep outside the group drops them all (memory holds one sweep's, or one group's, kernels)."""
+    _TOGETHER.clear()
+    _TOGETHER.update(fingerprints)
+
+
 def last_one(cache: dict[Any, Any], key: Any, make: Callable[[], Any]) -> Any:
     """``cache[key]``, made by ``make()`` and kept alone (a process works on one sweep at a time: a new key drops the
-    previous sweep's kernels)."""
+    previous sweep's kernels), or beside the others of its group when the key's first part (a job's fingerprint) is
+    in the group of :func:`keep_together` (the applications of one multi-application sweep)."""
     if key not in cache:
         value = make()
-        cache.clear()
+        grouped = _fingerprint_of(key) in _TOGETHER
+        for old in [k for k in cache if not (grouped and _fingerprint_of(k) in _TOGETHER)]:
+            del cache[old]
         cache[key] = value
     return cache[key]
+
+
+def _fingerprint_of(key: Any) -> Any:
+    """The job fingerprint a cache key starts with (the key itself when it is no tuple)."""
+    return key[0] if isinstance(key, tuple) and key else key
 
 
 def kernel_evaluator(job: SweepJob, device: str | None = None) -> ChunkEvaluator:

@@ -6,8 +6,9 @@ the heatmaps and the reference row read it as a single-application sweep's), and
 (``<name>_<score column>``, float64; NaN where the application cannot fit the design and its sweep leaves such
 designs out of the ranking). The table is written in chunks, resumably, with the sweep engine's folder machinery
 (manifest, ``chunks/part-*.parquet``, :func:`s2cl.sweep.folder.merge_chunks`); the applications' columns are read
-from memory-mapped files (in ``applications/.lookup/`` while the table is written), so memory does not grow with the
-joint space (one chunk at a time).
+from memory (an application's own space is small) or, beyond :data:`IN_MEMORY_BYTES`, from memory-mapped files (in
+``applications/.lookup/`` while the table is written), so memory does not grow with the joint space (one chunk at a
+time).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from s2cl.version import __version__
 
 #: designs per chunk of the joint table (the rows of one results row group: memory ∝ it, not the space)
 JOINT_CHUNK = 65_536
+#: an application's looked-up columns are held in memory up to this size (bytes), memory-mapped from disk beyond
+IN_MEMORY_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -127,17 +130,23 @@ class JointJob:
 
 
 def lookup_columns(results: Path, n: int, columns: list[str], folder: Path) -> dict[str, np.ndarray]:
-    """``columns`` of the results table ``results`` (``n`` rows) by configuration number, as read-only
-    memory-mapped arrays in ``folder`` (filled a batch at a time: memory bounded whatever the table's size)."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """``columns`` of the results table ``results`` (``n`` rows) by configuration number: in memory when they take
+    at most :data:`IN_MEMORY_BYTES`, else as read-only memory-mapped arrays in ``folder`` (filled a batch at a time:
+    memory bounded whatever the table's size)."""
+    in_memory = n * len(columns) * 8 <= IN_MEMORY_BYTES
+    if not in_memory:
+        folder.mkdir(parents=True, exist_ok=True)
     maps: dict[str, np.ndarray] = {}
     for batch in results_batches(results):
         configs = batch["config"].to_numpy()
         for c in columns:
             values = batch[c].to_numpy()
             if c not in maps:
-                maps[c] = np.lib.format.open_memmap(folder / f"{c}.npy", mode="w+", dtype=values.dtype, shape=(n,))
+                maps[c] = np.empty(n, dtype=values.dtype) if in_memory else \
+                    np.lib.format.open_memmap(folder / f"{c}.npy", mode="w+", dtype=values.dtype, shape=(n,))
             maps[c][configs] = values
+    if in_memory:
+        return maps
     for m in maps.values():
         m.flush()  # type: ignore[attr-defined]
     del maps

@@ -112,17 +112,24 @@ class SweepTables:
 
 def build_tables(space: SweepSpace, library: SpectralLibrary, truth: AtmosphereArrays, assumed: AtmosphereArrays,
                  sensor: Sensor, grid: SpectralGrid, run: RunConfig, settings: Any, *,
-                 target: np.ndarray | None = None, class_names: tuple[str, ...] = ()) -> SweepTables:
+                 target: np.ndarray | None = None, class_names: tuple[str, ...] = (),
+                 shared: dict[Any, Any] | None = None) -> SweepTables:
     """Tables for a sweep of ``space`` over ``library`` (surface reflectance) seen through ``truth`` and corrected
     with ``assumed`` (per-wavelength terms on ``grid``), by ``sensor``'s bands (a band-addition sweep's sensor holds
     the added band) and the chain of ``run`` (its stages, seed, SRF support, copies); ``settings``: the scene's
-    [effects] section, which the stages read. Errors name the key (the caller adds the file)."""
+    [effects] section, which the stages read. Errors name the key (the caller adds the file).
+
+    ``shared``: band tables already built for other sweeps of the same scene (a multi-application sweep's
+    applications, :mod:`s2cl.app.applications`), filled here: a band slot whose variants, library, atmosphere terms,
+    sensor band, grid and chain are those of a slot built before takes that slot's arrays (the resampled radiance,
+    the per-variant values of the stages, the centres and widths) instead of computing them again; the same numbers,
+    since they are computed from the same inputs alone (the target, copies and noise deviates are each sweep's)."""
     if library.quantity != "reflectance":
         raise InputError("a sweep needs a reflectance library (it runs the atmosphere and its correction)",
                          key="surface.quantity")
     support, e = run.support, run
     rho = library.spectra
-    toa = truth.path_radiance + truth.ground_term * rho / (1.0 - truth.spherical_albedo * rho)
+    toa: np.ndarray | None = None  # the library's TOA radiance on the grid: computed when a band is resampled here
     stages = chain(run.effects)
     bands = [sensor.band(r.band) for r in space.ranges]
     # keyed by each band's index in the sensor, as `s2cl simulate` keys it: pixel p of band B gets the
@@ -135,27 +142,24 @@ def build_tables(space: SweepSpace, library: SpectralLibrary, truth: AtmosphereA
     per_variant: dict[str, list[np.ndarray]] = {v.name: [] for v in wanted if v.varies in ("variant", "pixel")}
     per_slot: dict[str, list[np.ndarray]] = {k: [] for k in ("centre", "width", "radiance", "refs")}
     for variants, band, band_id in zip(space.per_band, bands, band_ids, strict=True):
-        shaped, radiance, weights_all, surface = [], [], [], []
-        for c, w in variants:
-            shaped.append(band.with_shape(c, w))
-            weights = shaped[-1].weights(grid, support)
-            sl = slice(weights.start, weights.stop)
-            radiance.append(toa[:, sl] @ weights.weights)
-            weights_all.append(weights)
-            surface.append(rho[:, sl] @ weights.weights)
-        corr = BandAtmosphere.of(assumed, weights_all)
-        table = np.array(radiance)
-        of_variants = compute(stages, Radiometry.of(shaped, sensor.bits, [band_id] * len(shaped),
-                                                    correction=corr, radiance=table, **chain_settings))
+        key = _band_key(variants, band, band_id, library, truth, assumed, sensor, grid, run, settings, stages,
+                        class_names)
+        built = shared.get(key) if shared is not None else None
+        if built is None:
+            if toa is None:
+                toa = truth.path_radiance + truth.ground_term * rho / (1.0 - truth.spherical_albedo * rho)
+            built = _band_tables(variants, band, band_id, toa, library, assumed, sensor, grid, support, stages,
+                                 chain_settings, class_names)
+            if shared is not None:  # the inputs the key names by identity are held with the arrays
+                shared[key] = (*built, (library, truth, assumed, sensor, grid))
+        radiance, of_variants, refs = built[:3]
         for name, rows in per_variant.items():
             rows.append(np.asarray(of_variants[name]))
         per_slot["centre"].append(variants[:, 0].copy())
         per_slot["width"].append(variants[:, 1].copy())
-        per_slot["radiance"].append(table)
+        per_slot["radiance"].append(radiance)
         if class_names:
-            groups = np.array(library.groups)
-            surf = np.array(surface)  # (n_v, n_spectra)
-            per_slot["refs"].append(np.stack([surf[:, groups == c].mean(axis=1) for c in class_names], axis=1))
+            per_slot["refs"].append(refs)
     copies = e.copies
     n_pixels = library.size * copies
     z = sensor_noise(e.seed, np.arange(n_pixels), band_ids, e.frame)
@@ -168,3 +172,44 @@ def build_tables(space: SweepSpace, library: SpectralLibrary, truth: AtmosphereA
         class_names=tuple(class_names), references=tuple(per_slot["refs"]),
         stages=tuple(s.name for s in stages), values=values,
     )
+
+
+def _band_key(variants: np.ndarray, band: Any, band_id: int, library: SpectralLibrary, truth: AtmosphereArrays,
+              assumed: AtmosphereArrays, sensor: Sensor, grid: SpectralGrid, run: RunConfig, settings: Any,
+              stages: list[Any], class_names: tuple[str, ...]) -> tuple[Any, ...]:
+    """What one band slot's tables are computed from (:func:`_band_tables`): its variants (centre, width in nm), the
+    sensor band (its name and index), and by identity the library, the atmosphere terms, the sensor and the grid
+    (held beside the tables in ``build_tables``' ``shared``, so an identity is never reused), the SRF support, the
+    chain's stages, seed and frame, the [effects] settings and the SAM classes."""
+    return (np.ascontiguousarray(variants, dtype=np.float64).tobytes(), variants.shape, band.name, band_id,
+            id(library), id(truth), id(assumed), id(sensor), id(grid), sensor.bits, run.support, run.seed, run.frame,
+            tuple(s.name for s in stages), repr(settings), class_names)
+
+
+def _band_tables(variants: np.ndarray, band: Any, band_id: int, toa: np.ndarray, library: SpectralLibrary,
+                 assumed: AtmosphereArrays, sensor: Sensor, grid: SpectralGrid, support: Any, stages: list[Any],
+                 chain_settings: dict[str, Any], class_names: tuple[str, ...]
+                 ) -> tuple[np.ndarray, dict[str, Any], np.ndarray | None]:
+    """One band slot's tables: the TOA radiance of every spectrum in every variant ``[variants, spectra]`` (the
+    library's TOA radiance ``toa`` resampled by the variant's SRF), the stages' values of the variants (by name)
+    and, with SAM classes, each class's mean surface reflectance per variant ``[variants, classes]`` (else None)."""
+    shaped, radiance, weights_all, surface = [], [], [], []
+    rho = library.spectra
+    for c, w in variants:
+        shaped.append(band.with_shape(c, w))
+        weights = shaped[-1].weights(grid, support)
+        sl = slice(weights.start, weights.stop)
+        radiance.append(toa[:, sl] @ weights.weights)
+        weights_all.append(weights)
+        if class_names:
+            surface.append(rho[:, sl] @ weights.weights)
+    corr = BandAtmosphere.of(assumed, weights_all)
+    table = np.array(radiance)
+    of_variants = compute(stages, Radiometry.of(shaped, sensor.bits, [band_id] * len(shaped), correction=corr,
+                                                radiance=table, **chain_settings))
+    refs = None
+    if class_names:
+        groups = np.array(library.groups)
+        surf = np.array(surface)  # (n_v, n_spectra)
+        refs = np.stack([surf[:, groups == c].mean(axis=1) for c in class_names], axis=1)
+    return table, of_variants, refs

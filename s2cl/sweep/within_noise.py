@@ -30,6 +30,7 @@ import numpy as np
 
 from s2cl.retrieve.metric import Metric, metric_scored_by
 from s2cl.sweep.designs import design_pixels
+from s2cl.sweep.engine import last_one
 from s2cl.sweep.raw import ChunkEvaluator
 
 LEVEL = 0.95
@@ -126,13 +127,30 @@ def paired_bootstrap(stats: np.ndarray, score: Callable[[np.ndarray], np.ndarray
 
 # -- a sweep's candidates ----------------------------------------------------------------------------------
 
+#: per-spectrum statistics of the designs already scored per pixel, by (sweep job fingerprint, device, metric name)
+#: → configuration → ``(1, n_spectra, m)``: one sweep's (or one multi-application sweep's, :func:`s2cl.sweep.engine.
+#: keep_together`) at a time
+_STATS: dict[tuple[str, str | None, str], dict[int, np.ndarray]] = {}
+
+
 def design_stats(job: Any, configs: np.ndarray, metric: Metric, *, device: str | None = None,
                  evaluator_of: Callable[[Any], ChunkEvaluator] | None = None) -> np.ndarray:
     """Per-spectrum statistics ``(len(configs), n_spectra, m)`` of the configurations ``configs`` of ``job``, with
     per-pixel results on the sweep's pixels and noise deviates, so each design's as in the sweep
     (:func:`s2cl.sweep.designs.design_pixels`: batched, one kernel launch per batch)."""
-    raw = design_pixels(job, configs, device=device, evaluator_of=evaluator_of)
-    return np.concatenate([spectrum_stats(metric, raw.row(i), job) for i in range(len(configs))])
+    configs = np.asarray(configs, dtype=np.int64).ravel()
+    # each distinct design once (a multi-application sweep's joint ranking holds one design of its first application
+    # many times: designs that differ only in bands it does not read), and none scored before for the same sweep
+    # (its within-noise set and its noise margin's designs overlap): a design's statistics do not depend on the
+    # designs scored beside it, so the same numbers, bit for bit
+    memo = {} if evaluator_of is not None else last_one(_STATS, (job.fingerprint(), device, metric.name), dict)
+    _, first = np.unique(configs, return_index=True)
+    todo = np.array([c for c in configs[np.sort(first)] if int(c) not in memo], dtype=np.int64)
+    if todo.size:
+        raw = design_pixels(job, todo, device=device, evaluator_of=evaluator_of)
+        for i, c in enumerate(todo):
+            memo[int(c)] = spectrum_stats(metric, raw.row(i), job)
+    return np.concatenate([memo[int(c)] for c in configs])
 
 
 def within_noise(job: Any, top: Any, metric: str, *, evaluator_of: Callable[[Any], ChunkEvaluator] | None = None,
