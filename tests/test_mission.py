@@ -47,12 +47,13 @@ def test_mission_scene_is_built_in_and_counts_its_joint_space() -> None:
     assert every["leaf_water"]["analysis"]["swir"] == "B11" and "B11" in every["minerals"]["analysis"]["bands"]
     assert all("target" in a for a in spec["application"])
     # Table 2 (Segl et al. 2012): B5 700-740 nm x 15-40 nm, B6 720-750 x 15-30, B8a 840-890 x 20-50, 5 nm steps;
-    # Table 5's B11 grid 6 x 6; four points of Table 6's B12 grid
+    # Table 5's six B11 centres x the widths 50 and 75 nm; 4 x 4 points of Table 6's B12 grid
     b5, b6, b8a = _window_variants(700, 740, 15, 40), _window_variants(720, 750, 15, 30), \
         _window_variants(840, 890, 20, 50)
     assert (b5, b6, b8a) == (18, 8, 25)
     count = count_sweep("mission-s2")
-    assert count.configurations == b5 * b6 * b8a * 36 * 4 == 518_400
+    assert count.configurations == b5 * b6 * b8a * 12 * 16 == 691_200
+    assert every["minerals"]["grid"] == {"start_nm": 1500, "stop_nm": 2500}  # the SWIR minerals' own grid
 
 
 @pytest.fixture(scope="module")

@@ -351,3 +351,69 @@ def test_optimise_writes_the_pareto_front_a_brute_force_dominance_test_finds(run
     assert record["designs"] == len(rankable)
     assert (out["two"].folder / "pareto.png").exists()
     assert "pareto" not in summary["top"][0]  # a ranking entry is a design's own values
+
+
+OWN_GRID = COMMON.replace('"builtin:lib1"', '"builtin:leaf-water"').replace("copies = 2", "copies = 3") + """
+[[application]]
+name = "leaf_water"
+analysis = { kind = "gvmi", parameter = "ewt", nir = "B8", swir = "B11" }
+[[application]]
+name = "minerals"
+library = "builtin:minerals-swir"
+grid = { start_nm = 1500, stop_nm = 2500 }
+[application.analysis]
+kind = "sam"
+classes = ["Al-OH", "Mg-OH/C-O"]
+bands = ["B11", "B12"]
+[sweep]
+bands = ["B11", "B12"]
+within_noise_top = 0
+[sweep.ranges]
+B11 = { centres = [1600, 1640], widths = [50, 75] }
+B12 = { centres = [2190, 2210], widths = [30, 80] }
+"""
+# the minerals application's own scene as the paper's Table 6 writes one (scenes/table6-b12.toml): its grid and the
+# sensor's bands that lie on it
+MINERALS = COMMON.replace('"builtin:lib1"', '"builtin:minerals-swir"').replace("copies = 2", "copies = 3") + """
+[grid]
+start_nm = 1500
+stop_nm = 2500
+[sensor]
+bands = ["B11", "B12"]
+[analysis]
+kind = "sam"
+classes = ["Al-OH", "Mg-OH/C-O"]
+bands = ["B11", "B12"]
+[sweep]
+bands = ["B11", "B12"]
+within_noise_top = 0
+[sweep.ranges]
+B11 = { centres = [1600, 1640], widths = [50, 75] }
+B12 = { centres = [2190, 2210], widths = [30, 80] }
+"""
+
+
+def test_an_application_on_its_own_grid_is_its_own_scene_bit_for_bit(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """``grid`` of an application (a library on part of the spectrum): its scores equal, bit for bit, those of its
+    own scene on that grid with the sensor's bands that lie on it; the other application keeps the scene's grid."""
+    joint = s2cl.optimise(_write(tmp_path, "own_grid", OWN_GRID), tmp_path / "joint")
+    alone = s2cl.optimise(_write(tmp_path, "minerals", MINERALS), tmp_path / "alone")
+    keys = ["B11_centre_nm", "B11_width_nm", "B12_centre_nm", "B12_width_nm"]
+    both = _table(joint).merge(_table(alone)[[*keys, "omission_error_pct"]], on=keys, validate="one_to_one")
+    assert len(both) == 16
+    assert _same(both["minerals_omission_error_pct"].to_numpy(), both["omission_error_pct"].to_numpy())
+    assert np.isfinite(both["leaf_water_rms"]).all()
+
+
+@pytest.mark.parametrize("grid, words", [
+    ("{ start_nm = 2400, stop_nm = 2500 }", "no band of the sensor lies on the grid"),
+    ("{ start_nm = 1500, stop_nm = 2000 }", "B12 (which the application reads) does not lie on its grid"),
+    ("{ start_nm = 2500, stop_nm = 1500 }", "start"),
+])
+def test_an_application_grid_that_cannot_hold_its_bands_is_one_line(tmp_path, grid, words) -> None:  # type: ignore[no-untyped-def]
+    text = OWN_GRID.replace("grid = { start_nm = 1500, stop_nm = 2500 }", f"grid = {grid}")
+    with pytest.raises(InputError) as err:
+        s2cl.optimise(_write(tmp_path, "bad_grid", text), tmp_path / "out")
+    message = str(err.value)
+    assert words in message and "\n" not in message and "application[1]" in message, message
+    assert not (tmp_path / "out").exists()

@@ -96,6 +96,7 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
     with errors_in(scene.source):
         space = sweep_space(spec.sweep, scene.sensor, scene.grid, scene.run.support)
     terms = atmosphere_terms(scene)
+    grids: dict[tuple[float, float, float], tuple[Any, Any]] = {_grid_key(scene): terms}  # terms once per grid
     libraries: dict[tuple[str | None, str], SpectralLibrary] = {}
     shared: dict[Any, Any] = {}  # the band tables the applications' sweeps share (s2cl.sweep.tables.build_tables)
     parts, caveats = [], []
@@ -104,10 +105,17 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
         with application_errors(scene, app):
             bands = application_bands(scene, app)
             one = application_sweep_scene(scene, app, bands)
-            key = (app.library, repr(sorted(scene.spec.surface.select.items())))
+            off = [b for b in bands if b not in one.sensor.band_names]  # its own grid cannot hold a band it reads
+            if off:
+                raise InputError(f"{', '.join(off)} (which the application reads) {'does' if len(off) == 1 else 'do'}"
+                                 f" not lie on its grid {one.grid.describe()}: widen the grid",
+                                 source=scene.source, key=f"{app.key}.grid")
+            key = (app.library, repr(sorted(scene.spec.surface.select.items())), _grid_key(one))
             if key not in libraries:
                 libraries[key] = scene_library(one, budget=budget)
-            checked = check_sweep(one, budget=budget, library=libraries[key], terms=terms)
+            if _grid_key(one) not in grids:  # an application's own grid ([[application]] grid)
+                grids[_grid_key(one)] = atmosphere_terms(one)
+            checked = check_sweep(one, budget=budget, library=libraries[key], terms=grids[_grid_key(one)])
             checked = dataclasses.replace(checked, shared_tables=shared)  # each band resampled once per library
             assert checked.analysis is not None
             metric = checked.analysis.family.metric
@@ -121,6 +129,12 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
         caveats += [c for c in checked.caveats if c not in caveats]
     _check_joint(scene, space, parts)
     return CheckedApplications(scene, space, tuple(parts), caveats, *terms)
+
+
+def _grid_key(scene: Scene) -> tuple[float, float, float]:
+    """A scene's spectral grid as a key (start, stop, step nm): the terms and libraries are per grid."""
+    g = scene.grid
+    return (float(g.start_nm), float(g.stop_nm), float(g.step_nm))
 
 
 def _check_sections(scene: Scene) -> None:
@@ -206,7 +220,7 @@ def application_sweep_scene(scene: Scene, app: Application, bands: list[str]) ->
 
 
 #: keys of the single-application scene that the application writes under its own key
-_OWN_KEYS = {"surface.library": "library", "surface.copies": "copies", "analysis": "analysis"}
+_OWN_KEYS = {"surface.library": "library", "surface.copies": "copies", "analysis": "analysis", "grid": "grid"}
 
 
 @contextmanager

@@ -8,6 +8,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from s2cl.scene.grid_schema import GridSpec
 from s2cl.scene.section import Section
 
 
@@ -61,6 +62,9 @@ class ApplicationSpec(Section):
     copies: int | None = Field(None, ge=1, le=1_000_000, description="noisy copies of each of its library's spectra "
                                "(default: surface.copies)")
     analysis: AnalysisSpec = Field(description="its retrieval: the keys of [analysis]")
+    grid: GridSpec | None = Field(None, description="its own spectral grid (default: the scene's [grid]), for a "
+                                  "library that holds data only on part of the scene's grid (builtin:minerals-swir: "
+                                  "1500-2500 nm); the bands it reads must lie on it")
     target: float | str | None = Field(None, description="its requirement, a score to meet in the metric's units "
                                        "(lower is better): a number (5.0) or a number with the metric's unit "
                                        "('5 ug/cm2', '10 %')")

@@ -16,8 +16,10 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from s2cl.errors import InputError, token
+from s2cl.grid import SpectralGrid
 from s2cl.scene.scene import Scene
-from s2cl.scene.schema import AnalysisSpec
+from s2cl.scene.schema import AnalysisSpec, GridSpec
+from s2cl.sensor.sensor import Band
 
 
 @dataclass(frozen=True)
@@ -25,7 +27,8 @@ class Application:
     """One application of a scene: ``name`` (it names results columns), the ``analysis`` section, the surface
     ``library`` (a ``builtin:NAME`` or file, as ``surface.library``) with its ``copies``, the requirement as
     written (``target``: None, a number or a number with a unit; checked against the metric by the checks), and
-    ``key``: where the application is written in the scene (``analysis`` or ``application[i]``), for errors."""
+    ``key``: where the application is written in the scene (``analysis`` or ``application[i]``), for errors; its own
+    ``grid`` where it has one."""
 
     name: str
     analysis: AnalysisSpec
@@ -33,6 +36,8 @@ class Application:
     copies: int
     target: float | str | None
     key: str
+    #: its own spectral grid (None: the scene's [grid])
+    grid: GridSpec | None = None
 
 
 def scene_applications(scene: Scene) -> list[Application]:
@@ -41,7 +46,7 @@ def scene_applications(scene: Scene) -> list[Application]:
     spec, surface = scene.spec, scene.spec.surface
     if spec.application is not None:
         return [Application(a.name, a.analysis, a.library or surface.library, a.copies or surface.copies, a.target,
-                            f"application[{i}]") for i, a in enumerate(spec.application)]
+                            f"application[{i}]", a.grid) for i, a in enumerate(spec.application)]
     if spec.analysis is None:
         return []
     name = (spec.analysis.parameter or spec.analysis.kind).lower()
@@ -56,12 +61,41 @@ def is_multi_application(scene: Scene) -> bool:
 def application_scene(scene: Scene, app: Application) -> Scene:
     """The single-application scene ``app`` stands for: ``scene`` with the application's analysis as its
     [analysis], its library and copies as ``surface.library`` and ``surface.copies`` (and ``run.copies``: what the
-    engines read), and no ``[[application]]`` (the sensor, grid, atmosphere, effects, [sweep] and output are the
-    scene's)."""
+    engines read), its own grid as [grid] where it has one (and then the sensor's bands that lie on it, in the
+    sensor's order, as ``sensor.bands``: the single-application scene of a library on part of the spectrum, as
+    ``scenes/table6-b12.toml`` writes it), and no ``[[application]]`` (the sensor, atmosphere, effects, [sweep] and
+    output are the scene's).
+
+    :raises InputError: the application's grid is not a grid, naming ``application[i].grid``.
+    """
     spec = scene.spec
     surface = spec.surface.model_copy(update={"library": app.library, "copies": app.copies})
-    one = spec.model_copy(update={"analysis": app.analysis, "application": None, "surface": surface})
-    return dataclasses.replace(scene, spec=one, run=dataclasses.replace(scene.run, copies=app.copies))
+    update = {"analysis": app.analysis, "application": None, "surface": surface}
+    grid, sensor = scene.grid, scene.sensor
+    if app.grid is not None:
+        try:
+            grid = SpectralGrid(app.grid.start_nm, app.grid.stop_nm, app.grid.step_nm)
+        except InputError as err:
+            raise InputError(err.detail, source=scene.source, key=f"{app.key}.grid") from None
+        kept = [b.name for b in sensor.bands if _on_grid(b, grid, spec.sensor.support)]
+        if not kept:
+            raise InputError(f"no band of the sensor lies on the grid {grid.describe()}", source=scene.source,
+                             key=f"{app.key}.grid")
+        sensor = sensor.select(kept)
+        update["grid"] = app.grid
+        update["sensor"] = spec.sensor.model_copy(update={"bands": kept})
+    one = spec.model_copy(update=update)
+    return dataclasses.replace(scene, spec=one, grid=grid, sensor=sensor,
+                               run=dataclasses.replace(scene.run, copies=app.copies))
+
+
+def _on_grid(band: Band, grid: SpectralGrid, support: float) -> bool:
+    """The band's SRF lies on ``grid`` (as a scene's check of its bands on its [grid] requires)."""
+    try:
+        band.weights(grid, support, "")
+    except InputError:
+        return False
+    return True
 
 
 #: a requirement written with its unit: a number, then the unit (``5 ug/cm2``, ``5 µg/cm²``, ``10 %``, ``5``)

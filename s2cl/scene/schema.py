@@ -12,6 +12,7 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from s2cl.scene.analysis_schema import AnalysisSpec, ApplicationSpec
+from s2cl.scene.grid_schema import GridSpec
 from s2cl.scene.instrument_schema import (
     CoregistrationSpec,
     EffectSpec,
@@ -89,13 +90,6 @@ class SensorSpec(Section):
     bands: list[str] | None = Field(None, min_length=1, description="subset of bands, in order")
     srf: str = Field("model", description="'model' (paper eq. 1), 'measured-S2A', 'measured-S2B' or 'table:FILE.csv'")
     support: float = Field(DEFAULT_SUPPORT, gt=0, le=5, description="model SRF support, ± this many FWHM")
-
-
-class GridSpec(Section):
-    start_nm: float = Field(400.0, ge=200, le=3000, description="first wavelength of the simulation grid, nm")
-    stop_nm: float = Field(2500.0, ge=200, le=3000, description="last wavelength of the simulation grid, nm")
-    step_nm: float = Field(1.0, gt=0, le=50, description="grid spacing, nm (at most half the narrowest band's FWHM; "
-                           "warned above a fifth)")
 
 
 _IMAGE_ONLY = " (image cubes only: a library or sweep scene names it in a caveat)"
