@@ -323,7 +323,7 @@ def test_the_parallel_figure_draws_the_front_relative_to_the_own_bands(tmp_path:
     np.testing.assert_allclose(lines, [[0.5, 1.5, 1.0], [0.75, 0.5, 3.0]])
     np.testing.assert_array_equal(_line(ax, "the sensor's own bands").get_xydata(), [[0, 1.0], [1, 1.0]])
     np.testing.assert_array_equal(_line(ax, "requirement").get_xydata(), [[0, 0.75], [2, 2.0]])
-    assert "minerals: omission_error_pct (%)\n÷ front's best 10" in [t.get_text() for t in ax.get_xticklabels()]
+    assert "minerals:\nomission_error_pct (%)\n÷ front's best 10" in [t.get_text() for t in ax.get_xticklabels()]
     assert pareto_plot(s, on, apps, tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
 
 

@@ -83,7 +83,9 @@ def parallel_figure(front_scores: np.ndarray, applications: Sequence[dict[str, A
                 ls="none", label="requirement")
     for k in x:
         ax.axvline(k, color="0.7", lw=0.8)
-    ax.set_xticks(x, [f"{axis_label(a)}\n÷ {h}" for a, h in zip(applications, how, strict=True)], fontsize=8)
+    # the name, then the metric and units, then the divisor: three short lines, so that neighbours do not overlap
+    ax.set_xticks(x, [axis_label(a).replace(": ", ":\n", 1) + f"\n÷ {h}"
+                      for a, h in zip(applications, how, strict=True)], fontsize=8)
     ax.set_ylabel("score relative to the axis's divisor (lower is better)")
     ax.set_title("The Pareto front across the applications")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
