@@ -14,6 +14,7 @@ from typing import Any
 from bench.common import RESULTS, ROOT
 from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
 from bench.mission_report import BLOCKS as MISSION_BLOCKS
+from bench.search_front import BLOCKS as SEARCH_FRONT_BLOCKS
 
 DOCS = ROOT / "docs"
 STUDIES = ("cirrus", "water-vapour", "aerosol", "ozone", "methane")
@@ -907,6 +908,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "stages.table3": stage_table3,
     **SCORECARD_BLOCKS,
     **MISSION_BLOCKS,
+    **SEARCH_FRONT_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)
