@@ -36,9 +36,8 @@ from typing import Any
 import numpy as np
 
 from s2cl.errors import InputError
-from s2cl.io.output import atomic_path
 from s2cl.sweep.engine import SweepJob, prepare_folder
-from s2cl.sweep.folder import RESULTS, chunk_path
+from s2cl.sweep.folder import chunk_path, merge_chunks, write_chunk
 from s2cl.sweep.joint import indices_of
 from s2cl.sweep.lattice import Lattice
 from s2cl.sweep.pareto import front, noise_margins
@@ -46,15 +45,15 @@ from s2cl.sweep.raw import ChunkEvaluator
 from s2cl.sweep.search import Scorer, SearchSettings, _local, prepare_search_folder
 
 
-def check_front_search(scene: Any, joint_designs: int) -> None:
-    """Refuse, in one line, a multi-application search over more than ``search_start`` joint designs (the
-    coarse-to-fine start of the single-application search is not there yet for several applications)."""
-    sweep = scene.spec.sweep
-    if sweep is None or sweep.search == "exhaustive" or joint_designs <= sweep.search_start:
+def check_front_search(search: str, search_start: int, joint_designs: int, source: str | None = None) -> None:
+    """Refuse, in one line, a multi-application search (``search``, the [sweep] key) over more than
+    ``search_start`` joint designs (the coarse-to-fine start of the single-application search is not there yet for
+    several applications); ``source``: the scene file named in the message."""
+    if search == "exhaustive" or joint_designs <= search_start:
         return
-    raise InputError(f"search = {sweep.search!r} on a scene with several applications covers at most search_start = "
-                     f"{sweep.search_start:,} joint designs; this [sweep] has {joint_designs:,}: raise search_start, "
-                     "narrow the ranges or use search = 'exhaustive'", source=scene.source, key="sweep.search_start")
+    raise InputError(f"search = {search!r} on a scene with several applications covers at most search_start = "
+                     f"{search_start:,} joint designs; this [sweep] has {joint_designs:,}: raise search_start, "
+                     "narrow the ranges or use search = 'exhaustive'", source=source, key="sweep.search_start")
 
 
 def layers_kept(scores: np.ndarray, keep: int, margins: np.ndarray | None = None) -> np.ndarray:
@@ -141,8 +140,8 @@ def run_front_search(prepared: Any, folder: str | Path, *, overwrite: bool = Fal
     if first.search is None:
         raise InputError("the sweep is exhaustive ([sweep] search)", key="sweep.search")
     joint = prepared.joint
-    check_front_search(prepared.checked.scene, joint.n_configs)
     settings = SearchSettings(**first.search)
+    check_front_search(settings.strategy, settings.start, joint.n_configs)
     prepare_folder(joint, out, overwrite=overwrite, manifest={**joint.manifest(), "search": first.search})
     t0 = time.perf_counter()
     scorers = []
@@ -177,13 +176,18 @@ def run_front_search(prepared: Any, folder: str | Path, *, overwrite: bool = Fal
 def _scores_frame(halving: FrontHalving, configs: np.ndarray) -> Any:
     """``config`` and each application's column (NaN where it cannot be scored) of joint ``configs`` on every copy:
     what :func:`s2cl.sweep.pareto.noise_margins` reads."""
-    import pandas as pd
-
     scores = halving.vectors(configs, max(halving.copies))
     frame = {"config": configs}
     for i, name in enumerate(halving.columns):
         frame[name] = np.where(np.isfinite(scores[:, i]), scores[:, i], np.nan)
-    return pd.DataFrame(frame)
+    return _pandas().DataFrame(frame)
+
+
+def _pandas() -> Any:
+    """pandas, imported where a search writes or reads its tables (kept off ``import s2cl``)."""
+    import pandas
+
+    return pandas
 
 
 def merge_front_search(prepared: Any, out: Path, scorers: list[Scorer], reached: dict[int, int]) -> Path:
@@ -191,10 +195,7 @@ def merge_front_search(prepared: Any, out: Path, scorers: list[Scorer], reached:
     reached, in configuration order: ``config``, the band shapes, the first application's row, each application's
     score column (NaN where its ranking leaves the design out, as :class:`~s2cl.sweep.joint.JointJob` writes it),
     ``copies``, ``pixels`` and ``full_fidelity``; the joint table's metadata."""
-    import pandas as pd
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
+    pd = _pandas()
     joint = prepared.joint
     configs = np.array(sorted(reached), dtype=np.int64)
     k = np.array([reached[c] for c in configs.tolist()], dtype=np.int64)
@@ -220,12 +221,8 @@ def merge_front_search(prepared: Any, out: Path, scorers: list[Scorer], reached:
         pixels += at["pixels"].to_numpy(dtype=np.int64)
     rows["copies"], rows["pixels"] = k, pixels
     rows["full_fidelity"] = k == max(a.job.tables.copies for a in prepared.apps)
-    table = pa.Table.from_pandas(pd.DataFrame(rows), preserve_index=False)
-    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **joint.meta})
-    path = out / RESULTS
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
-    return path
+    write_chunk(out, 0, rows)  # the joint folder's one chunk, then results.parquet with the joint metadata
+    return merge_chunks(out, [0], joint.meta)
 
 
 __all__ = ["FrontHalving", "check_front_search", "layers_kept", "merge_front_search", "run_front_search"]
