@@ -112,9 +112,12 @@ def block() -> str:
     r = json.loads(OUT.read_text(encoding="utf-8"))
     s, f, m = r["search"], r["fronts"], r["summaries"]
     total = s["exhaustive_pixel_evaluations"]
-    rungs = "; ".join(f"pass {i + 1}: " + ", ".join(f"{g['designs']:,} on {g['copies']}" for g in st["rungs"])
-                      + f" ({100 * sum(g['pixel_evaluations'] for g in st['rungs']) / total:.1f} % of the "
-                        "exhaustive pixel-evaluations)" for i, st in enumerate(s["stages"]))
+    parts = []
+    for st in s["stages"]:
+        used = [g["pixel_evaluations"] for g in st["rungs"] if "pixel_evaluations" in g]
+        share = f" ({100 * sum(used) / total:.1f} % of the exhaustive pixel-evaluations)" if used else ""
+        parts.append(f"{st['stage']}: " + ", ".join(f"{g['designs']:,} on {g['copies']}" for g in st["rungs"]) + share)
+    rungs = "; ".join(parts)
     lines = [f"Measured by `python -m bench.search_front` ({r['joint_designs']:,} joint designs; the applications' "
              f"own sub-spaces {' and '.join(f'{n:,}' for n in r['application_designs'])} designs; 100 noise copies; "
              f"search_keep {s['keep']}, search_finalists {s['finalists']}):", "",
@@ -124,9 +127,8 @@ def block() -> str:
         x = f[name]
         lines.append(f"| {words} | {x['exhaustive_front']} | {x['found']} | {x['searched_front']} | "
                      f"{len(x['searched_not_exhaustive'])} |")
-    lines += ["", f"Joint designs per rung (designs on copies; pass 1 keeps strict layers, pass 2 layers within the "
-              f"margins, scaled for the copies): {rungs}; {s['full_fidelity_designs']} scored on every "
-              f"pixel. Pixel-evaluations: {s['pixel_evaluations']:,} of the exhaustive sweep's "
+    lines += ["", f"Designs per rung (designs on copies), stage by stage: {rungs}; {s['full_fidelity_designs']} "
+              f"scored on every pixel. Pixel-evaluations: {s['pixel_evaluations']:,} of the exhaustive sweep's "
               f"{s['exhaustive_pixel_evaluations']:,} ({100 * s['pixel_evaluation_fraction']:.1f} %). Every design "
               "scored on every pixel carries the exhaustive run's scores bit for bit (checked before writing).", "",
               f"The search's own `summary.json` front holds {m['search_front']} designs, "

@@ -9,9 +9,14 @@ the first ``min(k, copies)`` copies of that application's library, computed with
 projection scored once per fidelity however many joint designs share it). Every joint design starts on one copy;
 a rung keeps whole non-dominated layers (the Pareto front of the rung's scores, then the front of the rest, …)
 until at least ``search_keep`` of its designs (and at least ``search_finalists``) are kept, every design of the
-first layer always; the next rung scores them on ``1 / search_keep`` times more copies, up to every copy. The
-front is then :func:`s2cl.sweep.pareto.front` of those full-fidelity scores (with the noise margins, in
-:mod:`s2cl.sweep.trade_off`), so a design that reaches the last rung has exactly the exhaustive run's scores.
+first layer always; the next rung scores them on ``1 / search_keep`` times more copies, up to every copy. It runs
+in three steps: the joint designs with strict layers; each application's own sub-space by the single-application
+halving (:class:`s2cl.sweep.search.Halving`), for the :data:`~s2cl.sweep.pareto.MARGIN_TOP` best designs its
+noise margin is measured on (:func:`s2cl.sweep.pareto.noise_margin`, as the exhaustive run's trade-off measures
+it; each also reaches every copy in a joint design, so the trade-off of the results finds the same margins); then
+the joint designs again with layers sorted within those margins, scaled by ``sqrt(copies / k)`` on ``k`` copies.
+The front is then :func:`s2cl.sweep.pareto.front` of the full-fidelity scores (:mod:`s2cl.sweep.trade_off`), so a
+design that reaches the last rung has exactly the exhaustive run's scores.
 
 Spaces of more than ``search_start`` joint designs (the coarse-to-fine refinement of the single-application
 search) are refused in one line (:func:`check_front_search`).
@@ -26,6 +31,7 @@ every application: only they are ranked (:func:`s2cl.sweep.digest.rankable_rows`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -40,9 +46,9 @@ from s2cl.sweep.engine import SweepJob, prepare_folder
 from s2cl.sweep.folder import chunk_path, merge_chunks, write_chunk
 from s2cl.sweep.joint import indices_of
 from s2cl.sweep.lattice import Lattice
-from s2cl.sweep.pareto import front, noise_margins
+from s2cl.sweep.pareto import MARGIN_TOP, front, noise_margin
 from s2cl.sweep.raw import ChunkEvaluator
-from s2cl.sweep.search import Scorer, SearchSettings, _local, prepare_search_folder
+from s2cl.sweep.search import Halving, Scorer, SearchSettings, _local, prepare_search_folder
 
 
 def check_front_search(search: str, search_start: int, joint_designs: int, source: str | None = None) -> None:
@@ -83,8 +89,6 @@ class FrontHalving:
     #: each application's map of joint configuration numbers onto its own
     to_own: list[Callable[[np.ndarray], np.ndarray]]
     copies: list[int]
-    #: each application's score column in the joint results
-    columns: list[str]
     #: per rung: copies, joint designs scored, pixel-evaluations it took and designs kept
     rungs: list[dict[str, Any]] = field(default_factory=list)
     #: the rung (copies on the longest schedule) each joint design reached
@@ -149,17 +153,23 @@ def run_front_search(prepared: Any, folder: str | Path, *, overwrite: bool = Fal
         prepare_search_folder(a.job, a.folder, overwrite=overwrite)
         scorers.append(Scorer(a.job, a.folder, _local(device, evaluator_of), Lattice(a.job)))
     halving = FrontHalving(settings, scorers, [a.configs_of for a in prepared.apps],
-                           [a.job.tables.copies for a in prepared.apps], [a.column for a in prepared.apps])
+                           [a.job.tables.copies for a in prepared.apps])
     strict = halving.run(joint.n_configs)
-    passes = [{"stage": "every joint design, whole strict Pareto layers kept", "rungs": halving.rungs}]
-    margins, _ = noise_margins(_scores_frame(halving, strict), [{"column": a.column, "metric": a.joint.score}
-                                                               for a in prepared.apps],
-                               [a.job for a in prepared.apps], [a.configs_of for a in prepared.apps],
-                               device=device, evaluator_of=evaluator_of)
+    passes = [{"stage": "pass 1, every joint design, whole strict Pareto layers kept", "rungs": halving.rungs}]
+    margins = []
+    for a, scorer in zip(prepared.apps, scorers, strict=True):  # each application's margin, as the exhaustive run's
+        best = own_best(a, scorer, settings, passes)
+        margins.append(noise_margin(a.job, best, a.joint.score, device=device, evaluator_of=evaluator_of)["margin"])
+        carriers = carrying(joint.counts, a.joint.slots, int(strict[0]), indices_of(tuple(a.joint.counts), best))
+        halving.vectors(carriers, max(halving.copies))  # its best designs on every copy, in joint designs
+        for c in carriers.tolist():
+            halving.reached[c] = max(halving.copies)
+    margins = np.asarray(margins)
     halving.rungs = []
     halving.run(joint.n_configs, margins)
-    passes.append({"stage": "every joint design again, whole Pareto layers within the noise margins (scaled for "
-                            "the copies) kept", "margins": [float(x) for x in margins], "rungs": halving.rungs})
+    passes.append({"stage": "pass 2, every joint design again, whole Pareto layers within the noise margins "
+                            "(scaled for the copies) kept", "margins": [float(x) for x in margins],
+                   "rungs": halving.rungs})
     path = merge_front_search(prepared, out, scorers, halving.reached)
     exhaustive = sum(a.job.n_configs * a.job.tables.n_pixels for a in prepared.apps)
     used = sum(sc.pixel_evaluations for sc in scorers)
@@ -173,21 +183,29 @@ def run_front_search(prepared: Any, folder: str | Path, *, overwrite: bool = Fal
     return path, record
 
 
-def _scores_frame(halving: FrontHalving, configs: np.ndarray) -> Any:
-    """``config`` and each application's column (NaN where it cannot be scored) of joint ``configs`` on every copy:
-    what :func:`s2cl.sweep.pareto.noise_margins` reads."""
-    scores = halving.vectors(configs, max(halving.copies))
-    frame = {"config": configs}
-    for i, name in enumerate(halving.columns):
-        frame[name] = np.where(np.isfinite(scores[:, i]), scores[:, i], np.nan)
-    return _pandas().DataFrame(frame)
+def own_best(app: Any, scorer: Scorer, settings: SearchSettings, passes: list[dict[str, Any]]) -> np.ndarray:
+    """The :data:`~s2cl.sweep.pareto.MARGIN_TOP` best of ``app``'s own designs on every copy (best first, ties by
+    configuration number, those its ranking leaves out never), by the single-application halving over its whole
+    sub-space: the designs its noise margin is measured on, as the exhaustive run measures it; the stage joins
+    ``passes``."""
+    lattice = scorer.lattice
+    every = indices_of(tuple(int(n) for n in lattice.counts), np.arange(app.job.n_configs, dtype=np.int64))
+    single = Halving(dataclasses.replace(settings, finalists=max(settings.finalists, MARGIN_TOP)), scorer,
+                     app.job.tables.copies)
+    designs, scores = single.halve(every, f"{app.name}: its own designs, its best {MARGIN_TOP} for its margin")
+    passes.extend(single.stages)
+    return lattice.configs(designs)[np.isfinite(scores)][:MARGIN_TOP]
 
 
-def _pandas() -> Any:
-    """pandas, imported where a search writes or reads its tables (kept off ``import s2cl``)."""
-    import pandas
-
-    return pandas
+def carrying(counts: tuple[int, ...], slots: tuple[int | None, ...], base: int, own: np.ndarray) -> np.ndarray:
+    """Joint configuration numbers of the joint design ``base`` with an application's bands (its ``slots`` in the
+    joint space) set to each of its own designs ``own`` (variant indices per own slot)."""
+    idx = np.repeat(indices_of(counts, np.array([base])), len(own), axis=0)
+    for k, slot in enumerate(slots):
+        if slot is not None:
+            idx[:, slot] = own[:, k]
+    strides = np.array([int(np.prod(counts[k + 1:])) for k in range(len(counts))], dtype=np.int64)
+    return idx @ strides
 
 
 def merge_front_search(prepared: Any, out: Path, scorers: list[Scorer], reached: dict[int, int]) -> Path:
@@ -195,7 +213,8 @@ def merge_front_search(prepared: Any, out: Path, scorers: list[Scorer], reached:
     reached, in configuration order: ``config``, the band shapes, the first application's row, each application's
     score column (NaN where its ranking leaves the design out, as :class:`~s2cl.sweep.joint.JointJob` writes it),
     ``copies``, ``pixels`` and ``full_fidelity``; the joint table's metadata."""
-    pd = _pandas()
+    import pandas as pd
+
     joint = prepared.joint
     configs = np.array(sorted(reached), dtype=np.int64)
     k = np.array([reached[c] for c in configs.tolist()], dtype=np.int64)
