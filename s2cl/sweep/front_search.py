@@ -175,7 +175,9 @@ def run_front_search(prepared: Any, folder: str | Path, *, overwrite: bool = Fal
     used = sum(sc.pixel_evaluations for sc in scorers)
     record = {**settings.record(), "applications": [a.name for a in prepared.apps],
               "evaluations": sum(sc.evaluations for sc in scorers), "pixel_evaluations": used,
-              "exhaustive_configurations": joint.n_configs,
+              "joint_configurations": joint.n_configs,
+              # what the exhaustive run evaluates: each application's own sub-space
+              "exhaustive_configurations": sum(a.job.n_configs for a in prepared.apps),
               "exhaustive_application_configurations": [a.job.n_configs for a in prepared.apps],
               "exhaustive_pixel_evaluations": exhaustive, "pixel_evaluation_fraction": used / exhaustive,
               "full_fidelity_designs": sum(1 for k in halving.reached.values() if k == max(halving.copies)),
