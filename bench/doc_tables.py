@@ -15,6 +15,7 @@ from bench.bench_applications import BLOCKS as APPLICATIONS_BLOCKS
 from bench.common import RESULTS, ROOT
 from bench.doc_scorecard import BLOCKS as SCORECARD_BLOCKS
 from bench.mission_report import BLOCKS as MISSION_BLOCKS
+from bench.search_front import BLOCKS as SEARCH_FRONT_BLOCKS
 
 DOCS = ROOT / "docs"
 STUDIES = ("cirrus", "water-vapour", "aerosol", "ozone", "methane")
@@ -909,6 +910,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     **SCORECARD_BLOCKS,
     **MISSION_BLOCKS,
     **APPLICATIONS_BLOCKS,
+    **SEARCH_FRONT_BLOCKS,
 }
 
 # pages generated whole (path relative to the repository → its text)

@@ -264,8 +264,9 @@ def test_a_percent_target_for_a_classification() -> None:
     (lambda t: t.replace('parameter = "ewt"', 'parameter = "wet"'), "application[1].analysis.parameter",
      "library has no parameter 'wet'"),
     (lambda t: t.replace('target = "5 ug/cm2"', 'target = "5 %"'), "application[0].target", "µg/cm²"),
-    (lambda t: t.replace("within_noise_top = 0", 'within_noise_top = 0\nsearch = "halving"'), "sweep.search",
-     "not yet"),
+    (lambda t: t.replace("within_noise_top = 0", 'within_noise_top = 0\nsearch = "halving"\nsearch_start = 100')
+     .replace("centres = [1600, 1640]", "centres = [1600, 1610, 1620, 1630, 1640]"), "sweep.search_start",
+     "covers at most search_start = 100 joint designs; this [sweep] has 120"),
     (lambda t: t.replace('bands = ["B5", "B6", "B11"]', 'bands = ["B5", "B6", "B11", "B12"]')
      + 'B12 = { centres = [2190, 2200], widths = [20] }\n', "sweep.bands", "B12 is swept but no application reads it"),
     (lambda t: t.replace('name = "leaf_water"', 'name = "robust"'), "application[1].name",

@@ -151,9 +151,6 @@ def _check_sections(scene: Scene) -> None:
     if spec.sweep.add is not None:
         raise InputError("a band-addition sweep of a scene with several applications is not yet supported: remove "
                          "[sweep.add], or sweep one [analysis]", source=scene.source, key="sweep.add")
-    if spec.sweep.search != "exhaustive":
-        raise InputError(f"search = {spec.sweep.search!r} on a scene with several applications is not yet supported "
-                         "(issue 35, item 4): use search = 'exhaustive'", source=scene.source, key="sweep.search")
 
 
 def _check_joint(scene: Scene, space: SweepSpace, parts: list[ApplicationPart]) -> None:

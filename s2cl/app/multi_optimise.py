@@ -41,6 +41,7 @@ from s2cl.sweep.engine import (
     resumable_chunk,
     run_sweep,
 )
+from s2cl.sweep.front_search import check_front_search
 from s2cl.sweep.joint import APPLICATIONS, JointApplication, JointJob, indices_of, run_joint
 from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import Digest, heatmap, open_results, summarise
@@ -101,6 +102,8 @@ def prepare_applications(scene: Any, folder: Path, *, budget: Budget, chunk: int
     application's sweep (memory, chunk, tables, kernel) and the joint table, and check every folder they will use
     and the disk they need: nothing is created here."""
     checked = check_applications(scene, budget=budget)
+    check_front_search(scene.spec.sweep.search, scene.spec.sweep.search_start, checked.space.size,
+                       source=scene.source)  # a search: at most search_start joint designs
     rt = get_runtime(device or scene.run.device)
     host_metrics = not metrics_on_device(rt, distributed=distributed)
     space = checked.space

@@ -41,6 +41,7 @@ from s2cl.sweep.addition import addition_of, gain_plots, summarise_addition
 from s2cl.sweep.cluster import reach_scheduler
 from s2cl.sweep.digest import TOP
 from s2cl.sweep.engine import APPLICATIONS, SweepJob, check_folder, kernel_evaluator, resumable_chunk, run_sweep
+from s2cl.sweep.front_search import run_front_search
 from s2cl.sweep.metrics_kernel import metrics_on_device
 from s2cl.sweep.report import (
     Digest,
@@ -212,7 +213,8 @@ def _prepare_applications(sc: Scene, folder: Path, where: str, budget: Budget, *
     t0 = time.perf_counter()
     multi = prepare_applications(sc, folder, budget=budget, chunk=chunk, device=device, overwrite=overwrite,
                                  distributed=distributed)
-    return PreparedSweep(sc, folder, multi.first.job, False, report(multi.checked.caveats), t0, workers, scheduler,
+    searching = sc.spec.sweep is not None and sc.spec.sweep.search != "exhaustive"
+    return PreparedSweep(sc, folder, multi.first.job, searching, report(multi.checked.caveats), t0, workers, scheduler,
                          overwrite, device, multi.first.checked, multi)
 
 
@@ -220,6 +222,8 @@ def run_designs(run: PreparedSweep, *, progress: Callable[[int], None] | None = 
                 on_start: Callable[[Any, int, int], None] | None = None) -> tuple[Path, dict[str, Any] | None]:
     """Evaluate the sweep's designs into its (claimed) folder: the whole space, or a search's rungs; the results'
     path and the search's record (None for the whole space)."""
+    if run.applications is not None and run.searching:  # the joint designs, whole Pareto layers kept per rung
+        return run_front_search(run.applications, run.folder, overwrite=run.overwrite, device=run.device)
     if run.applications is not None:  # each application's sweep, then the joint table
         return run_applications(run.applications, run.folder, workers=run.workers, scheduler=run.scheduler,
                                 overwrite=run.overwrite, device=run.device, progress=progress,
