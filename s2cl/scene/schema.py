@@ -276,6 +276,10 @@ class SweepSpec(Section):
                                "1 step, on every pixel, until no design there scores better")
     search_seed: int = Field(0, ge=0, le=2**31 - 1, description="halving: seed of the coarse sub-grid's offset (the "
                              "noise is effects.seed's); the same seed gives the same search")
+    search_restarts: int = Field(4, ge=1, le=64, description="halving of a refined space: coarse sub-grids it "
+                                 "starts from (offsets moved by stride / search_restarts steps each), each halved "
+                                 "and refined to the space's step; their best designs are then crossed band by band, "
+                                 "halved and refined again before the local stage")
 
 
 class AnalysisSpec(Section):
