@@ -754,7 +754,8 @@ def search_joint_one_start() -> str:
     from that run, ``python -m bench.search_wide --scene ... --joint split`` at commit b8362b4)."""
     from bench.search_wide import JOINT_SCENE, ONE_START, joint_section, results_path
 
-    return joint_section(_load(results_path(JOINT_SCENE, "split").with_name(ONE_START)))
+    path = results_path(JOINT_SCENE, "split").with_name(ONE_START)
+    return joint_section(_load(path), path)
 
 
 # -- docs/devices.md --------------------------------------------------------------------------------

@@ -247,11 +247,12 @@ def section(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def joint_section(results: dict[str, Any]) -> str:
-    """The generated block (``python -m bench.doc_blocks``) of a scene other than the default one."""
+def joint_section(results: dict[str, Any], path: Path | None = None) -> str:
+    """The generated block (``python -m bench.doc_blocks``) of a scene other than the default one, read from
+    ``path`` (default: the scene's results file)."""
     m, rows = results["machine"], results["seeds"]
     first, full = rows[0], joint_of(results) == "full"
-    where = _rel(results_path(results["scene"], joint_of(results)))
+    where = _rel(path or results_path(results["scene"], joint_of(results)))
     n = len(first["bands"])
     joint = (f"all bands together over ± 1 nm in centre and width (3^{2 * n} = {3 ** (2 * n):,} designs)" if full else
              f"all centres together over ± 1 nm with the widths fixed, then all widths together with the centres "

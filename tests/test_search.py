@@ -592,3 +592,20 @@ def test_a_killed_search_with_restarts_resumes_from_its_chunk_files(tmp_path) ->
     path, again = run_search(job, out, evaluator_of=counting)
     assert pd.read_parquet(path).equals(first) and len(calls) == len(lost)
     assert again["evaluations"] == record["evaluations"] and again["best_config"] == record["best_config"]
+
+
+def test_search_wide_numbers_a_design_by_its_bands_and_shows_the_within_noise_cell(bench_path: None) -> None:
+    """`python -m bench.search_wide --add-within-noise`: a design given as each band's (centre, width) gets its
+    configuration number (the exhaustive sweep's, via variant_indices); the table's cell says the best, or yes/no with
+    the interval of the difference to the best."""
+    from bench.search_wide import _within, config_of
+
+    job = _job()
+    t = job.tables
+    for config in (0, 123, job.n_configs - 1):
+        v = variant_indices(t, config, config + 1)[0]
+        bands = {b: [float(t.centre[k][v[k]]), float(t.width[k][v[k]])] for k, b in enumerate(t.bands)}
+        assert config_of(job, bands) == config
+    assert _within(None) == "–" and _within({"best": True}) == "the best"
+    assert _within({"best": False, "within": True, "interval": [-0.02, 0.32]}) == "yes (-0.020 to +0.320)"
+    assert _within({"best": False, "within": False, "interval": [0.022, 0.356]}) == "no (+0.022 to +0.356)"

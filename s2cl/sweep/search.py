@@ -9,13 +9,16 @@ number; designs the ranking leaves out (``sweep.underdetermined``) and NaN score
 
 A space of more than :attr:`SearchSettings.start` designs starts from a coarse sub-grid of each band's centres
 and widths (every ``s``-th, from an offset drawn from the seed), then refines: around the eight best finalists, all
-bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above; then,
-at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre and width and
-all bands together over ``± 1`` step, from the best design, until no design there scores better. Where moving
-every centre and width at once gives more than :data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and
-more), the refinement moves each band alone over ``± s/2`` steps, and it and the local step move all centres
-together, all widths together and every two bands in centre and width at once
-(:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
+bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above. It does so from
+:attr:`SearchSettings.restarts` sub-grids (the offsets moved by ``s / restarts`` steps each); the starts' best
+designs are then crossed band by band (every design taking each band from one of them), halved and refined
+``± 1`` step. Then, at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre
+and width and all bands together over ``± 1`` step, from the best design, until no design there scores better;
+and from that local optimum each band alone over its whole range (halved, refined ``± 1``), back to the local
+stage wherever that finds a better design. Where moving every centre and width at once gives more than
+:data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and more), the refinement moves each band alone over
+``± s/2`` steps, and it and the local step move all centres together, all widths together and every two bands in
+centre and width at once (:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
 
 Each batch of designs is one chunk file (``chunks/part-E.parquet``, ``E`` the search's running count of
 design evaluations, written atomically): the search is deterministic, so a killed search started again replays
