@@ -166,6 +166,34 @@ def run_all(seeds: list[int], scene: str = SCENE, joint: str = "full") -> dict[s
             "seconds_total": time.perf_counter() - t0}
 
 
+def recheck(path: Path, joint: str) -> dict[str, Any]:
+    """The winners of results file ``path`` checked again with the joint step ``joint``, without searching again:
+    the seeds' searches (winners, times, evaluations, within-noise test) are the file's, the checks new."""
+    from s2cl.cl.runtime import get_runtime
+
+    t0 = time.perf_counter()
+    results = json.loads(path.read_text("utf-8"))
+    machine, before = machine_info(get_runtime()), load_average()
+    checked: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory(prefix="s2cl-search-wide-") as folder:
+        for r in results["seeds"]:
+            key = json.dumps(r["bands"], sort_keys=True)
+            if key not in checked:
+                print(f"[search-wide] seed {r['seed']}: {r['bands']} rms {r['rms']:.4f}; local check ({joint})",
+                      flush=True)
+                t = time.perf_counter()
+                checked[key] = {**local_check(r["bands"], r["rms"], Path(folder) / f"seed-{r['seed']}-check",
+                                              results["scene"], joint),
+                                "seed": r["seed"], "seconds": time.perf_counter() - t}
+            r["check"] = checked[key]
+    after = load_average()
+    return {**results, "joint": joint, "machine": machine, "load_average": {"before": before, "after": after},
+            "load_note": load_note(before, after, machine["cores"]), "searched_by": results["command"],
+            "searched_on": results["machine"]["date"], "command": f"python -m bench.search_wide --recheck "
+            f"{_rel(path)} --joint {joint}", "checks_passed": sum(r["check"]["passed"] for r in results["seeds"]),
+            "seconds_total": time.perf_counter() - t0}
+
+
 def config_of(job: Any, bands: dict[str, list[float]]) -> int:
     """The configuration number of a design given as each band's (centre, width) in ``job``'s space."""
     t, variants = job.tables, []
@@ -258,12 +286,16 @@ def joint_section(results: dict[str, Any], path: Path | None = None) -> str:
              f"all centres together over ± 1 nm with the widths fixed, then all widths together with the centres "
              f"fixed (2 × 3^{n} = {2 * 3 ** n:,} designs; not every centre and width at once: 3^{2 * n} = "
              f"{3 ** (2 * n):,} designs)")
-    lines = [f"`{results['command']}` searches the scene `{results['scene']}` ({results['description']}: "
-             f"{first['exhaustive_configurations']:,} designs × 12,000 pixels) from each seed, then checks each winner "
-             f"by exhaustive sweeps at 1 nm around it: each band alone over ± 5 nm of centre and width with the others "
-             f"fixed ({n} × 11 × 11 designs), and {joint}; the designs inside the scene's windows count, and seeds "
-             f"with the same winner share its check. Results: `{where}`. Measured on "
-             f"{m['cpu']} ({m['cores']} cores), {m['date']}; {results['load_note']}.",
+    searched = (f"`{results['searched_by']}` searched the scene `{results['scene']}` ({results['description']}: "
+                f"{first['exhaustive_configurations']:,} designs × 12,000 pixels) from each seed; "
+                f"`{results['command']}` checks each winner" if "searched_by" in results else
+                f"`{results['command']}` searches the scene `{results['scene']}` ({results['description']}: "
+                f"{first['exhaustive_configurations']:,} designs × 12,000 pixels) from each seed, then checks each "
+                "winner")
+    lines = [f"{searched} by exhaustive sweeps at 1 nm around it: each band alone over ± 5 nm of centre and width "
+             f"with the others fixed ({n} × 11 × 11 designs), and {joint}; the designs inside the scene's windows "
+             f"count, and seeds with the same winner share its check. Results: `{where}`. Measured on "
+             f"{m['cpu']} ({m['cores']} cores), {m['date']}; {results['load_note']}." + _searched_by(results),
              "", "| seed | winner (centre/width nm) | Cab RMS µg/cm² | within noise of the best (95 % interval of the "
              "difference) | search s | designs scored | share of the space's pixel-evaluations | check: designs | "
              "check: better | check: best Cab RMS | check s | beyond the windows: designs | better |",
@@ -292,6 +324,14 @@ def joint_section(results: dict[str, Any], path: Path | None = None) -> str:
     else:
         lines += ["", "Within noise: not tested (this run's results file predates the test)."]
     return "\n".join(lines)
+
+
+def _searched_by(results: dict[str, Any]) -> str:
+    """Where the searches of a re-checked results file come from (``--recheck``)."""
+    if "searched_by" not in results:
+        return ""
+    return (f" The searches (winners, times, designs scored, within-noise test) are those of `{results['searched_by']}`"
+            f" ({results['searched_on']}); only the checks ran here.")
 
 
 def _within(d: dict[str, Any] | None) -> str:
@@ -334,7 +374,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", type=Path, metavar="JSON", help="only re-render the docs section")
     ap.add_argument("--add-within-noise", type=Path, metavar="JSON",
                     help="add the within-noise test of the distinct winners to a results file written without it")
+    ap.add_argument("--recheck", type=Path, metavar="JSON",
+                    help="check the winners of a results file again with --joint, without searching again")
     args = ap.parse_args(argv)
+    if args.recheck:
+        results = recheck(args.recheck, args.joint)
+        print("[search-wide] wrote", write_json(results_path(results["scene"], args.joint, args.out).resolve(),
+                                                results))
+        if args.docs and args.out == RESULTS and results["scene"] != SCENE:
+            from bench.doc_blocks import main as doc_blocks
+
+            doc_blocks([JOINT_BLOCKS[args.joint]])
+        return 0
     if args.add_within_noise:
         from bench.common import write_json as write
 
