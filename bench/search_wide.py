@@ -166,13 +166,22 @@ def run_all(seeds: list[int], scene: str = SCENE, joint: str = "full") -> dict[s
             "seconds_total": time.perf_counter() - t0}
 
 
-def recheck(path: Path, joint: str) -> dict[str, Any]:
-    """The winners of results file ``path`` checked again with the joint step ``joint``, without searching again:
-    the seeds' searches (winners, times, evaluations, within-noise test) are the file's, the checks new."""
+def recheck(path: Path, joint: str, seeds: list[int] | None = None) -> dict[str, Any]:
+    """The winners of results file ``path`` (of ``seeds`` only, if given) checked again with the joint step ``joint``,
+    without searching again: the seeds' searches (winners, times, evaluations, within-noise test) are the file's,
+    the checks new."""
     from s2cl.cl.runtime import get_runtime
 
     t0 = time.perf_counter()
     results = json.loads(path.read_text("utf-8"))
+    if seeds is not None:
+        rows = results["seeds"] = [r for r in results["seeds"] if r["seed"] in seeds]
+        rms = [r["rms"] for r in rows]
+        results.update(rms_min=min(rms), rms_max=max(rms), rms_stdev=statistics.stdev(rms) if len(rms) > 1 else 0.0,
+                       distinct_winners=len({r["config"] for r in rows}))
+        if results.get("within_noise"):
+            kept = {r["config"] for r in rows}
+            results["within_noise"]["designs"] = [d for d in results["within_noise"]["designs"] if d["config"] in kept]
     machine, before = machine_info(get_runtime()), load_average()
     checked: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="s2cl-search-wide-") as folder:
@@ -190,7 +199,8 @@ def recheck(path: Path, joint: str) -> dict[str, Any]:
     return {**results, "joint": joint, "machine": machine, "load_average": {"before": before, "after": after},
             "load_note": load_note(before, after, machine["cores"]), "searched_by": results["command"],
             "searched_on": results["machine"]["date"], "command": f"python -m bench.search_wide --recheck "
-            f"{_rel(path)} --joint {joint}", "checks_passed": sum(r["check"]["passed"] for r in results["seeds"]),
+            f"{_rel(path)} --joint {joint}" + ("" if seeds is None else " --seeds " + " ".join(map(str, seeds))),
+            "checks_passed": sum(r["check"]["passed"] for r in results["seeds"]),
             "seconds_total": time.perf_counter() - t0}
 
 
@@ -378,7 +388,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="check the winners of a results file again with --joint, without searching again")
     args = ap.parse_args(argv)
     if args.recheck:
-        results = recheck(args.recheck, args.joint)
+        results = recheck(args.recheck, args.joint, None if args.seeds == list(SEEDS) else args.seeds)
         print("[search-wide] wrote", write_json(results_path(results["scene"], args.joint, args.out).resolve(),
                                                 results))
         if args.docs and args.out == RESULTS and results["scene"] != SCENE:
