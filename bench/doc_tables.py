@@ -753,6 +753,15 @@ def search_joint(joint: str) -> str:
     return joint_section(_load(results_path(JOINT_SCENE, joint)))
 
 
+def search_joint_one_start() -> str:
+    """The six-band search as it was before restarts and recombination (one coarse start; the results file kept
+    from that run, ``python -m bench.search_wide --scene ... --joint split`` at commit b8362b4)."""
+    from bench.search_wide import JOINT_SCENE, ONE_START, joint_section, results_path
+
+    path = results_path(JOINT_SCENE, "split").with_name(ONE_START)
+    return joint_section(_load(path), path)
+
+
 # -- docs/devices.md --------------------------------------------------------------------------------
 
 def machines() -> str:
@@ -901,6 +910,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "instrument.costs": instrument_costs,
     "search.joint-b3-b8a": lambda: search_joint("split"),
     "search.joint-b3-b8a-full": lambda: search_joint("full"),
+    "search.joint-b3-b8a-one-start": search_joint_one_start,
     "machines": machines,
     "images.product-example": product_example,
     "images.cube-footprint": cube_footprint,

@@ -162,7 +162,7 @@ def test_refined_search_ends_on_a_local_optimum_and_repeats_from_its_seed(tmp_pa
     job = _job(copies=6, start=100, finalists=4, radius=2)
     exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
     path, record = run_search(job, tmp_path / "a", evaluator_of=numpy_evaluator)
-    assert record["stages"][0]["stage"].startswith("start: sub-grid")
+    assert record["stages"][0]["stage"].startswith("start 1 of 4: sub-grid")
     lat = Lattice(job)
     best = variant_indices(job.tables, record["best_config"], record["best_config"] + 1)[0]
     around = lat.configs(lat.neighbourhood(best, 2))
@@ -326,7 +326,7 @@ def test_refinement_moves_around_the_eight_best_of_more_finalists(tmp_path: Path
     band at once."""
     from s2cl.sweep import search as module
 
-    job = _job(copies=6, start=40, radius=2)  # finalists: the default 16
+    job = _job(copies=6, start=40, radius=2, restarts=1)  # finalists: the default 16; one start
     assert SearchSettings().finalists == 16 > module.REFINE_AROUND == 8
     exhaustive = _scores_of_sweep(job, tmp_path / "sweep")["rms"]
     lat = Lattice(job)
@@ -346,18 +346,25 @@ def test_refinement_moves_around_the_eight_best_of_more_finalists(tmp_path: Path
     _, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
     stages = [c[0] for c in calls]
     assert stages[:3] == ["start: sub-grid every 5 steps", "refine ± 2 steps", "refine ± 1 steps"]
-    assert all(s.startswith("local") for s in stages[3:]) and len(stages) > 3
+    lines = stages.index("each band alone over its whole range")
+    assert all(s.startswith("local") for s in stages[3:lines]) and lines > 3
     designs = variant_indices(job.tables, 0, job.n_configs)
     for (_, _, before), (_, pool, _), step in zip(calls[:2], calls[1:3], (2, 1), strict=True):
         assert len(before) == len(set(before)) >= 16  # 16 distinct finalists
         eight = sorted(before, key=lambda c: (exhaustive[c], c))[:8]
         moved = {c for e in eight for c in lat.configs(lat.joint(designs[e], step)).tolist()}
         assert pool == set(before) | moved
-    for (_, _, before), (_, pool, _) in itertools.pairwise(calls[2:]):
+    for (_, _, before), (_, pool, _) in itertools.pairwise(calls[2:lines]):
         incumbent = before[0]
         around = lat.neighbourhood(designs[incumbent], 2)
         assert pool == {incumbent, *lat.configs(around).tolist()}
-    assert calls[-1][2][0] == calls[-2][2][0] == record["best_config"]
+    assert calls[lines - 1][2][0] == calls[lines - 2][2][0]
+    # then every design that moves one band of the local optimum anywhere in its range: B8 is fixed, so B11's 641
+    incumbent = calls[lines - 1][2][0]
+    assert calls[lines][1] == set(range(job.n_configs)) and len(designs) == 641
+    assert stages[lines + 1] == "refine ± 1 steps"
+    final = record["best_config"]
+    assert exhaustive[final] <= exhaustive[incumbent] and stages[-1].startswith(("refine", "local"))
 
 
 def test_the_record_counts_what_the_chunk_files_hold(tmp_path: Path) -> None:
@@ -390,11 +397,12 @@ def test_a_scenes_search_keys_reach_the_settings() -> None:
 
     raw = gvmi_scene().spec.model_dump(exclude_none=True)
     keys = {"search": "halving", "search_keep": 0.5, "search_finalists": 7, "search_start": 300, "search_radius": 3,
-            "search_seed": 11}
+            "search_seed": 11, "search_restarts": 2}
     raw["sweep"].update(keys)
     settings = SearchSettings.of_spec(Scene.from_dict(raw).spec.sweep)
     assert settings is not None and settings.record() == {"strategy": "halving", "keep": 0.5, "finalists": 7,
-                                                          "start": 300, "radius": 3, "seed": 11}
+                                                          "start": 300, "radius": 3, "seed": 11,
+                                                          "restarts": 2}
     assert SearchSettings.of_spec(gvmi_scene().spec.sweep) is None  # exhaustive
 
 
@@ -434,3 +442,170 @@ def test_a_classification_search_ranks_by_omission_error(tmp_path: Path) -> None
     assert [(r["copies"], r["designs"]) for r in record["stages"][0]["rungs"]] == [(1, 15), (4, 4), (6, 2)]
     full = pd.read_parquet(path).query("full_fidelity").set_index("config")["omission_error_pct"]
     assert full.to_dict() == exhaustive[full.index].to_dict()
+
+
+# -- restarts and recombination (spaces above search_start) ------------------------------------------------
+
+def _grid_lattice(n_bands: int, n_c: int, n_w: int) -> Lattice:
+    """A lattice of ``n_bands`` slots, each every (centre, width) of an ``n_c`` × ``n_w`` grid (no job needed)."""
+    from s2cl.sweep.lattice import SlotLattice
+
+    lat = Lattice.__new__(Lattice)
+    c, w = np.meshgrid(np.arange(n_c), np.arange(n_w), indexing="ij")
+    lat.slots = [SlotLattice.of(c.ravel().astype(float), w.ravel().astype(float)) for _ in range(n_bands)]
+    lat.counts = np.full(n_bands, n_c * n_w, dtype=np.int64)
+    lat.strides = np.array([(n_c * n_w) ** (n_bands - 1 - k) for k in range(n_bands)], dtype=np.int64)
+    return lat
+
+
+DEEP = 0.15  # the deep basin's width (the grid's span is 1): a couple of steps
+
+
+class _Landscape:
+    """A scorer twin on a grid lattice: per band a wide shallow basin and a narrow deep one (random places), a
+    coupling of neighbouring bands' centres; on fewer than all copies plus noise that shrinks as 1/√copies, the same
+    for a design at the same copies (common random numbers). Lower is better."""
+
+    def __init__(self, lattice: Lattice, n_c: int, n_w: int, copies: int, seed: int):
+        self.lattice, self.size, self.copies = lattice, np.array([n_c - 1, n_w - 1], dtype=float), copies
+        rng = np.random.default_rng(seed)
+        self.shallow, self.deep = rng.uniform(0.1, 0.9, (2, len(lattice.slots), 2))
+        self.n = int(np.prod(lattice.counts))
+        self.noise: dict[int, np.ndarray] = {}
+
+    def true(self, designs: np.ndarray) -> np.ndarray:
+        x = np.stack([np.stack([sl.ci[designs[:, k]], sl.wi[designs[:, k]]], -1) / self.size
+                      for k, sl in enumerate(self.lattice.slots)], 1)
+
+        def basin(at: np.ndarray, sigma: float) -> np.ndarray:
+            return np.exp(-((x - at) ** 2).sum(-1) / sigma ** 2)
+
+        return -(0.6 * basin(self.shallow, 0.3) + basin(self.deep, DEEP)).sum(1) \
+            + 0.3 * np.abs(np.diff(x[..., 0], axis=1)).sum(1)
+
+    def score(self, designs: np.ndarray, copies: int) -> np.ndarray:
+        if copies == self.copies:
+            return self.true(designs)
+        if copies not in self.noise:
+            self.noise[copies] = np.random.default_rng(copies).standard_normal(self.n)
+        return self.true(designs) + 0.3 * self.noise[copies][self.lattice.configs(designs)] / np.sqrt(copies)
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_restarts_with_recombination_end_on_the_brute_force_optimum_from_every_seed(monkeypatch, split) -> None:
+    """Three bands of 12 centres × 6 widths (373,248 designs), two basins per band: from seeds 0-4 the search with four
+    starts ends on the brute-force optimum of the landscape, for three landscapes (moving every band at once, or,
+    as for six bands, the joint step split)."""
+    from s2cl.sweep.search import Halving
+
+    if split:
+        monkeypatch.setattr("s2cl.sweep.lattice.MAX_JOINT", 10)
+        monkeypatch.setattr("s2cl.sweep.search.MAX_JOINT", 10)
+    lat = _grid_lattice(3, 12, 6)
+    every = np.array(list(itertools.product(range(72), repeat=3)))
+    for landscape in range(3):
+        land = _Landscape(lat, 12, 6, 20, landscape)
+        truth = land.true(every)
+        optimum = int(np.argmin(truth))
+        assert (truth == truth[optimum]).sum() == 1 and lat.configs(every[optimum][None])[0] == optimum
+        for seed in range(5):
+            scorer = type("S", (), {"lattice": lat, "score": staticmethod(land.score)})()
+            halving = Halving(SearchSettings(start=300, finalists=4, radius=2, seed=seed, restarts=4), scorer, 20)
+            assert int(lat.configs(halving.run()[None])[0]) == optimum, (landscape, seed)
+            assert sum(s["stage"].startswith("start") for s in halving.stages) == 4
+            assert any(s["stage"].startswith("recombine") for s in halving.stages)
+
+
+def test_lattice_crosses_designs_band_by_band_and_shifts_its_sub_grids() -> None:
+    lat = _grid_lattice(3, 12, 6)
+    designs = np.array([[1, 5, 7], [1, 9, 8], [4, 5, 70]])
+    want = {(a, b, c) for a in (1, 4) for b in (5, 9) for c in (7, 8, 70)}
+    got = lat.crossed(designs)
+    assert len(got) == len(want) == 12 and {tuple(r) for r in got.tolist()} == want
+    grid, stride, offsets = lat.coarse_offsets(300, np.random.default_rng(3))
+    assert len(grid) <= 300 and stride > 1
+    for shift in (0, 1, stride // 2):
+        moved = lat.shifted(offsets, stride, shift)
+        sub = lat.sub_grid(stride, moved)
+        for k, sl in enumerate(lat.slots):
+            c0, w0 = offsets[k]
+            assert moved[k] == ((c0 + shift) % stride, (w0 + shift) % stride)
+            assert set(sl.ci[sub[:, k]] % stride) == {(c0 + shift) % stride}
+            assert set(sl.wi[sub[:, k]] % stride) == {(w0 + shift) % stride}
+    assert np.array_equal(lat.sub_grid(stride, offsets), grid)
+
+
+def test_the_recombination_scores_every_cross_of_the_starts_best_designs(tmp_path, monkeypatch) -> None:
+    """On a real job (the numpy twin) with two starts: the recombination halves every design that takes each band
+    from one of the starts' best designs, with all their finalists; every design scored on every pixel carries the
+    exhaustive sweep's score bit for bit, and the search ends on a local optimum of its neighbourhood."""
+    from s2cl.sweep import search as module
+
+    job = _job(copies=6, start=100, finalists=4, radius=2, restarts=2)
+    exhaustive = _scores_of_sweep(job, tmp_path / "sweep")
+    lat = Lattice(job)
+    calls: list[tuple[str, np.ndarray, np.ndarray]] = []
+    real = module.Halving.halve
+
+    def spy(self: Any, pool: np.ndarray, stage: str) -> tuple[np.ndarray, np.ndarray]:
+        best, scores = real(self, pool, stage)
+        calls.append((stage, pool, best))
+        return best, scores
+
+    monkeypatch.setattr(module.Halving, "halve", spy)
+    path, record = run_search(job, tmp_path / "search", evaluator_of=numpy_evaluator)
+    ends = [i for i, c in enumerate(calls) if c[0].startswith("start 2")]
+    (second,) = ends
+    first_best, second_best = calls[second - 1][2], calls[[c[0] for c in calls].index("recombine the best of 2 "
+                                                                                       "starts band by band") - 1][2]
+    (pool,) = [c[1] for c in calls if c[0].startswith("recombine")]
+    crosses = {tuple(int(x) for x in (a, b)) for a in {first_best[0][0], second_best[0][0]}
+               for b in {first_best[0][1], second_best[0][1]}}
+    pooled = {tuple(r) for r in pool.tolist()}
+    assert crosses <= pooled and {tuple(r) for r in np.concatenate([first_best, second_best]).tolist()} <= pooled
+    df = pd.read_parquet(path)
+    full = df[df["full_fidelity"]]
+    assert np.array_equal(full["rms"].to_numpy(), exhaustive.loc[full["config"], "rms"].to_numpy())
+    best = variant_indices(job.tables, record["best_config"], record["best_config"] + 1)[0]
+    around = lat.configs(lat.neighbourhood(best, 2))
+    assert exhaustive.loc[around, "rms"].min() == exhaustive.loc[record["best_config"], "rms"]
+
+
+def test_a_killed_search_with_restarts_resumes_from_its_chunk_files(tmp_path) -> None:
+    """A refined search with several starts, half its chunk files lost: run again, it computes only those and writes
+    the same results."""
+    job = _job(copies=6, start=100, finalists=4, radius=2, restarts=3)
+    out = tmp_path / "out"
+    path, record = run_search(job, out, evaluator_of=numpy_evaluator)
+    first = pd.read_parquet(path)
+    chunks = sorted((out / "chunks").glob("*.parquet"))
+    lost = chunks[1::2]
+    for c in lost:
+        c.unlink()
+    (out / RESULTS).unlink()
+    calls: list[int] = []
+
+    def counting(j):
+        calls.append(j.n_configs)
+        return numpy_evaluator(j)
+
+    path, again = run_search(job, out, evaluator_of=counting)
+    assert pd.read_parquet(path).equals(first) and len(calls) == len(lost)
+    assert again["evaluations"] == record["evaluations"] and again["best_config"] == record["best_config"]
+
+
+def test_search_wide_numbers_a_design_by_its_bands_and_shows_the_within_noise_cell(bench_path: None) -> None:
+    """`python -m bench.search_wide --add-within-noise`: a design given as each band's (centre, width) gets its
+    configuration number (the exhaustive sweep's, via variant_indices); the table's cell says the best, or yes/no with
+    the interval of the difference to the best."""
+    from bench.search_wide import _within, config_of
+
+    job = _job()
+    t = job.tables
+    for config in (0, 123, job.n_configs - 1):
+        v = variant_indices(t, config, config + 1)[0]
+        bands = {b: [float(t.centre[k][v[k]]), float(t.width[k][v[k]])] for k, b in enumerate(t.bands)}
+        assert config_of(job, bands) == config
+    assert _within(None) == "–" and _within({"best": True}) == "the best"
+    assert _within({"best": False, "within": True, "interval": [-0.02, 0.32]}) == "yes (-0.020 to +0.320)"
+    assert _within({"best": False, "within": False, "interval": [0.022, 0.356]}) == "no (+0.022 to +0.356)"

@@ -510,3 +510,30 @@ def test_the_printed_note_says_when_more_designs_may_be_within_noise(capsys: pyt
     complete, incomplete = capsys.readouterr().out.splitlines()
     assert complete.startswith("within noise of #1: 2 of the 3 best designs — a paired bootstrap of the rms")
     assert incomplete.startswith("within noise of #1: 3 of the 3 best designs (the last one tested too: more may be")
+
+
+def test_configuration_numbers_beyond_float_precision_come_back_exact(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A space of more than 2⁵³ designs (the six-band search: 3.8·10¹⁸) numbers its designs beyond what a float
+    holds: the within-noise record gives each candidate's configuration number exactly as the ranking's (a row of
+    a frame of numbers only, read through pandas, is a float). The designs are scored as their number modulo the
+    small job's count."""
+    from s2cl.sweep import within_noise as module
+
+    job = _family_job("igrm")
+    ev = NumpyEvaluator(job.tables, job.analysis)
+    rows = pd.DataFrame(evaluate_chunk_rows(job, ev))
+    shape = [c for c in rows.columns if c.endswith(("_centre_nm", "_width_nm"))]
+    top = rows.sort_values(["rms", "config"]).reset_index(drop=True)[["config", *shape, "rms"]]  # numbers only
+    big = 2**60 + 1 + top["config"].to_numpy(np.int64)  # ≡ config (mod 4) and far beyond 2⁵³
+    assert job.n_configs == 4 and all(float(b) != b for b in big.tolist())
+    real = module.design_stats
+    monkeypatch.setattr(module, "design_stats", lambda j, configs, metric, **kw: real(j, configs % 4, metric, **kw))
+    out = within_noise(job, top.assign(config=big), "rms", evaluator_of=numpy_evaluator, replicates=100)
+    assert out is not None and [d["config"] for d in out["designs"]] == big.tolist()
+    assert set(out["configs"]) <= set(big.tolist())
+
+
+def evaluate_chunk_rows(job: SweepJob, ev: NumpyEvaluator) -> dict[str, Any]:
+    from s2cl.sweep.engine import evaluate_chunk
+
+    return evaluate_chunk(job, 0, job.n_configs, evaluator=ev)

@@ -268,9 +268,14 @@ class SweepSpec(Section):
                               "around the finalists down to the space's own step")
     search_radius: int = Field(5, ge=1, le=50, description="halving of a refined space: the last stage moves each band "
                                "alone over ± search_radius steps of centre and width, and all bands together over ± "
-                               "1 step, on every pixel, until no design there scores better")
+                               "1 step, on every pixel, until no design there scores better; then each band alone "
+                               "over its whole range (halved), back to this stage wherever that finds a better design")
     search_seed: int = Field(0, ge=0, le=2**31 - 1, description="halving: seed of the coarse sub-grid's offset (the "
                              "noise is effects.seed's); the same seed gives the same search")
+    search_restarts: int = Field(4, ge=1, le=64, description="halving of a refined space: coarse sub-grids it "
+                                 "starts from (offsets moved by stride / search_restarts steps each), each halved "
+                                 "and refined to the space's step; their best designs are then crossed band by band, "
+                                 "halved and refined again before the local stage")
 
 
 class OutputSpec(Section):

@@ -62,16 +62,37 @@ class Lattice:
     def coarse(self, start: int, rng: np.random.Generator) -> tuple[np.ndarray, int]:
         """The sub-grid of every ``s``-th centre and width of every band (``s`` the smallest that keeps at most
         ``start`` designs; offsets drawn from ``rng``), and ``s``."""
+        grid, s, _ = self.coarse_offsets(start, rng)
+        return grid, s
+
+    def coarse_offsets(self, start: int, rng: np.random.Generator) -> tuple[np.ndarray, int, list[tuple[int, int]]]:
+        """:meth:`coarse`, with the sub-grid's (centre, width) offset of each band."""
         s = 1
         while True:
             offsets = [(int(rng.integers(min(s, sl.lookup.shape[0]))), int(rng.integers(min(s, sl.lookup.shape[1]))))
                        for sl in self.slots] if s > 1 else [(0, 0)] * len(self.slots)
-            per = [sl.coarse(s, o) for sl, o in zip(self.slots, offsets, strict=True)]
-            if math.prod(p.size for p in per) <= start or all(sl.lookup.size <= 1 for sl in self.slots):
-                break
+            size = math.prod(sl.coarse(s, o).size for sl, o in zip(self.slots, offsets, strict=True))
+            if size <= start or all(sl.lookup.size <= 1 for sl in self.slots):
+                return self.sub_grid(s, offsets), s, offsets
             s += 1
-        grid = np.array(list(itertools.product(*per)), dtype=np.int64).reshape(-1, len(self.slots))
-        return grid, s
+
+    def sub_grid(self, stride: int, offsets: list[tuple[int, int]]) -> np.ndarray:
+        """Every design on every ``stride``-th centre and width of each band from its (centre, width) offset."""
+        per = [sl.coarse(stride, o) for sl, o in zip(self.slots, offsets, strict=True)]
+        if math.prod(p.size for p in per) == 0:
+            return np.zeros((0, len(self.slots)), dtype=np.int64)
+        return np.array(list(itertools.product(*per)), dtype=np.int64).reshape(-1, len(self.slots))
+
+    def shifted(self, offsets: list[tuple[int, int]], stride: int, shift: int) -> list[tuple[int, int]]:
+        """``offsets`` moved by ``shift`` steps in every centre and width, modulo the stride (or the band's size)."""
+        return [((c + shift) % min(stride, sl.lookup.shape[0]), (w + shift) % min(stride, sl.lookup.shape[1]))
+                for sl, (c, w) in zip(self.slots, offsets, strict=True)]
+
+    def crossed(self, designs: np.ndarray) -> np.ndarray:
+        """Every design that takes each band's variant from one of ``designs`` (band by band: the product of each
+        band's distinct variants among them)."""
+        per = [np.unique(designs[:, k]) for k in range(designs.shape[1])]
+        return np.array(list(itertools.product(*per)), dtype=np.int64).reshape(-1, designs.shape[1])
 
     def joint(self, design: np.ndarray, step: int, what: str = "both") -> np.ndarray:
         """Every band moved by -step, 0 or +step at once (inside the space): centre and width (``"both"``,
@@ -113,6 +134,15 @@ class Lattice:
         out = np.repeat(design[None, :], int((v >= 0).sum()), axis=0)
         out[:, k] = v[v >= 0]
         return out
+
+    def lines(self, design: np.ndarray) -> np.ndarray:
+        """Each band alone over every variant of its range, the others as in ``design``."""
+        out = []
+        for k, sl in enumerate(self.slots):
+            d = np.repeat(design[None, :], sl.ci.size, axis=0)
+            d[:, k] = np.arange(sl.ci.size)
+            out.append(d)
+        return np.concatenate(out)
 
     def neighbourhood(self, design: np.ndarray, radius: int) -> np.ndarray:
         """The local check's designs: each band alone over ± ``radius``, all bands together over ± 1

@@ -9,13 +9,16 @@ number; designs the ranking leaves out (``sweep.underdetermined``) and NaN score
 
 A space of more than :attr:`SearchSettings.start` designs starts from a coarse sub-grid of each band's centres
 and widths (every ``s``-th, from an offset drawn from the seed), then refines: around the eight best finalists, all
-bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above; then,
-at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre and width and
-all bands together over ``± 1`` step, from the best design, until no design there scores better. Where moving
-every centre and width at once gives more than :data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and
-more), the refinement moves each band alone over ``± s/2`` steps, and it and the local step move all centres
-together, all widths together and every two bands in centre and width at once
-(:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
+bands at once move by ``± s/2`` lattice steps (halved to 1), each set of candidates halved as above. It does so from
+:attr:`SearchSettings.restarts` sub-grids (the offsets moved by ``s / restarts`` steps each); the starts' best
+designs are then crossed band by band (every design taking each band from one of them), halved and refined
+``± 1`` step. Then, at the space's own step and on every pixel, each band alone over ``± radius`` steps of centre
+and width and all bands together over ``± 1`` step, from the best design, until no design there scores better;
+and from that local optimum each band alone over its whole range (halved, refined ``± 1``), back to the local
+stage wherever that finds a better design. Where moving every centre and width at once gives more than
+:data:`~s2cl.sweep.lattice.MAX_JOINT` designs (six bands and more), the refinement moves each band alone over
+``± s/2`` steps, and it and the local step move all centres together, all widths together and every two bands in
+centre and width at once (:meth:`~s2cl.sweep.lattice.Lattice.joint_moves`).
 
 Each batch of designs is one chunk file (``chunks/part-E.parquet``, ``E`` the search's running count of
 design evaluations, written atomically): the search is deterministic, so a killed search started again replays
@@ -71,6 +74,7 @@ class SearchSettings:
     start: int = 100_000
     radius: int = 5
     seed: int = 0
+    restarts: int = 4
 
     @classmethod
     def of_spec(cls, spec: Any) -> SearchSettings | None:
@@ -78,7 +82,7 @@ class SearchSettings:
         if spec is None or spec.search == "exhaustive":
             return None
         return cls(spec.search, spec.search_keep, spec.search_finalists, spec.search_start, spec.search_radius,
-                   spec.search_seed)
+                   spec.search_seed, spec.search_restarts)
 
     def record(self) -> dict[str, Any]:
         return asdict(self)
@@ -206,7 +210,7 @@ class Halving:
             order = np.lexsort((lattice.configs(alive), scores))
             rungs.append({"copies": k, "designs": len(alive)})
             if k == self.copies:
-                self.stages.append({"stage": stage, "rungs": rungs})
+                self.stages.append({"stage": stage, "rungs": rungs, "best": _finite(scores[order[0]])})
                 return alive[order], scores[order]
             alive = alive[order[:max(s.finalists, math.ceil(len(alive) * s.keep))]]
         raise AssertionError("the schedule ends on every copy")
@@ -217,16 +221,35 @@ class Halving:
         alive = unique_designs(pool, lattice)
         scores = self.scorer.score(alive, self.copies)
         order = np.lexsort((lattice.configs(alive), scores))
-        self.stages.append({"stage": stage, "rungs": [{"copies": self.copies, "designs": len(alive)}]})
+        self.stages.append({"stage": stage, "rungs": [{"copies": self.copies, "designs": len(alive)}],
+                            "best": _finite(scores[order[0]])})
         return alive[order], scores[order]
 
     def run(self) -> np.ndarray:
         """The search; returns the best design (variant index per slot)."""
         s, lattice = self.settings, self.scorer.lattice
-        pool, stride = lattice.coarse(s.start, np.random.default_rng(s.seed))
-        best, _ = self.halve(pool, f"start: sub-grid every {stride} steps" if stride > 1 else "start: every design")
+        pool, stride, offsets = lattice.coarse_offsets(s.start, np.random.default_rng(s.seed))
         if stride == 1:
+            best, _ = self.halve(pool, "start: every design")
             return best[0]
+        finals = []
+        for r in range(s.restarts):
+            if r:
+                pool = lattice.sub_grid(stride, lattice.shifted(offsets, stride, r * stride // s.restarts))
+            tag = f"start {r + 1} of {s.restarts}: " if s.restarts > 1 else "start: "
+            best, _ = self.halve(pool, tag + f"sub-grid every {stride} steps")
+            finals.append(self.refine(best, stride))
+        best = self.recombine(finals) if len(finals) > 1 else finals[0]
+        while True:
+            incumbent = self.local(best)
+            best = self.lines(incumbent)
+            if not self.better(best[0], incumbent):
+                return incumbent
+
+    def refine(self, best: np.ndarray, stride: int) -> np.ndarray:
+        """Finalists refined from ``stride`` steps down to 1: around the :data:`REFINE_AROUND` best, every band moved
+        by ± half the step before, each set halved with the finalists before it."""
+        lattice = self.scorer.lattice
         step = stride
         while step > 1:
             step = max(1, step // 2)
@@ -235,12 +258,45 @@ class Halving:
                 [np.concatenate([*(lattice.band_box(d, k, step) for k in range(len(lattice.slots))),
                                  lattice.joint_moves(d, step)]) for d in top]
             best, _ = self.halve(np.concatenate([best, *joint]), f"refine ± {step} steps")
-        while True:  # at the space's own step, on every pixel, until nothing in the neighbourhood is better
+        return best
+
+    def recombine(self, finals: list[np.ndarray]) -> np.ndarray:
+        """The starts' finalists crossed band by band: every design taking each band from one of the starts' best
+        designs (:meth:`~s2cl.sweep.lattice.Lattice.crossed`), halved with all the finalists and refined ± 1 step."""
+        lattice = self.scorer.lattice
+        elite = unique_designs(np.stack([f[0] for f in finals]), lattice)
+        best, _ = self.halve(np.concatenate([*finals, lattice.crossed(elite)]),
+                             f"recombine the best of {len(finals)} starts band by band")
+        return self.refine(best, 2)
+
+    def better(self, design: np.ndarray, than: np.ndarray) -> bool:
+        """Whether ``design`` scores better than ``than`` on every pixel (both scored there already); ties by
+        configuration number, as a rung ranks."""
+        pair = np.stack([design, than])
+        (a, b), (sa, sb) = self.scorer.lattice.configs(pair).tolist(), self.scorer.score(pair, self.copies).tolist()
+        return (sa, a) < (sb, b)
+
+    def lines(self, incumbent: np.ndarray) -> np.ndarray:
+        """The incumbent with each band alone moved over its whole range (halved), refined ± 1 step: a move between
+        one band's basins that no local step makes."""
+        best, _ = self.halve(np.concatenate([incumbent[None, :], self.scorer.lattice.lines(incumbent)]),
+                             "each band alone over its whole range")
+        return self.refine(best, 2)
+
+    def local(self, best: np.ndarray) -> np.ndarray:
+        """At the space's own step, on every pixel: the incumbent's neighbourhood until nothing there is better."""
+        s, lattice = self.settings, self.scorer.lattice
+        while True:
             incumbent = best[0]
             best, _ = self.full(np.concatenate([best[:1], lattice.neighbourhood(incumbent, s.radius)]),
                                 f"local ± {s.radius} / ± 1 steps, every pixel")
             if np.array_equal(best[0], incumbent):
                 return incumbent
+
+
+def _finite(value: float) -> float | None:
+    """A stage's best score for the record (None where no design has one)."""
+    return float(value) if np.isfinite(value) else None
 
 
 # -- running ------------------------------------------------------------------------------------------------

@@ -182,7 +182,7 @@ def within_noise(job: Any, top: Any, metric: str, *, evaluator_of: Callable[[Any
     designs = []
     for i, (_, row) in enumerate(top.iterrows()):  # the candidates; the reference, if any, is design n
         designs.append({
-            "rank": i + 1, "config": int(row["config"]),
+            "rank": i + 1, "config": int(configs[i]),  # exact: iterrows gives floats
             "bands": {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands},
             metric: _finite(row[metric]), "difference": _finite(boot.difference[i]),
             "interval": [_finite(boot.low[i]), _finite(boot.high[i])], "as_good": float(boot.as_good[i]),
