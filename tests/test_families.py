@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FAMILIES = ROOT / "s2cl" / "retrieve" / "families"
 #: the files of the formula family, outside tests and docs
 FORMULA_FILES = {"s2cl/retrieve/families/formula.py", "s2cl/retrieve/families/formula_syntax.py",
-                 "kernels/formula.cl.mako", "s2cl/scene/schema.py"}
+                 "kernels/formula.cl.mako", "s2cl/scene/analysis_schema.py"}  # [analysis] expression
 
 
 def _product_files() -> list[Path]:
