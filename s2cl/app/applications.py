@@ -22,6 +22,7 @@ from typing import Any
 from s2cl.app.checks import Checked, atmosphere_terms, check_sweep
 from s2cl.errors import InputError, errors_in, token
 from s2cl.forward.resample import AtmosphereArrays
+from s2cl.grid import SpectralGrid
 from s2cl.io.budget import Budget
 from s2cl.libraries.library import SpectralLibrary
 from s2cl.retrieve.family import family_of
@@ -96,8 +97,8 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
     with errors_in(scene.source):
         space = sweep_space(spec.sweep, scene.sensor, scene.grid, scene.run.support)
     terms = atmosphere_terms(scene)
-    grids: dict[tuple[float, float, float], tuple[Any, Any]] = {_grid_key(scene): terms}  # terms once per grid
-    libraries: dict[tuple[str | None, str], SpectralLibrary] = {}
+    grids: dict[SpectralGrid, tuple[Any, Any]] = {scene.grid: terms}  # terms once per grid
+    libraries: dict[tuple[str | None, str, SpectralGrid], SpectralLibrary] = {}
     shared: dict[Any, Any] = {}  # the band tables the applications' sweeps share (s2cl.sweep.tables.build_tables)
     parts, caveats = [], []
     joint = [r.band for r in space.ranges]
@@ -110,12 +111,12 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
                 raise InputError(f"{', '.join(off)} (which the application reads) {'does' if len(off) == 1 else 'do'}"
                                  f" not lie on its grid {one.grid.describe()}: widen the grid",
                                  source=scene.source, key=f"{app.key}.grid")
-            key = (app.library, repr(sorted(scene.spec.surface.select.items())), _grid_key(one))
+            key = (app.library, repr(sorted(scene.spec.surface.select.items())), one.grid)
             if key not in libraries:
                 libraries[key] = scene_library(one, budget=budget)
-            if _grid_key(one) not in grids:  # an application's own grid ([[application]] grid)
-                grids[_grid_key(one)] = atmosphere_terms(one)
-            checked = check_sweep(one, budget=budget, library=libraries[key], terms=grids[_grid_key(one)])
+            if one.grid not in grids:  # an application's own grid ([[application]] grid)
+                grids[one.grid] = atmosphere_terms(one)
+            checked = check_sweep(one, budget=budget, library=libraries[key], terms=grids[one.grid])
             checked = dataclasses.replace(checked, shared_tables=shared)  # each band resampled once per library
             assert checked.analysis is not None
             metric = checked.analysis.family.metric
@@ -129,12 +130,6 @@ def check_applications(scene: Scene, *, budget: Budget | None = None) -> Checked
         caveats += [c for c in checked.caveats if c not in caveats]
     _check_joint(scene, space, parts)
     return CheckedApplications(scene, space, tuple(parts), caveats, *terms)
-
-
-def _grid_key(scene: Scene) -> tuple[float, float, float]:
-    """A scene's spectral grid as a key (start, stop, step nm): the terms and libraries are per grid."""
-    g = scene.grid
-    return (float(g.start_nm), float(g.stop_nm), float(g.step_nm))
 
 
 def _check_sections(scene: Scene) -> None:
