@@ -34,7 +34,10 @@ CASES = (("generated 480 × 480, IGRM analysis", "generated-analysis", (24,)),
          ("ENVI float64 240 × 240 × 211 (10 nm), interpolated by the kernel", "envi-10nm", (24, 96)),
          ("ENVI float64 160 × 160 × 421 (5 nm), the grid's samples", "envi-5nm", (12, 48)))
 
-_CHILD = r"""
+#: in a child process (tests/ on its path, for memory_probe): simulate the scene with the block rule replaced by
+#: ``block`` rows, once to warm up, then with the peak resident set reset and numpy's allocations traced; also the
+#: footprint test's probe (tests/test_cube_footprint.py)
+PEAK_CHILD = r"""
 import json, sys, tempfile
 from pathlib import Path
 from memory_probe import peak
@@ -97,7 +100,7 @@ def measure(toml: Path, block: int) -> dict[str, int]:
 
     path = os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")])
     env = {**os.environ, "PYTHONPATH": path, "MALLOC_MMAP_THRESHOLD_": "131072"}
-    out = subprocess.run([sys.executable, "-c", _CHILD, str(toml), str(block)], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", PEAK_CHILD, str(toml), str(block)], capture_output=True, text=True,
                          env=env, cwd=toml.parent, timeout=900, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 

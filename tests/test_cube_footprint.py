@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from memory_probe import env as probe_env
 
+from bench.bench_cube_footprint import PEAK_CHILD
 from s2cl.io.budget import Budget
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,19 +33,6 @@ WAVELENGTHS = np.arange(400.0, 2501.0, 10.0)
 EFFECTS = "[effects]\natmosphere = true\nnoise = true\nquantise = true\ncalibrate = true\n"
 ANALYSIS = '[analysis]\nkind = "igrm"\nparameter = "cab"\n'
 
-#: in a child process: simulate the scene with the block rule replaced by ``block`` rows, once to warm up, then with
-#: the peak resident set reset and numpy's allocations traced
-_CHILD = r"""
-import json, sys, tempfile
-from pathlib import Path
-from memory_probe import peak
-import s2cl.app.simulate_scene as simulate_scene
-scene, block = sys.argv[1], int(sys.argv[2])
-simulate_scene.footprint_block_rows = lambda *args, **kwargs: block
-out = Path(tempfile.mkdtemp())
-simulate_scene.simulate_scene(scene, out / "warm")
-print(json.dumps(peak(lambda: simulate_scene.simulate_scene(scene, out / "run"))))
-"""
 
 
 def _generated(tmp_path: Path, device: str, rows: int, cols: int, analysis: bool) -> Path:
@@ -94,7 +82,7 @@ def _declared(toml: Path, block: int, device_memory: bool) -> float:
 
 def _measure(toml: Path, block: int) -> dict[str, float]:
     env = probe_env(MALLOC_MMAP_THRESHOLD_="131072")
-    out = subprocess.run([sys.executable, "-c", _CHILD, str(toml), str(block)], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", PEAK_CHILD, str(toml), str(block)], capture_output=True, text=True,
                          env=env, cwd=toml.parent, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
