@@ -13,6 +13,7 @@ import pytest
 from sweep_fixtures import SMALL_SWEEP_TOML
 from test_cli_errors import run_main
 
+import s2cl
 from s2cl.app.scorecard import AppInfo, Cell, Scorecard, scorecard
 from s2cl.app.scorecard_report import heatmap, write_scorecard
 from s2cl.errors import DependencyError
@@ -243,13 +244,28 @@ def test_application_scenes_score_each_application_on_the_bands_it_reads(tmp_pat
     lai = card.cell("lai", "sentinel2")
     assert list(lai.bands) == ["B8", "B4"]  # the index reads NIR and red only (its roles in order)
     assert card.cell("lai", "OLI-2").na == "no band near 842 nm (B8, within 15 nm)"  # not "near 705 nm"
-    assert list(card.cell("chlorophyll", "sentinel2").bands) == ["B4", "B5", "B6", "B8"]
+    # IGRM without analysis.bands reads its family's B4-B7, as the multi-application sweep gives it (not the [sweep]
+    # bands), and its own-sensor cell is the sweep's own-bands score for it, bit for bit
+    assert list(card.cell("chlorophyll", "sentinel2").bands) == ["B4", "B5", "B6", "B7"]
+    swept = s2cl.optimise(multi, tmp_path / "swept")
+    refs = {a["name"]: a["reference"] for a in swept.summary["applications"]}
+    assert card.cell("chlorophyll", "sentinel2").score == refs["chlorophyll"]
+    assert lai.score == refs["lai"]
     # the same index alone, on a sweep of its own two bands: the same score, bit for bit
     alone = tmp_path / "ndvi.toml"
     alone.write_text(MULTI_TOML.split("[[application]]")[0] + '[analysis]\nkind = "ndvi"\nparameter = "lai"\n'
                      '[sweep]\nbands = ["B4", "B8"]\n[sweep.ranges]\nB4 = { centre = 665, width = 30 }\n'
                      'B8 = { centre = 842, width = 115 }\n')
     assert scorecard(alone, ["sentinel2"]).cell("lai", "sentinel2").score == lai.score
+
+
+def test_a_balanced_design_without_a_finite_relative_sum_is_named_not_a_crash() -> None:
+    from s2cl.app.scorecard import summary_design
+
+    summary = {"pareto": {"front": {"order": "relative sum",
+                                    "designs": [{"bands": {"B5": [710.0, 15.0]}, "relative_sum": None}]}}}
+    bands, what = summary_design(summary, "balanced", Path("summary.json"))
+    assert bands == {"B5": [710.0, 15.0]} and what.endswith("relative sum, n/a)")
 
 
 def test_own_response_keeps_a_measured_srf_only_at_the_bands_own_shape() -> None:

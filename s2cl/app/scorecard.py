@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from s2cl.app.analysis import analysis_bands
+from s2cl.app.applications import application_bands
 from s2cl.app.checks import Checked, check_sweep
 from s2cl.app.plan import plan_sweep, reference_row
 from s2cl.errors import InputError
@@ -155,8 +156,9 @@ def summary_design(summary: dict[str, Any], which: str, source: Path) -> tuple[d
             raise InputError(f"its Pareto front is not ranked by relative sum (applications without an own-bands "
                              f"score: {missing}): no balanced design", source=source, key="--sensor")
         d = designs[0]
+        rel = d.get("relative_sum")  # null where not finite (s2cl.sweep.pareto)
         return d["bands"], (f"balanced design (best of the Pareto front by relative sum, "
-                            f"{d.get('relative_sum', float('nan')):.4g})")
+                            f"{'n/a' if rel is None else format(rel, '.4g')})")
     best = summary.get("best") or next(iter(summary.get("top") or []), None)
     if not isinstance(best, dict) or not isinstance(best.get("bands"), dict):
         raise InputError("has no ranked design (best) to score: is it a finished sweep's summary.json?",
@@ -187,18 +189,19 @@ def results_sensor(folder: Path, scene: Scene, which: str = "best") -> Catalogue
                            "the scene's sensor, SNR scaled by sqrt(width / its width)", sensor, by_name=True)
 
 
-def application_roles(scene: Scene, multi: bool = False) -> dict[str, float]:
+def application_roles(scene: Scene, app: Application | None = None) -> dict[str, float]:
     """The bands a single-application scene's analysis reads, each with its centre (nm) on the scene's sensor: the
-    roles another sensor's bands must play. A family that reads every band it is given (IGRM, SAM) reads the
-    [sweep] bands, as the sweep's reference row does (else the analysis bands); one that reads the bands it names
-    (an index, a formula) those bands only, so a sensor is not refused for a band the application never reads (its
-    score is the same: each band's noise is keyed by its place in the sensor, not in the design). ``multi``: the
-    application comes from an ``[[application]]`` table, whose ``analysis.bands`` (where given) are its own."""
+    roles another sensor's bands must play. ``app``: the application of a scene with ``[[application]]`` tables
+    that ``scene`` stands for, which reads the bands a multi-application sweep gives it
+    (:func:`s2cl.app.applications.application_bands`). Otherwise a family that reads every band it is given (IGRM,
+    SAM) reads the [sweep] bands, as the sweep's reference row does (else the analysis bands); one that reads the
+    bands it names (an index, a formula) those bands only, so a sensor is not refused for a band the application
+    never reads (its score is the same: each band's noise is keyed by its place in the sensor, not in the design)."""
     a = scene.spec.analysis
     assert a is not None
     family = family_of(a.kind, scene.source)
-    if multi and a.bands:
-        bands = list(a.bands)
+    if app is not None:
+        bands = application_bands(scene, app)
     elif not family.uses_every_band:
         bands = family.default_bands(a, scene.sensor.band_names)
     else:
@@ -224,28 +227,31 @@ def fixed_scene(scene: Scene, sensor: Sensor, roles: list[str]) -> Scene:
     return dataclasses.replace(scene, spec=scene.spec.model_copy(update={"sweep": sweep}), sensor=sensor)
 
 
-def own_check(scene: Scene, multi: bool = False) -> Checked:
+def own_check(scene: Scene, app: Application | None = None) -> Checked:
     """The application's scene fixed at its own sensor's bands, checked: the scene's own errors (its library,
-    atmosphere, analysis) are errors here, once, before any sensor is scored."""
-    roles = list(application_roles(scene, multi))
+    atmosphere, analysis) are errors here, once, before any sensor is scored (``app``: as
+    :func:`application_roles`)."""
+    roles = list(application_roles(scene, app))
     return check_sweep(fixed_scene(scene, scene.sensor, roles))
 
 
 def score_cell(scene: Scene, app: Application, sensor: CatalogueSensor, tolerance_nm: float = DEFAULT_TOLERANCE_NM,
-               device: str | None = None) -> Cell:
+               device: str | None = None, own: Checked | None = None) -> Cell:
     """``app`` (of ``scene``) on ``sensor``'s own bands: the reference-row path of a sweep on the application's scene
-    with the sensor swapped in (module docstring); n/a with the reason where the sensor cannot run it."""
+    with the sensor swapped in (module docstring); n/a with the reason where the sensor cannot run it. ``own``: the
+    application's :func:`own_check`, whose library and atmosphere terms the cell reuses (a sensor changes neither)."""
     if sensor.sensor is None:
         return Cell(app.name, sensor.name, None, sensor.unavailable or "unavailable")
     one = application_scene(scene, app)
-    roles = application_roles(one, is_multi_application(scene))
+    roles = application_roles(one, app if is_multi_application(scene) else None)
     mapping = map_roles(roles, sensor.sensor, tolerance_nm, by_name=sensor.by_name)
     bands = {m.role: _band_record(sensor, m.band) for m in mapping.matches if m.band is not None}
     if mapping.missing:
         return Cell(app.name, sensor.name, None, mapping.missing, bands)
     try:
         fixed = fixed_scene(one, mapped_sensor(one.sensor, sensor.sensor, mapping), list(roles))
-        checked = check_sweep(fixed)
+        reuse = {} if own is None else {"library": own.library, "terms": (own.truth, own.assumed)}
+        checked = check_sweep(fixed, **reuse)
         row = reference_row(checked, plan_sweep(fixed, checked=checked, device=device), device)
     except InputError as err:  # this sensor's bands on this scene (an SRF outside the grid, an unfittable design)
         return Cell(app.name, sensor.name, None, err.detail, bands)
@@ -312,11 +318,13 @@ def scorecard(scene: str | Path | Scene, sensors: list[str] | None = None, *,
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise InputError(f"sensor {twice[0]} is named twice; known: {', '.join(known_sensors())}", key="--sensor")
-    infos = [app_info(app, own_check(application_scene(sc, app), is_multi_application(sc))) for app in apps]
+    multi = is_multi_application(sc)
+    owns = [own_check(application_scene(sc, app), app if multi else None) for app in apps]
+    infos = [app_info(app, own) for app, own in zip(apps, owns, strict=True)]
     cells = []
-    for app in apps:
-        for card in cards:
-            cells.append(score_cell(sc, app, card, tolerance_nm, device))
+    for app, own in zip(apps, owns, strict=True):
+        for card in cards:  # each cell on the library and atmosphere terms its application's checks loaded
+            cells.append(score_cell(sc, app, card, tolerance_nm, device, own=own))
             if progress is not None:
                 progress(cells[-1])
     return Scorecard(sc.name, tolerance_nm, infos, cards, cells)
