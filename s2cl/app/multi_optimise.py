@@ -44,7 +44,7 @@ from s2cl.sweep.engine import (
 from s2cl.sweep.front_search import check_front_search
 from s2cl.sweep.joint import APPLICATIONS, JointApplication, JointJob, indices_of, run_joint
 from s2cl.sweep.metrics_kernel import metrics_on_device
-from s2cl.sweep.report import Digest, heatmap, open_results, summarise
+from s2cl.sweep.report import Digest, heatmap, open_results, shapes, summarise
 from s2cl.sweep.trade_off import trade_off
 from s2cl.sweep.within_noise import mark_top, within_noise
 
@@ -274,6 +274,6 @@ def _within_noise(prepared: PreparedApplications, digest: Digest, candidates: in
         return None
     for d, (_, row), jc in zip(tested["designs"], top.iterrows(), joint_configs, strict=True):
         d["application_config"], d["config"] = d["config"], int(jc)
-        d["bands"] = {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in prepared.joint.bands}
+        d["bands"] = shapes(row, list(prepared.joint.bands))
     tested["configs"] = [d["config"] for d in tested["designs"] if d["within"]]
     return tested

@@ -19,12 +19,14 @@ sensor's own noise, and every card says so.
 from __future__ import annotations
 
 import importlib.resources
+import math
 from dataclasses import dataclass, field, replace
 
 from s2cl.errors import DependencyError, InputError, token
 from s2cl.io.inputs import parse_number
 from s2cl.io.tables import read_csv_table
-from s2cl.sensor.sensor import Band, Sensor
+from s2cl.sensor.roles import nearest_band
+from s2cl.sensor.sensor import Sensor
 from s2cl.sensor.srf import OLI_PY6S_BANDS, measured_oli_srf, measured_sentinel2_srf
 
 STAND_IN = ("stand-in: each band takes the radiometry (Lmin, Lref, Lmax, SNR) of the Sentinel-2 Table 1 band nearest "
@@ -145,16 +147,11 @@ def _table_sensor(name: str, title: str, file: str, source: str, srf: str) -> Ca
     bands, labels = [], {}
     table1 = Sensor.sentinel2()
     for row in _read_table(file):
-        like = nearest_table1_band(table1, row["centre_nm"])
+        like = table1.band(nearest_band(table1, row["centre_nm"], math.inf))  # the stand-in's source
         bands.append(like.stand_in(row["band"], row["centre_nm"], row["width_nm"], row["gsd_m"]))
         labels[row["band"]] = row["label"]
     sensor = Sensor(name=title, bands=tuple(bands), source=f"s2cl/data/{file}")
     return CatalogueSensor(name, title, source, srf, STAND_IN, sensor, labels=labels)
-
-
-def nearest_table1_band(table1: Sensor, centre_nm: float) -> Band:
-    """The Table 1 band whose centre is nearest ``centre_nm`` (the first listed on a tie): the stand-in's source."""
-    return min(table1.bands, key=lambda b: abs(b.centre_nm - centre_nm))
 
 
 def _read_table(file: str) -> list[dict[str, str | float]]:

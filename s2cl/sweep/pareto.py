@@ -32,7 +32,7 @@ import numpy as np
 from s2cl.io.output import atomic_path
 from s2cl.retrieve.metric import metric_scored_by
 from s2cl.sweep.digest import bands_of, rankable_rows
-from s2cl.sweep.report import open_results
+from s2cl.sweep.report import open_results, shapes
 from s2cl.sweep.within_noise import LEVEL, REPLICATES, SEED, design_stats, paired_bootstrap
 
 #: the results column that marks the front's designs
@@ -268,7 +268,7 @@ def pareto_record(df: Any, applications: Sequence[dict[str, Any]], margins: Sequ
     def entry(i: int) -> dict[str, Any]:
         row = df.iloc[i]
         e: dict[str, Any] = {"config": int(configs[i]),
-                             "bands": {b: [float(row[f"{b}_centre_nm"]), float(row[f"{b}_width_nm"])] for b in bands},
+                             "bands": shapes(row, bands),
                              "scores": {n: _finite(scores[i, k]) for k, n in enumerate(names)},
                              "within_noise": {n: bool(scores[i, k] - front_best[k] <= m[k])
                                               for k, n in enumerate(names)},
